@@ -1,0 +1,134 @@
+/* cmd_pending.c — the commands whose engines land with later work (ground truth,
+ * renderer, viewer). They already parse and check their arguments and their
+ * scene, so scripts get the final usage and bad-input behaviour today, and then
+ * say plainly that the engine is not available yet (exit 3). */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+#include "scene.h"
+
+static int not_available(const app_command *cmd, const char *what)
+{
+    fprintf(stderr, "lumesh %s: not available yet in this build: %s\n", cmd->name, what);
+    return APP_EXIT_RUNTIME;
+}
+
+/* Loads the scene (bad input -> exit 2), then reports the missing engine. */
+static int check_scene(const char *path, int need_light)
+{
+    scene_load_desc d = {.path = path, .require_light = need_light};
+    scene *s;
+    lm_error err;
+    lm_result r = scene_load(&d, &s, &err);
+    if (r != LM_OK) return app_report(r, &err);
+    scene_destroy(s);
+    return APP_EXIT_OK;
+}
+
+static int image_ext_ok(const char *path, int allow_png)
+{
+    char ext[16];
+    lm_path_ext(path, ext, sizeof ext);
+    return strcmp(ext, "exr") == 0 || (allow_png && strcmp(ext, "png") == 0);
+}
+
+int cmd_render(const app_command *cmd, int argc, char **argv)
+{
+    const char *out = NULL, *camera = NULL, *stats = NULL;
+    double seconds = 0;
+    long samples = 0, width = 0, height = 0;
+    app_opt opts[] = {
+        {"--output", "-o", APP_OPT_STRING, &out},
+        {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e7},
+        {"--samples", NULL, APP_OPT_INT, &samples, 1, 2e9},
+        {"--width", NULL, APP_OPT_INT, &width, 1, 32768},
+        {"--height", NULL, APP_OPT_INT, &height, 1, 32768},
+        {"--camera", NULL, APP_OPT_STRING, &camera},
+        {"--stats", NULL, APP_OPT_STRING, &stats},
+    };
+    const char *pos[1];
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, 7, pos, 1, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.png or OUT.exr)");
+    if (!image_ext_ok(out, 1)) return app_usage_error(cmd, "the output must end in .png or .exr");
+    if (opts[1].seen && opts[2].seen) return app_usage_error(cmd, "give --seconds or --samples, not both");
+    if (opts[3].seen != opts[4].seen) return app_usage_error(cmd, "give both --width and --height");
+    if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
+    return not_available(cmd, "the multi-mesh renderer is not built yet");
+}
+
+int cmd_reference(const app_command *cmd, int argc, char **argv)
+{
+    const char *out = NULL, *transport = "model";
+    double seconds = 0;
+    long spp = 0, bounces = 1, seed = 0, threads = 0;
+    app_opt opts[] = {
+        {"--output", "-o", APP_OPT_STRING, &out},
+        {"--spp", NULL, APP_OPT_INT, &spp, 1, 1e9},
+        {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e7},
+        {"--transport", NULL, APP_OPT_STRING, &transport},
+        {"--bounces", NULL, APP_OPT_INT, &bounces, 0, 64},
+        {"--seed", NULL, APP_OPT_INT, &seed, 0, 2147483647},
+        {"--threads", NULL, APP_OPT_INT, &threads, 1, 1024},
+    };
+    const char *pos[1];
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, 7, pos, 1, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.exr)");
+    if (!image_ext_ok(out, 0)) return app_usage_error(cmd, "the output must end in .exr");
+    if (opts[1].seen == opts[2].seen) return app_usage_error(cmd, "give exactly one of --spp or --seconds");
+    if (strcmp(transport, "model") != 0 && strcmp(transport, "full") != 0)
+        return app_usage_error(cmd, "--transport is 'model' or 'full', not '%s'", transport);
+    if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
+    return not_available(cmd, "the Embree reference renderer is not built yet");
+}
+
+int cmd_compare(const app_command *cmd, int argc, char **argv)
+{
+    int json = 0;
+    const char *heatmap = NULL;
+    double exposure = 0;
+    app_opt opts[] = {
+        {"--json", NULL, APP_OPT_FLAG, &json},
+        {"--heatmap", NULL, APP_OPT_STRING, &heatmap},
+        {"--exposure", NULL, APP_OPT_DOUBLE, &exposure, -64, 64},
+    };
+    const char *pos[2];
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, 3, pos, 2, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if (npos != 2) return app_usage_error(cmd, "give two images: the one to test, then the reference");
+    return not_available(cmd, "image comparison is not built yet");
+}
+
+int cmd_converge(const app_command *cmd, int argc, char **argv)
+{
+    const char *ref = NULL, *out = NULL;
+    double seconds = 0;
+    app_opt opts[] = {
+        {"--reference", NULL, APP_OPT_STRING, &ref},
+        {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e7},
+        {"--out", NULL, APP_OPT_STRING, &out},
+    };
+    const char *pos[1];
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, 3, pos, 1, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if (!ref || !out || !opts[1].seen)
+        return app_usage_error(cmd, "--reference, --seconds and --out are required");
+    if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
+    return not_available(cmd, "the multi-mesh renderer is not built yet");
+}
+
+int cmd_view(const app_command *cmd, int argc, char **argv)
+{
+    const char *pos[1];
+    int npos, rc = app_parse_options(cmd, argc, argv, NULL, 0, pos, 1, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
+    return not_available(cmd, "the interactive viewer is not built yet");
+}

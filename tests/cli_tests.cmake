@@ -1,0 +1,74 @@
+# End-to-end tests of the `lumesh` command line (exit codes and output scripts rely on).
+set(RUN_CLI ${CMAKE_CURRENT_SOURCE_DIR}/run_cli.cmake)
+set(LUMESH_EXE $<TARGET_FILE:lumesh_cli>)
+
+function(lumesh_cli_test name exit)
+  cmake_parse_arguments(A "ONE_ERR_LINE" "OUT;ERR" "ARGS" ${ARGN})
+  set(defs -DEXPECT_EXIT=${exit})
+  if(A_OUT)
+    list(APPEND defs "-DEXPECT_OUT=${A_OUT}")
+  endif()
+  if(A_ERR)
+    list(APPEND defs "-DEXPECT_ERR=${A_ERR}")
+  endif()
+  if(A_ONE_ERR_LINE)
+    list(APPEND defs -DONE_ERR_LINE=1)
+  endif()
+  string(REPLACE ";" "|" cmd "${LUMESH_EXE};${A_ARGS}")
+  add_test(NAME cli_${name} COMMAND ${CMAKE_COMMAND} "-DCMD=${cmd}" ${defs} -P ${RUN_CLI})
+endfunction()
+
+lumesh_cli_test(version 0 ARGS --version OUT "^lumesh [0-9]+\\.[0-9]+\\.[0-9]+\n$")
+lumesh_cli_test(help 0 ARGS --help OUT "usage: lumesh COMMAND.*info.*render.*reference.*compare.*converge.*view")
+lumesh_cli_test(no_command 1 ERR "usage: lumesh COMMAND")
+lumesh_cli_test(unknown_command 1 ARGS frobnicate ERR "'frobnicate' is not a command")
+foreach(c info render reference compare converge view)
+  lumesh_cli_test(${c}_help 0 ARGS ${c} --help OUT "^usage: lumesh ${c}")
+endforeach()
+lumesh_cli_test(info_unknown_option 1 ARGS info --frob ERR "unknown option '--frob'")
+lumesh_cli_test(render_needs_output 1 ARGS render ERR "output image is required")
+lumesh_cli_test(render_bad_width 1 ARGS render -o x.png --width 0 --height 5 ERR "--width wants a whole number")
+lumesh_cli_test(render_seconds_and_samples 1 ARGS render -o x.png --seconds 1 --samples 5 ERR "not both")
+lumesh_cli_test(reference_bad_transport 1 ARGS reference -o x.exr --spp 4 --transport magic ERR "'model' or 'full'")
+lumesh_cli_test(compare_needs_two 1 ARGS compare a.exr ERR "two images")
+
+# The built-in scene: the Cornell box written from the published measurements.
+lumesh_cli_test(info_builtin 0 ARGS info
+  OUT "builtin:/cornell-box.json.*triangles   38 .*lights      1 \\(1 area, 0 point\\).*radiance \\(17, 12, 4\\).*facing -Y \\(down\\).*cornell .*512x512")
+
+# Pending engines: arguments and scene are checked, then a plain "not available yet".
+lumesh_cli_test(render_pending 3 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/pending.png ONE_ERR_LINE ERR "not available yet")
+
+set(CB ${LUMESH_SCENES}/cornell-box)
+if(EXISTS ${CB}/CornellBox-Original.obj)
+  lumesh_cli_test(info_original 0 ARGS info ${CB}/CornellBox-Original.obj
+    OUT "triangles   32 .*dropped     4 duplicate.*area 0   'light': 2 triangles, area 0.1786, radiance \\(17, 12, 4\\).*facing -Y \\(down\\).*dropped 2 duplicate triangles of material 'shortBox'.*dropped 2 duplicate triangles of material 'tallBox'")
+  lumesh_cli_test(info_mirror_refraction 0 ARGS info ${CB}/CornellBox-Mirror.obj
+    OUT "material 'tallBox': refraction \\(OBJ illum 4-9\\) approximated")
+  foreach(v Empty-CO:12 Empty-RG:12 Empty-Squashed:12 Empty-White:12 Glossy:1112 Sphere:2188 Water:7088 Mirror:32)
+    string(REPLACE ":" ";" parts ${v})
+    list(GET parts 0 variant)
+    list(GET parts 1 tris)
+    lumesh_cli_test(info_cornell_${variant} 0 ARGS info ${CB}/CornellBox-${variant}.obj
+      OUT "triangles   ${tris} .*lights      1 \\(1 area, 0 point\\)")
+  endforeach()
+  lumesh_cli_test(info_bunny 0 ARGS info ${LUMESH_SCENES}/stanford-bunny/stanford-bunny.obj
+    OUT "triangles   69451 .*lights      0 \\(0 area, 0 point\\).*none: no triangle emits")
+endif()
+
+# The bad-input corpus through the command line: exit 2 and exactly one line.
+file(STRINGS ${CMAKE_CURRENT_SOURCE_DIR}/badinput/expect.txt corpus)
+foreach(line IN LISTS corpus)
+  if(line MATCHES "^#" OR line STREQUAL "")
+    continue()
+  endif()
+  string(REPLACE "|" ";" f "${line}")
+  list(GET f 0 file)
+  list(GET f 1 command)
+  list(GET f 2 code)
+  set(args ${command} ${CMAKE_CURRENT_SOURCE_DIR}/badinput/${file})
+  if(command STREQUAL "render")
+    list(APPEND args -o ${CMAKE_CURRENT_BINARY_DIR}/never-written.png)
+  endif()
+  lumesh_cli_test(badinput_${file} ${code} ARGS ${args} ONE_ERR_LINE ERR "lumesh: .*${file}")
+endforeach()

@@ -1,0 +1,27 @@
+# Runs one lumesh command and checks what a script relies on.
+#   -DCMD="lumesh|info|x.obj" ("|" separates arguments: a ";" would not survive add_test)  -DEXPECT_EXIT=2  [-DEXPECT_OUT=regex] [-DEXPECT_ERR=regex]
+#   [-DONE_ERR_LINE=1]: stderr must be exactly one line.
+string(REPLACE "|" ";" CMD "${CMD}")
+execute_process(COMMAND ${CMD} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
+                TIMEOUT 120)
+set(fail "")
+if(NOT "${rc}" STREQUAL "${EXPECT_EXIT}")
+  string(APPEND fail "exit code ${rc}, expected ${EXPECT_EXIT}\n")
+endif()
+if(DEFINED EXPECT_OUT AND NOT out MATCHES "${EXPECT_OUT}")
+  string(APPEND fail "stdout does not match '${EXPECT_OUT}'\n")
+endif()
+if(DEFINED EXPECT_ERR AND NOT err MATCHES "${EXPECT_ERR}")
+  string(APPEND fail "stderr does not match '${EXPECT_ERR}'\n")
+endif()
+if(ONE_ERR_LINE)
+  string(REGEX MATCHALL "\n" newlines "${err}")
+  list(LENGTH newlines n)
+  if(NOT n EQUAL 1)
+    string(APPEND fail "stderr has ${n} lines, expected exactly one\n")
+  endif()
+endif()
+if(fail)
+  message(FATAL_ERROR "${fail}--- stdout:\n${out}--- stderr:\n${err}")
+endif()
+message(STATUS "ok: exit ${rc}")

@@ -1,0 +1,46 @@
+/* test_util.h — a minimal assertion layer for ctest programs.
+ * A failed CHECK prints file:line and the condition and marks the test failed;
+ * main returns test_finish(), non-zero when anything failed. */
+#ifndef LUMESH_TEST_UTIL_H
+#define LUMESH_TEST_UTIL_H
+
+#include <stdio.h>
+
+extern int test_failures;
+extern int test_checks;
+
+#define CHECK(cond)                                                                   \
+    do {                                                                              \
+        test_checks++;                                                                \
+        if (!(cond)) {                                                                \
+            test_failures++;                                                          \
+            fprintf(stderr, "%s:%d: CHECK failed: %s\n", __FILE__, __LINE__, #cond);  \
+        }                                                                             \
+    } while (0)
+
+#define CHECK_MSG(cond, ...)                                                          \
+    do {                                                                              \
+        test_checks++;                                                                \
+        if (!(cond)) {                                                                \
+            test_failures++;                                                          \
+            fprintf(stderr, "%s:%d: CHECK failed: %s: ", __FILE__, __LINE__, #cond);  \
+            fprintf(stderr, __VA_ARGS__);                                             \
+            fputc('\n', stderr);                                                      \
+        }                                                                             \
+    } while (0)
+
+#define CHECK_NEAR(a, b, tol)                                                          \
+    do {                                                                               \
+        double ca_ = (double)(a), cb_ = (double)(b);                                   \
+        test_checks++;                                                                 \
+        if (!(ca_ - cb_ <= (tol) && cb_ - ca_ <= (tol))) {                              \
+            test_failures++;                                                           \
+            fprintf(stderr, "%s:%d: CHECK_NEAR failed: %s = %.9g, %s = %.9g, tol %g\n", \
+                    __FILE__, __LINE__, #a, ca_, #b, cb_, (double)(tol));              \
+        }                                                                              \
+    } while (0)
+
+/* Prints a summary and returns the process exit code. */
+int test_finish(const char *name);
+
+#endif

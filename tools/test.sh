@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# The test command of the README (and of CI): builds two configurations and runs
+# the whole ctest suite on each:
+#   build/release  Release, -Wall -Wextra -Werror
+#   build/asan     Debug, AddressSanitizer + UndefinedBehaviorSanitizer
+# Third-party scenes are read from ../shared/scenes beside the checkout.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+jobs=$(nproc 2>/dev/null || echo 2)
+
+cmake -S . -B build/release -DCMAKE_BUILD_TYPE=Release -DLUMESH_WERROR=ON
+cmake --build build/release -j "$jobs"
+ctest --test-dir build/release --output-on-failure -j "$jobs"
+
+cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=Debug -DLUMESH_WERROR=ON -DLUMESH_SANITIZE=ON
+cmake --build build/asan -j "$jobs"
+ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+  ctest --test-dir build/asan --output-on-failure -j "$jobs"
