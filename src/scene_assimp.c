@@ -140,9 +140,10 @@ static scene_material translate_material(const struct aiMaterial *am)
     name.length = 0;
     name.data[0] = '\0';
     aiGetMaterialString(am, AI_MATKEY_NAME, &name);
-    scene_material m = scene_material_default(name.length ? name.data : "unnamed");
-    if (strcmp(m.name, AI_DEFAULT_MATERIAL_NAME) == 0) {
-        /* Assimp's stand-in when the file has no material (PLY, STL, OBJ without mtllib). */
+    scene_material m = scene_material_default(name.data);
+    if (name.length == 0 || strcmp(name.data, AI_DEFAULT_MATERIAL_NAME) == 0) {
+        /* Assimp's stand-in when the file has no material: named "DefaultMaterial"
+         * (PLY, STL, OBJ without mtllib) or nameless (OFF, glTF's spare one). */
         lm_strlcpy(m.name, "default", sizeof m.name);
         m.notes |= SCENE_MATNOTE_DEFAULT;
         return m;

@@ -311,6 +311,59 @@ static void test_mirror_transform_and_camera(void)
     scene_destroy(s);
 }
 
+/* The other formats Assimp gives us: glTF 2.0 (with a node transform and an
+ * emissive PBR material), OFF and ASCII STL. */
+static void test_formats(void)
+{
+    char path[1024];
+    write_text("tri.gltf",
+               "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0, \"scenes\": [{\"nodes\": [0]}],"
+               " \"nodes\": [{\"mesh\": 0, \"translation\": [5, 0, 0]}],"
+               " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"material\": 0}]}],"
+               " \"materials\": [{\"name\": \"glow\", \"emissiveFactor\": [1, 0.5, 0.25],"
+               " \"pbrMetallicRoughness\": {\"baseColorFactor\": [0.2, 0.3, 0.4, 1]}}],"
+               " \"buffers\": [{\"byteLength\": 36, \"uri\": \"data:application/octet-stream;base64,"
+               "AAAAAAAAAAAAAAAAAACAPwAAAAAAAAAAAAAAAAAAgD8AAAAA\"}],"
+               " \"bufferViews\": [{\"buffer\": 0, \"byteLength\": 36}],"
+               " \"accessors\": [{\"bufferView\": 0, \"componentType\": 5126, \"count\": 3,"
+               " \"type\": \"VEC3\", \"min\": [0, 0, 0], \"max\": [1, 1, 0]}]}",
+               path, sizeof path);
+    scene *s = load(path, LM_OK);
+    if (s) {
+        CHECK(s->tri_count == 1);
+        CHECK_NEAR(s->bounds_min[0], 5.0, 0);
+        CHECK_NEAR(s->bounds_max[0], 6.0, 0);
+        CHECK(s->area_light_count == 1);
+        if (s->area_light_count == 1) {
+            CHECK_NEAR(s->area_lights[0].le[1], 0.5, 1e-6);
+            CHECK_NEAR(s->area_lights[0].normal[2], 1.0, 1e-6);
+        }
+        CHECK_NEAR(s->materials[0].kd[2], 0.4, 1e-6);
+        scene_destroy(s);
+    }
+    write_text("square.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n", path, sizeof path);
+    s = load(path, LM_OK);
+    if (s) {
+        CHECK(s->tri_count == 2 && s->vertex_count == 4);
+        CHECK(s->materials[0].notes & SCENE_MATNOTE_DEFAULT);
+        scene_destroy(s);
+    }
+    write_text("tri.stl",
+               "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
+               "endloop\nendfacet\nfacet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\n"
+               "vertex 0 1 0\nendloop\nendfacet\nendsolid t\n",
+               path, sizeof path);
+    s = load(path, LM_OK);
+    if (s) {
+        /* STL repeats corners per facet; welding shares them: one interior edge. */
+        CHECK(s->tri_count == 2 && s->vertex_count == 4);
+        mesh_geo_stats gs;
+        mesh_geo_get_stats(s->topology, &gs);
+        CHECK(gs.sides[MESH_EDGE_INTERIOR] == 2);
+        scene_destroy(s);
+    }
+}
+
 int main(void)
 {
     test_builtin();
@@ -319,5 +372,6 @@ int main(void)
     test_curved_emitter_and_normals();
     test_light_grouping();
     test_mirror_transform_and_camera();
+    test_formats();
     return test_finish("scene_model_test");
 }
