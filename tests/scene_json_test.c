@@ -10,16 +10,6 @@
 #include "test_util.h"
 #include "vecmath.h"
 
-static void write_text(const char *name, const char *text, char *path_out, size_t n)
-{
-    snprintf(path_out, n, "%s/%s", LUMESH_TMP_DIR, name);
-    FILE *f = fopen(path_out, "wb");
-    CHECK_MSG(f != NULL, "cannot write %s", path_out);
-    if (!f) return;
-    fputs(text, f);
-    fclose(f);
-}
-
 static scene *load_ok(const char *path)
 {
     scene_load_desc d = {.path = path};
@@ -58,7 +48,7 @@ static void test_override_mtl(void)
              " \"tonemap\": {\"exposure\": -1.5},\n"
              " \"colour\": \"typo\"}\n",
              LUMESH_SCENES);
-    write_text("override.json", text, json, sizeof json);
+    test_write_file("override.json", text, json, sizeof json);
     scene *s = load_ok(json);
     if (!s) return;
     const scene_material *lw = find_material(s, "leftWall");
@@ -96,7 +86,7 @@ static void test_ply_with_material_and_lights(void)
              " \"edge2\": [0, 0, 2], \"radiance\": [5, 5, 5]},\n"
              "            {\"type\": \"point\", \"position\": [0, 2, 2], \"intensity\": [3, 2, 1]}]}\n",
              LUMESH_SCENES);
-    write_text("dragon.json", text, json, sizeof json);
+    test_write_file("dragon.json", text, json, sizeof json);
     scene *s = load_ok(json);
     if (!s) return;
     /* 47,794 triangles in the file, plus the quad light's 2 */
@@ -132,8 +122,8 @@ static void test_relative_paths(void)
     char dir[1024], obj[1024], json[1024];
     snprintf(dir, sizeof dir, "%s/sub", LUMESH_TMP_DIR);
     mkdir(dir, 0755);
-    write_text("sub/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", obj, sizeof obj);
-    write_text("relative.json",
+    test_write_file("sub/tri.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n", obj, sizeof obj);
+    test_write_file("relative.json",
                "{\"meshes\": [{\"file\": \"sub/tri.obj\", \"material\": \"m\"}],"
                " \"materials\": {\"m\": {\"Le\": [1, 1, 1]}}}",
                json, sizeof json);

@@ -12,16 +12,6 @@
 #include "test_util.h"
 #include "vecmath.h"
 
-static void write_text(const char *name, const char *text, char *path_out, size_t n)
-{
-    snprintf(path_out, n, "%s/%s", LUMESH_TMP_DIR, name);
-    FILE *f = fopen(path_out, "wb");
-    CHECK_MSG(f != NULL, "cannot write %s", path_out);
-    if (!f) return;
-    fputs(text, f);
-    fclose(f);
-}
-
 static scene *load(const char *path, lm_result expect)
 {
     scene_load_desc d = {.path = path};
@@ -87,7 +77,7 @@ static void test_cleaning(void)
     /* t1: a quad; t2: the quad's first triangle again with opposite winding;
      * t3: collinear; t4: repeated corner; t5: a triangle whose first corner is
      * written as a new vertex (-0.0, -0.0, 0) equal to vertex 1. */
-    write_text("clean.obj",
+    test_write_file("clean.obj",
                "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\n"
                "v 2 0 0\nv 3 0 0\nv -0.0 -0.0 0\nv 3 1 0\n"
                "f 1 2 3 4\n"
@@ -108,9 +98,9 @@ static void test_cleaning(void)
 
     /* Overflow to Inf through a transform is caught as non-finite. */
     char obj[1024], json[1024];
-    write_text("huge.obj", "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\nf 4 5 6\n",
+    test_write_file("huge.obj", "v 0 0 0\nv 1e30 0 0\nv 0 1 0\nv 0 0 1\nv 1 0 1\nv 0 1 1\nf 1 2 3\nf 4 5 6\n",
                obj, sizeof obj);
-    write_text("huge.json",
+    test_write_file("huge.json",
                "{\"meshes\": [{\"file\": \"huge.obj\", \"transform\": "
                "[1e10,0,0,0, 0,1e10,0,0, 0,0,1e10,0, 0,0,0,1]}]}",
                json, sizeof json);
@@ -133,7 +123,7 @@ static void test_rewind_lamp(void)
              "{\"meshes\": [{\"file\": \"%s\", \"material\": \"lamp\"}],"
              " \"materials\": {\"lamp\": {\"kd\": [0.73, 0.73, 0.73], \"Le\": [1420, 1552, 1642]}}}",
              lamp);
-    write_text("lamp.json", text, json, sizeof json);
+    test_write_file("lamp.json", text, json, sizeof json);
     scene *s = load(json, LM_OK);
     if (!s) return;
     CHECK(s->report.rewound == s->tri_count && s->tri_count == 2);
@@ -150,7 +140,7 @@ static void write_sphere(const char *name, int nlat, int nlon, int emissive, cha
     size_t len = 0;
     if (emissive) {
         char mtl[1024];
-        write_text("glow.mtl", "newmtl glow\nKd 0 0 0\nKe 2 2 2\n", mtl, sizeof mtl);
+        test_write_file("glow.mtl", "newmtl glow\nKd 0 0 0\nKe 2 2 2\n", mtl, sizeof mtl);
         len += (size_t)snprintf(buf + len, cap - len, "mtllib glow.mtl\nusemtl glow\n");
     }
     len += (size_t)snprintf(buf + len, cap - len, "v 0 1 0\n");
@@ -174,7 +164,7 @@ static void write_sphere(const char *name, int nlat, int nlon, int emissive, cha
                                 RING(nlat - 1, j + 1));
 #undef RING
     CHECK(len < cap);
-    write_text(name, buf, path, n);
+    test_write_file(name, buf, path, n);
     free(buf);
 }
 
@@ -227,8 +217,8 @@ static void test_light_grouping(void)
     char path[1024];
     /* Two coplanar quads side by side: left emits with material a, right with b;
      * a third quad of material a, coplanar but not connected. */
-    write_text("groups.mtl", "newmtl a\nKe 1 1 1\nnewmtl b\nKe 2 2 2\n", path, sizeof path);
-    write_text("groups.obj",
+    test_write_file("groups.mtl", "newmtl a\nKe 1 1 1\nnewmtl b\nKe 2 2 2\n", path, sizeof path);
+    test_write_file("groups.obj",
                "mtllib groups.mtl\n"
                "v 0 0 0\nv 1 0 0\nv 2 0 0\nv 0 0 -1\nv 1 0 -1\nv 2 0 -1\n"
                "v 5 0 0\nv 6 0 0\nv 6 0 -1\nv 5 0 -1\n"
@@ -258,7 +248,7 @@ static void test_light_grouping(void)
             int a = 1 + i * (n + 1) + j;
             len += (size_t)snprintf(buf + len, cap - len, "f %d %d %d %d\n", a, a + n + 1, a + n + 2, a + 1);
         }
-    write_text("grid.obj", buf, path, sizeof path);
+    test_write_file("grid.obj", buf, path, sizeof path);
     free(buf);
     s = load(path, LM_OK);
     if (!s) return;
@@ -274,9 +264,9 @@ static void test_light_grouping(void)
 static void test_mirror_transform_and_camera(void)
 {
     char obj[1024], json[1024];
-    write_text("normals.obj",
+    test_write_file("normals.obj",
                "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1\n", obj, sizeof obj);
-    write_text("mirror.json",
+    test_write_file("mirror.json",
                "{\"meshes\": [{\"file\": \"normals.obj\", \"transform\": "
                "[-1,0,0,0, 0,1,0,0, 0,0,1,0, 0,0,0,1]}],"
                " \"lights\": [{\"type\": \"point\", \"position\": [0,0,1], \"intensity\": [1,1,1]}]}",
@@ -316,7 +306,7 @@ static void test_mirror_transform_and_camera(void)
 static void test_formats(void)
 {
     char path[1024];
-    write_text("tri.gltf",
+    test_write_file("tri.gltf",
                "{\"asset\": {\"version\": \"2.0\"}, \"scene\": 0, \"scenes\": [{\"nodes\": [0]}],"
                " \"nodes\": [{\"mesh\": 0, \"translation\": [5, 0, 0]}],"
                " \"meshes\": [{\"primitives\": [{\"attributes\": {\"POSITION\": 0}, \"material\": 0}]}],"
@@ -341,14 +331,14 @@ static void test_formats(void)
         CHECK_NEAR(s->materials[0].kd[2], 0.4, 1e-6);
         scene_destroy(s);
     }
-    write_text("square.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n", path, sizeof path);
+    test_write_file("square.off", "OFF\n4 1 0\n0 0 0\n1 0 0\n1 1 0\n0 1 0\n4 0 1 2 3\n", path, sizeof path);
     s = load(path, LM_OK);
     if (s) {
         CHECK(s->tri_count == 2 && s->vertex_count == 4);
         CHECK(s->materials[0].notes & SCENE_MATNOTE_DEFAULT);
         scene_destroy(s);
     }
-    write_text("tri.stl",
+    test_write_file("tri.stl",
                "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\n"
                "endloop\nendfacet\nfacet normal 0 0 1\nouter loop\nvertex 1 0 0\nvertex 1 1 0\n"
                "vertex 0 1 0\nendloop\nendfacet\nendsolid t\n",

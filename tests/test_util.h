@@ -40,6 +40,12 @@ extern int test_checks;
         }                                                                              \
     } while (0)
 
+#include <stddef.h>
+
+/* Writes text to LUMESH_TMP_DIR/name (the test's build directory) and puts the
+ * full path into path_out. A failure to write is a failed check. */
+void test_write_file(const char *name, const char *text, char *path_out, size_t n);
+
 /* Prints a summary and returns the process exit code. */
 int test_finish(const char *name);
 
