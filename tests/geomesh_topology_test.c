@@ -491,8 +491,9 @@ static void test_grid(void)
     double t0 = now_seconds();
     mesh_geo *g = make(pos, nv, tris, GT, NULL, 0);
     double dt = now_seconds() - t0;
+    /* Timing is printed, not asserted: speed targets live in bench/, and this
+     * also runs under the sanitizers on a loaded machine. */
     printf("grid %dx%d (%d triangles): built in %.3f s\n", GW, GH, GT, dt);
-    CHECK_MSG(dt < 1.0, "building %d triangles took %.3f s", GT, dt);
     if (g) {
         expect_stats(g, 299100, 900, 0, 0, 0, "grid");
         check_consistent(g, tris, GT, "grid");
