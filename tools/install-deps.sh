@@ -8,6 +8,7 @@ packages=(
   libopenmesh-dev                    # geometric mesh topology
   libopenimageio-dev                 # EXR and PNG images
   libcjson-dev                       # JSON scene descriptions
+  libembree-dev                      # CPU ray tracing: reference renderer, Embree sampler
 )
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi

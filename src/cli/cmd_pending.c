@@ -59,33 +59,6 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     return not_available(cmd, "the multi-mesh renderer is not built yet");
 }
 
-int cmd_reference(const app_command *cmd, int argc, char **argv)
-{
-    const char *out = NULL, *transport = "model";
-    double seconds = 0;
-    long spp = 0, bounces = 1, seed = 0, threads = 0;
-    app_opt opts[] = {
-        {"--output", "-o", APP_OPT_STRING, &out},
-        {"--spp", NULL, APP_OPT_INT, &spp, 1, 1e9},
-        {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e7},
-        {"--transport", NULL, APP_OPT_STRING, &transport},
-        {"--bounces", NULL, APP_OPT_INT, &bounces, 0, 64},
-        {"--seed", NULL, APP_OPT_INT, &seed, 0, 2147483647},
-        {"--threads", NULL, APP_OPT_INT, &threads, 1, 1024},
-    };
-    const char *pos[1];
-    int npos, rc = app_parse_options(cmd, argc, argv, opts, 7, pos, 1, &npos);
-    if (rc < 0) return APP_EXIT_OK;
-    if (rc) return rc;
-    if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.exr)");
-    if (!image_ext_ok(out, 0)) return app_usage_error(cmd, "the output must end in .exr");
-    if (opts[1].seen == opts[2].seen) return app_usage_error(cmd, "give exactly one of --spp or --seconds");
-    if (strcmp(transport, "model") != 0 && strcmp(transport, "full") != 0)
-        return app_usage_error(cmd, "--transport is 'model' or 'full', not '%s'", transport);
-    if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
-    return not_available(cmd, "the Embree reference renderer is not built yet");
-}
-
 int cmd_compare(const app_command *cmd, int argc, char **argv)
 {
     int json = 0;

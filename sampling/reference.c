@@ -1,0 +1,436 @@
+/* reference.c — the progressive reference path tracer (see reference.h for the
+ * two transports and the determinism rule). */
+#include "reference.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "ref_shading.h"
+#include "rt_scene.h"
+
+enum { TILE = 16, MAX_THREADS = 256, MAX_FULL_DEPTH = 256, RR_START_DEPTH = 3 };
+
+/* Per-pixel accumulators. Owned by the renderer; during a pass each pixel is
+ * written by exactly one worker (the one that took its tile), never read. */
+typedef struct ref_pixel {
+    double sum[3], sum2[3]; /* sums of samples and of their squares, per channel */
+    double sum_y, sum_y2;   /* the same for luminance */
+    uint32_t count;
+} ref_pixel;
+
+struct ref_renderer {
+    ref_desc desc;
+    const scene *s;
+    rt_scene *rt;
+    ref_lights lights;
+    float eps;
+    int width, height, threads;
+    lm_vec3 cam_pos, cam_fwd, cam_right, cam_up; /* right/up scaled to the image plane at 1 */
+    ref_pixel *pixels;
+    uint64_t rays;          /* main thread; summed from workers after each pass */
+    double seconds;
+
+    /* pass state: set before workers start, read-only while they run */
+    volatile sig_atomic_t *cancel;
+    double deadline;
+    atomic_uint next_tile;
+    atomic_ullong pass_rays;
+    atomic_ullong bad_samples;
+};
+
+/* ---- tracing helpers ------------------------------------------------------ */
+
+typedef struct ctx {
+    ref_renderer *r;          /* workers touch only the pass counters and their own tiles */
+    ref_rng g;
+    uint64_t rays;
+} ctx;
+
+static lm_vec3 offset(const ctx *c, const ref_surface *x, lm_vec3 dir)
+{
+    lm_vec3 n = v3_dot(dir, x->ng) >= 0.0f ? x->ng : v3_scale(x->ng, -1.0f);
+    return v3_add(x->p, v3_scale(n, c->r->eps));
+}
+
+static int trace(ctx *c, lm_vec3 org, lm_vec3 dir, rt_hit *h)
+{
+    float o[3] = {org.x, org.y, org.z}, d[3] = {dir.x, dir.y, dir.z};
+    c->rays++;
+    return rt_intersect(c->r->rt, o, d, 0.0f, INFINITY, h);
+}
+
+static int visible(ctx *c, const ref_surface *x, lm_vec3 wi, float dist)
+{
+    lm_vec3 org = offset(c, x, wi);
+    float o[3] = {org.x, org.y, org.z}, d[3] = {wi.x, wi.y, wi.z};
+    float tfar = dist - 2.0f * c->r->eps;
+    c->rays++;
+    return tfar <= 0.0f || !rt_occluded(c->r->rt, o, d, 0.0f, tfar);
+}
+
+static int emits_towards(const scene *s, uint32_t tri, lm_vec3 wi)
+{
+    return s->tris[tri].light >= 0 && v3_dot(v3_load(s->tri_normals + 3 * (size_t)tri), wi) < 0.0f;
+}
+
+static int has_specular(const scene_material *m)
+{
+    return m->ks[0] > 0.0f || m->ks[1] > 0.0f || m->ks[2] > 0.0f;
+}
+
+static float avg3(const float *c) { return (c[0] + c[1] + c[2]) * (1.0f / 3.0f); }
+
+/* ---- direct light --------------------------------------------------------- */
+
+/* Direct light at x seen from wo, split into the diffuse radiance per unit
+ * albedo, (1/π)·Σ E_ℓ (multiply by kd), and the specular radiance already
+ * multiplied by ks. `spec_mis_pdf` chooses how the specular part of the light
+ * sample is weighted against BRDF sampling: the model transport samples the
+ * Phong lobe alone (weight against the lobe pdf), the full transport samples the
+ * whole BRDF (weight against the mixture pdf, and the diffuse part too). */
+typedef enum mis_mode { MIS_LOBE_ONLY = 0, MIS_FULL_BRDF } mis_mode;
+
+static float brdf_pdf(const scene_material *m, lm_vec3 wi, lm_vec3 wo, lm_vec3 ns, float p_spec)
+{
+    float cosi = v3_dot(ns, wi);
+    if (cosi <= 0.0f) return 0.0f;
+    return (1.0f - p_spec) * cosi / (float)M_PI + p_spec * ref_phong_pdf(m->n, wi, wo, ns);
+}
+
+static float spec_probability(const scene_material *m)
+{
+    float d = avg3(m->kd), s = avg3(m->ks);
+    return d + s > 0.0f ? s / (d + s) : 0.0f;
+}
+
+static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_specular, mis_mode mode,
+                         float diffuse[3], float specular[3])
+{
+    const scene *s = c->r->s;
+    const scene_material *m = x->m;
+    int spec = want_specular && has_specular(m);
+    float p_spec = spec_probability(m);
+    for (int k = 0; k < 3; ++k) diffuse[k] = specular[k] = 0.0f;
+
+    if (s->area_light_count) {
+        ref_light_sample ls;
+        if (ref_sample_area_light(&c->r->lights, &c->g, x->p, &ls)) {
+            float cosx = v3_dot(x->ns, ls.wi);
+            if (cosx > 0.0f && v3_dot(x->ng, ls.wi) > 0.0f && visible(c, x, ls.wi, ls.dist)) {
+                float e = cosx / ls.pdf; /* E per unit radiance */
+                float wd = 1.0f, ws = 1.0f;
+                if (mode == MIS_FULL_BRDF) {
+                    wd = ws = ref_mis(ls.pdf, brdf_pdf(m, ls.wi, wo, x->ns, p_spec));
+                } else if (spec) {
+                    ws = ref_mis(ls.pdf, ref_phong_pdf(m->n, ls.wi, wo, x->ns));
+                }
+                float lobe = spec ? ref_phong_lobe(m->n, ls.wi, wo, x->ns) : 0.0f;
+                for (int k = 0; k < 3; ++k) {
+                    diffuse[k] += wd * ls.le[k] * e / (float)M_PI;
+                    specular[k] += ws * m->ks[k] * lobe * ls.le[k] * e;
+                }
+            }
+        }
+        /* Lobe sampling for the specular integral (model transport only: the full
+         * transport's BRDF sample does this as part of the path). */
+        if (spec && mode == MIS_LOBE_ONLY) {
+            float u1 = ref_rng_float(&c->g), u2 = ref_rng_float(&c->g);
+            lm_vec3 wi = ref_sample_phong(m->n, wo, x->ns, u1, u2);
+            float cosx = v3_dot(x->ns, wi);
+            rt_hit h;
+            if (cosx > 0.0f && v3_dot(x->ng, wi) > 0.0f && trace(c, offset(c, x, wi), wi, &h) &&
+                emits_towards(s, h.tri, wi)) {
+                float pb = ref_phong_pdf(m->n, wi, wo, x->ns);
+                float pl = ref_area_light_pdf(&c->r->lights, h.tri, wi, h.t);
+                float w = ref_mis(pb, pl) * ref_phong_lobe(m->n, wi, wo, x->ns) * cosx / pb;
+                const float *le = s->area_lights[s->tris[h.tri].light].le;
+                for (int k = 0; k < 3; ++k) specular[k] += w * m->ks[k] * le[k];
+            }
+        }
+    }
+    for (uint32_t i = 0; i < s->point_light_count; ++i) {
+        const scene_point_light *pl = &s->point_lights[i];
+        lm_vec3 d = v3_sub(v3_load(pl->position), x->p);
+        float dist = v3_length(d);
+        if (!(dist > 0.0f)) continue;
+        lm_vec3 wi = v3_scale(d, 1.0f / dist);
+        float cosx = v3_dot(x->ns, wi);
+        if (cosx <= 0.0f || v3_dot(x->ng, wi) <= 0.0f || !visible(c, x, wi, dist)) continue;
+        float e = cosx / (dist * dist);
+        float lobe = spec ? ref_phong_lobe(m->n, wi, wo, x->ns) : 0.0f;
+        for (int k = 0; k < 3; ++k) {
+            diffuse[k] += pl->intensity[k] * e / (float)M_PI;
+            specular[k] += m->ks[k] * lobe * pl->intensity[k] * e;
+        }
+    }
+}
+
+/* ---- model transport ------------------------------------------------------ */
+
+/* Radiance a diffuse bounce from x brings back: kd(x')·L_dd(x') (+ kd(x')·L_id(x')
+ * while bounces remain). Estimates L_id(x) = E_i(x)/π with one cosine sample. */
+static void gather(ctx *c, const ref_surface *x, int bounces_left, float out[3])
+{
+    out[0] = out[1] = out[2] = 0.0f;
+    float u1 = ref_rng_float(&c->g), u2 = ref_rng_float(&c->g);
+    lm_vec3 wi = ref_sample_cosine(x->ns, u1, u2);
+    if (v3_dot(wi, x->ng) <= 0.0f) return;
+    rt_hit h;
+    if (!trace(c, offset(c, x, wi), wi, &h)) return;
+    ref_surface y;
+    ref_surface_from_hit(c->r->s, &h, v3_scale(wi, -1.0f), &y);
+    const float *kd = y.m->kd;
+    if (kd[0] <= 0.0f && kd[1] <= 0.0f && kd[2] <= 0.0f) return;
+    float dd[3], unused[3], more[3] = {0, 0, 0};
+    direct_light(c, &y, v3_scale(wi, -1.0f), 0, MIS_LOBE_ONLY, dd, unused);
+    if (bounces_left > 1) gather(c, &y, bounces_left - 1, more);
+    for (int k = 0; k < 3; ++k) out[k] = kd[k] * (dd[k] + more[k]);
+}
+
+static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
+{
+    const ref_renderer *r = c->r;
+    L[0] = L[1] = L[2] = 0.0f;
+    rt_hit h;
+    if (!trace(c, org, dir, &h)) return;
+    lm_vec3 wo = v3_scale(dir, -1.0f);
+    ref_surface x;
+    ref_surface_from_hit(r->s, &h, wo, &x);
+    if (x.front)
+        for (int k = 0; k < 3; ++k) L[k] += x.m->le[k];
+    float dd[3], ds[3];
+    direct_light(c, &x, wo, 1, MIS_LOBE_ONLY, dd, ds);
+    int bounces = r->desc.bounces == REF_BOUNCES_NONE ? 0 : r->desc.bounces == 0 ? 1 : r->desc.bounces;
+    float id[3] = {0, 0, 0};
+    if (bounces > 0 && (x.m->kd[0] > 0.0f || x.m->kd[1] > 0.0f || x.m->kd[2] > 0.0f))
+        gather(c, &x, bounces, id);
+    for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * (dd[k] + id[k]) + ds[k];
+}
+
+/* ---- full transport -------------------------------------------------------- */
+
+static void radiance_full(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
+{
+    const ref_renderer *r = c->r;
+    const scene *s = r->s;
+    float beta[3] = {1, 1, 1};
+    float prev_pdf = 0.0f; /* BRDF density of the direction that led here; 0 at the camera */
+    L[0] = L[1] = L[2] = 0.0f;
+    ref_surface x;
+    for (int depth = 0; depth < MAX_FULL_DEPTH; ++depth) {
+        rt_hit h;
+        if (!trace(c, org, dir, &h)) break;
+        lm_vec3 wo = v3_scale(dir, -1.0f);
+        ref_surface_from_hit(s, &h, wo, &x);
+        if (x.front && s->tris[h.tri].light >= 0) {
+            /* Emission found by BRDF sampling, weighted against light sampling. */
+            float w = depth == 0 ? 1.0f : ref_mis(prev_pdf, ref_area_light_pdf(&r->lights, h.tri, dir, h.t));
+            for (int k = 0; k < 3; ++k) L[k] += beta[k] * w * x.m->le[k];
+        }
+        const scene_material *m = x.m;
+        float dd[3], ds[3];
+        direct_light(c, &x, wo, 1, MIS_FULL_BRDF, dd, ds);
+        for (int k = 0; k < 3; ++k) L[k] += beta[k] * (m->kd[k] * dd[k] + ds[k]);
+
+        /* Continue by sampling the BRDF. */
+        float p_spec = spec_probability(m);
+        if (avg3(m->kd) + avg3(m->ks) <= 0.0f) break;
+        float u0 = ref_rng_float(&c->g), u1 = ref_rng_float(&c->g), u2 = ref_rng_float(&c->g);
+        lm_vec3 wi = u0 < p_spec ? ref_sample_phong(m->n, wo, x.ns, u1, u2) : ref_sample_cosine(x.ns, u1, u2);
+        float cosi = v3_dot(x.ns, wi);
+        if (cosi <= 0.0f || v3_dot(x.ng, wi) <= 0.0f) break;
+        float pdf = brdf_pdf(m, wi, wo, x.ns, p_spec);
+        if (!(pdf > 0.0f)) break;
+        float lobe = ref_phong_lobe(m->n, wi, wo, x.ns);
+        for (int k = 0; k < 3; ++k) beta[k] *= (m->kd[k] / (float)M_PI + m->ks[k] * lobe) * cosi / pdf;
+        if (depth + 1 >= RR_START_DEPTH) {
+            float q = fminf(0.95f, fmaxf(beta[0], fmaxf(beta[1], beta[2])));
+            if (ref_rng_float(&c->g) >= q) break;
+            for (int k = 0; k < 3; ++k) beta[k] /= q;
+        }
+        prev_pdf = pdf;
+        org = offset(c, &x, wi);
+        dir = wi;
+    }
+}
+
+/* ---- passes ---------------------------------------------------------------- */
+
+static void render_pixel(ctx *c, int px, int py)
+{
+    const ref_renderer *r = c->r;
+    ref_pixel *pix = &r->pixels[(size_t)py * (size_t)r->width + (size_t)px];
+    ref_rng_seed(&c->g, r->desc.seed, (uint64_t)py * (uint64_t)r->width + (uint64_t)px, pix->count);
+    float jx = ref_rng_float(&c->g), jy = ref_rng_float(&c->g);
+    float sx = 2.0f * ((float)px + jx) / (float)r->width - 1.0f;
+    float sy = 1.0f - 2.0f * ((float)py + jy) / (float)r->height;
+    lm_vec3 dir = v3_normalize(v3_add(r->cam_fwd, v3_add(v3_scale(r->cam_right, sx), v3_scale(r->cam_up, sy))));
+    float L[3];
+    if (r->desc.transport == REF_TRANSPORT_FULL)
+        radiance_full(c, r->cam_pos, dir, L);
+    else
+        radiance_model(c, r->cam_pos, dir, L);
+    if (!isfinite(L[0]) || !isfinite(L[1]) || !isfinite(L[2])) {
+        /* Counted, not accumulated: one NaN would poison the pixel for good. */
+        atomic_fetch_add(&c->r->bad_samples, 1);
+        L[0] = L[1] = L[2] = 0.0f;
+    }
+    float y = ref_luminance(L);
+    for (int k = 0; k < 3; ++k) {
+        pix->sum[k] += L[k];
+        pix->sum2[k] += (double)L[k] * L[k];
+    }
+    pix->sum_y += y;
+    pix->sum_y2 += (double)y * y;
+    pix->count++;
+}
+
+static void *worker(void *arg)
+{
+    ref_renderer *r = arg;
+    ctx c = {.r = r};
+    int tiles_x = (r->width + TILE - 1) / TILE, tiles_y = (r->height + TILE - 1) / TILE;
+    unsigned ntiles = (unsigned)(tiles_x * tiles_y);
+    for (;;) {
+        if (r->cancel && *r->cancel) break;
+        if (r->deadline > 0.0 && lm_now_seconds() > r->deadline) break;
+        unsigned t = atomic_fetch_add(&r->next_tile, 1u);
+        if (t >= ntiles) break;
+        int x0 = (int)(t % (unsigned)tiles_x) * TILE, y0 = (int)(t / (unsigned)tiles_x) * TILE;
+        for (int y = y0; y < y0 + TILE && y < r->height; ++y)
+            for (int x = x0; x < x0 + TILE && x < r->width; ++x) render_pixel(&c, x, y);
+    }
+    atomic_fetch_add(&r->pass_rays, c.rays);
+    return NULL;
+}
+
+void ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline)
+{
+    double t0 = lm_now_seconds();
+    r->cancel = cancel;
+    r->deadline = deadline;
+    atomic_store(&r->next_tile, 0u);
+    atomic_store(&r->pass_rays, 0ull);
+    pthread_t tids[MAX_THREADS];
+    int started = 0;
+    for (int i = 1; i < r->threads; ++i) {
+        if (pthread_create(&tids[started], NULL, worker, r) != 0) break;
+        started++;
+    }
+    worker(r); /* the calling thread works too */
+    for (int i = 0; i < started; ++i) pthread_join(tids[i], NULL);
+    r->rays += atomic_load(&r->pass_rays);
+    r->seconds += lm_now_seconds() - t0;
+    r->cancel = NULL;
+}
+
+/* ---- creation and results --------------------------------------------------- */
+
+lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
+{
+    *out = NULL;
+    if (!desc || !desc->scene) return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: no scene");
+    const scene *s = desc->scene;
+    if (desc->camera < 0 || (uint32_t)desc->camera >= s->camera_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: camera %d does not exist", desc->camera);
+    if ((unsigned)desc->transport >= REF_TRANSPORT_COUNT)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: unknown transport %d", (int)desc->transport);
+    if (desc->bounces < REF_BOUNCES_NONE || desc->bounces > 64)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: bounces must be 0..64");
+    const scene_camera *cam = &s->cameras[desc->camera];
+    ref_renderer *r = calloc(1, sizeof *r);
+    if (!r) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
+    r->desc = *desc;
+    r->s = s;
+    r->width = desc->width > 0 ? desc->width : cam->width;
+    r->height = desc->height > 0 ? desc->height : cam->height;
+    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+    r->threads = desc->threads > 0 ? desc->threads : (ncpu > 0 ? (int)ncpu : 1);
+    if (r->threads > MAX_THREADS) r->threads = MAX_THREADS;
+    r->pixels = calloc((size_t)r->width * (size_t)r->height, sizeof *r->pixels);
+    if (!r->pixels) {
+        ref_destroy(r);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", r->width, r->height);
+    }
+    lm_result res = rt_scene_create(&(rt_scene_desc){.scene = s}, &r->rt, err);
+    if (res == LM_OK) res = ref_lights_init(&r->lights, s, err);
+    if (res != LM_OK) {
+        ref_destroy(r);
+        return res;
+    }
+    r->eps = rt_scene_epsilon(r->rt);
+    lm_vec3 pos = v3_load(cam->position);
+    lm_vec3 fwd = v3_normalize(v3_sub(v3_load(cam->target), pos));
+    lm_vec3 right = v3_normalize(v3_cross(fwd, v3_load(cam->up)));
+    lm_vec3 up = v3_cross(right, fwd);
+    float ty = tanf(0.5f * cam->fov_y_deg * (float)M_PI / 180.0f);
+    float tx = ty * (float)r->width / (float)r->height;
+    r->cam_pos = pos;
+    r->cam_fwd = fwd;
+    r->cam_right = v3_scale(right, tx);
+    r->cam_up = v3_scale(up, ty);
+    *out = r;
+    return LM_OK;
+}
+
+void ref_destroy(ref_renderer *r)
+{
+    if (!r) return;
+    rt_scene_destroy(r->rt);
+    ref_lights_free(&r->lights);
+    free(r->pixels);
+    free(r);
+}
+
+static double stderr_of_mean(double sum, double sum2, uint32_t n)
+{
+    if (n < 2) return INFINITY;
+    double mean = sum / n;
+    double var = (sum2 - sum * mean) / (n - 1);
+    return var > 0.0 ? sqrt(var / n) : 0.0;
+}
+
+void ref_get_stats(const ref_renderer *r, ref_stats *out)
+{
+    memset(out, 0, sizeof *out);
+    size_t n = (size_t)r->width * (size_t)r->height;
+    out->min_samples = UINT32_MAX;
+    double rel = 0.0;
+    size_t counted = 0;
+    for (size_t i = 0; i < n; ++i) {
+        const ref_pixel *p = &r->pixels[i];
+        if (p->count < out->min_samples) out->min_samples = p->count;
+        if (p->count > out->max_samples) out->max_samples = p->count;
+        if (p->count < 2) continue;
+        double y = p->sum_y / p->count;
+        rel += stderr_of_mean(p->sum_y, p->sum_y2, p->count) / sqrt(y * y + 0.01);
+        counted++;
+    }
+    out->mean_rel_stderr = counted ? rel / (double)counted : INFINITY;
+    out->rays = r->rays;
+    out->seconds = r->seconds;
+    out->bad_samples = atomic_load(&((ref_renderer *)r)->bad_samples);
+}
+
+void ref_get_image(const ref_renderer *r, float *rgb, float *stderr_rgb, float *samples)
+{
+    size_t n = (size_t)r->width * (size_t)r->height;
+    for (size_t i = 0; i < n; ++i) {
+        const ref_pixel *p = &r->pixels[i];
+        for (int k = 0; k < 3; ++k) {
+            if (rgb) rgb[3 * i + (size_t)k] = p->count ? (float)(p->sum[k] / p->count) : 0.0f;
+            if (stderr_rgb) stderr_rgb[3 * i + (size_t)k] = (float)stderr_of_mean(p->sum[k], p->sum2[k], p->count);
+        }
+        if (samples) samples[i] = (float)p->count;
+    }
+}
+
+void ref_get_size(const ref_renderer *r, int *width, int *height)
+{
+    *width = r->width;
+    *height = r->height;
+}

@@ -1,0 +1,90 @@
+/* reference.h — the ground-truth renderer: a progressive, multi-threaded Embree
+ * path tracer with two transports.
+ *
+ * REF_TRANSPORT_MODEL computes exactly the light transport of DESIGN.md (what the
+ * previewer caches), without its approximations:
+ *     pixel = Le + kd·(L_dd + L_id) + ks·L_ds
+ *   L_dd  direct diffuse radiance, (1/π)·Σ_ℓ E_ℓ, with visibility, area and point lights;
+ *   L_ds  direct specular radiance, the EXACT integral of the modified Phong lobe
+ *         (n+2)/(2π)·cosⁿα over each light (paper eq. 5, not the point approximation
+ *         of eq. 6), light sampling and lobe sampling combined with MIS;
+ *   L_id  K diffuse bounces (default 1): (1/π)·∫ kd(x')·L_dd(x') cosθ dω, and for
+ *         K = 2 the source is kd(x')·(L_dd(x') + L_id(x')). Emission and specular
+ *         radiance of the surfaces a bounce hits are not sources (paper eq. 7).
+ * REF_TRANSPORT_FULL is unbiased path tracing of all bounces with the same BRDF:
+ * next-event estimation and BRDF sampling combined with MIS (power heuristic),
+ * Russian roulette after three bounces.
+ *
+ * Surfaces reflect on both sides (the shading frame turns to face the incoming
+ * ray); lights emit from their front only (docs/scene-model.md).
+ *
+ * Every pass adds one sample to every pixel. Sample k of pixel p draws its random
+ * numbers from a generator seeded by (seed, p, k) alone, so the same seed and
+ * sample count give the same image whatever the thread count or scheduling.
+ *
+ * Threads: one ref_renderer belongs to the thread that created it; ref_render_pass
+ * starts its own workers and joins them before it returns. `cancel` may be set by
+ * any thread or a signal handler.
+ * Does NOT do: textures, transparency, refraction, depth of field, motion blur.
+ */
+#ifndef LUMESH_REFERENCE_H
+#define LUMESH_REFERENCE_H
+
+#include <signal.h>
+#include <stdint.h>
+
+#include "scene.h"
+#include "util.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum ref_transport {
+    REF_TRANSPORT_MODEL = 0, /* default: exactly the previewer's transport */
+    REF_TRANSPORT_FULL,      /* all bounces, unbiased */
+    REF_TRANSPORT_COUNT
+} ref_transport;
+
+enum { REF_BOUNCES_NONE = -1 }; /* direct light only (model transport) */
+
+typedef struct ref_desc {
+    const scene *scene;       /* must outlive the renderer */
+    int camera;               /* index into scene->cameras */
+    int width, height;        /* pixels; 0 = the camera's */
+    ref_transport transport;
+    int bounces;              /* model transport: diffuse bounces; 0 = 1; REF_BOUNCES_NONE = 0 */
+    uint32_t seed;
+    int threads;              /* 0 = every core */
+} ref_desc;
+
+typedef struct ref_renderer ref_renderer;
+
+lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err);
+void ref_destroy(ref_renderer *r); /* NULL is a no-op */
+
+/* Adds one sample to every pixel. The pass stops early, after the tiles under
+ * way, when *cancel (may be NULL) becomes non-zero or the clock passes `deadline`
+ * (an lm_now_seconds() value; 0 = none): those pixels keep their extra sample,
+ * the rest do not, so every pixel's estimate is made of complete samples. */
+void ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline);
+
+typedef struct ref_stats {
+    uint32_t min_samples, max_samples; /* per pixel */
+    uint64_t rays;                     /* all rays traced so far */
+    double seconds;                    /* wall time spent in passes */
+    double mean_rel_stderr;            /* mean over pixels of SE(Y)/sqrt(Y²+0.01), Y luminance */
+    uint64_t bad_samples;              /* non-finite samples, dropped (should stay 0) */
+} ref_stats;
+
+void ref_get_stats(const ref_renderer *r, ref_stats *out);
+
+/* Writes width*height pixels: mean RGB, standard error of the mean per channel
+ * (INFINITY below two samples), and sample counts. Any pointer may be NULL. */
+void ref_get_image(const ref_renderer *r, float *rgb, float *stderr_rgb, float *samples);
+void ref_get_size(const ref_renderer *r, int *width, int *height);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,57 @@
+/* rt_scene.h — the scene's triangles in an Embree 3 BVH, for the CPU samplers and
+ * the reference renderer (DESIGN.md "Sampling": CPU ray tracing with Embree).
+ *
+ * One Embree triangle geometry holds every scene triangle in scene order, so a
+ * hit's primitive id IS the scene triangle id.
+ *
+ * Usage:
+ *     rt_scene *rt; lm_error err;
+ *     if (rt_scene_create(&(rt_scene_desc){.scene = s}, &rt, &err) != LM_OK) ...
+ *     rt_hit h;
+ *     if (rt_intersect(rt, org, dir, 0.0f, INFINITY, &h)) { ... h.tri, h.t, h.u, h.v ... }
+ *     rt_scene_destroy(rt);
+ *
+ * Threads: create and destroy on one thread; rt_intersect / rt_occluded may be
+ * called from any number of threads at once (Embree committed scenes are
+ * read-only). The scene model must outlive the rt_scene.
+ * Does NOT do: shading, instancing, motion.
+ */
+#ifndef LUMESH_RT_SCENE_H
+#define LUMESH_RT_SCENE_H
+
+#include "scene.h"
+#include "util.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct rt_scene_desc {
+    const scene *scene;
+} rt_scene_desc;
+
+typedef struct rt_hit {
+    uint32_t tri;   /* scene triangle id */
+    float t;        /* distance along the (unit) direction, scene units */
+    float u, v;     /* barycentric weights of corners 1 and 2 (corner 0: 1-u-v) */
+} rt_hit;
+
+typedef struct rt_scene rt_scene;
+
+lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *err);
+void rt_scene_destroy(rt_scene *rt); /* NULL is a no-op */
+
+/* Closest hit on (tnear, tfar); returns 1 and fills *hit, or 0 on a miss. */
+int rt_intersect(const rt_scene *rt, const float org[3], const float dir[3], float tnear, float tfar,
+                 rt_hit *hit);
+/* 1 when anything lies on (tnear, tfar). */
+int rt_occluded(const rt_scene *rt, const float org[3], const float dir[3], float tnear, float tfar);
+
+/* Offset, in scene units, that moves a ray origin off a surface robustly for
+ * this scene's scale (a small multiple of float precision at the scene extent). */
+float rt_scene_epsilon(const rt_scene *rt);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,171 @@
+/* cmd_reference.c — `lumesh reference`: the progressive Embree path tracer
+ * (sampling/reference.h) on the command line: stopping rules, a progress bar on a
+ * terminal, Ctrl-C that still writes the complete samples, and the EXR with the
+ * image and its per-pixel standard error. */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "cli.h"
+#include "image.h"
+#include "reference.h"
+#include "scene.h"
+
+/* Written by the SIGINT handler, read by the render loop and the workers. */
+static volatile sig_atomic_t interrupted = 0;
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    if (interrupted) _exit(130); /* a second Ctrl-C: leave at once, write nothing */
+    interrupted = 1;
+}
+
+static void progress(const ref_renderer *r, double fraction, int final)
+{
+    ref_stats st;
+    ref_get_stats(r, &st);
+    char bar[31];
+    int filled = (int)(fraction * 30.0 + 0.5);
+    for (int i = 0; i < 30; ++i) bar[i] = i < filled ? '#' : '.';
+    bar[30] = '\0';
+    fprintf(stderr, "\rreference [%s] %u spp  %.1f s  %.2f Mrays/s  rel. std. error %.3f%%   ", bar,
+            st.min_samples, st.seconds, st.seconds > 0 ? st.rays / st.seconds * 1e-6 : 0.0,
+            100.0 * st.mean_rel_stderr);
+    if (final) fputc('\n', stderr);
+    fflush(stderr);
+}
+
+static lm_result write_result(const ref_renderer *r, const char *path, lm_error *err)
+{
+    int w, h;
+    ref_get_size(r, &w, &h);
+    size_t n = (size_t)w * (size_t)h;
+    float *rgb = malloc(n * 3 * sizeof *rgb), *se = malloc(n * 3 * sizeof *se);
+    float *spp = malloc(n * sizeof *spp), *px = malloc(n * 7 * sizeof *px);
+    lm_result res = LM_OK;
+    if (!rgb || !se || !spp || !px) {
+        res = lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory assembling the image", path);
+    } else {
+        ref_get_image(r, rgb, se, spp);
+        for (size_t i = 0; i < n; ++i) {
+            for (int k = 0; k < 3; ++k) {
+                px[7 * i + (size_t)k] = rgb[3 * i + (size_t)k];
+                px[7 * i + 3 + (size_t)k] = se[3 * i + (size_t)k];
+            }
+            px[7 * i + 6] = spp[i];
+        }
+        static const char *const names[7] = {"R", "G", "B", "stderr.R", "stderr.G", "stderr.B", "samples"};
+        img_write_desc d = {.path = path, .width = w, .height = h, .channels = 7, .pixels = px,
+                            .channel_names = names};
+        res = img_write(&d, err);
+    }
+    free(rgb);
+    free(se);
+    free(spp);
+    free(px);
+    return res;
+}
+
+int cmd_reference(const app_command *cmd, int argc, char **argv)
+{
+    const char *out = NULL, *transport = "model", *camera = NULL;
+    double seconds = 0;
+    long spp = 0, bounces = 1, seed = 0, threads = 0, width = 0, height = 0;
+    app_opt opts[] = {
+        {"--output", "-o", APP_OPT_STRING, &out},
+        {"--spp", NULL, APP_OPT_INT, &spp, 1, 1e9},
+        {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e7},
+        {"--transport", NULL, APP_OPT_STRING, &transport},
+        {"--bounces", NULL, APP_OPT_INT, &bounces, 0, 64},
+        {"--seed", NULL, APP_OPT_INT, &seed, 0, 4294967295.0},
+        {"--threads", NULL, APP_OPT_INT, &threads, 1, 256},
+        {"--camera", NULL, APP_OPT_STRING, &camera},
+        {"--width", NULL, APP_OPT_INT, &width, 1, 32768},
+        {"--height", NULL, APP_OPT_INT, &height, 1, 32768},
+    };
+    const char *pos[1];
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, 10, pos, 1, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.exr)");
+    char ext[16];
+    lm_path_ext(out, ext, sizeof ext);
+    if (strcmp(ext, "exr") != 0) return app_usage_error(cmd, "the output must end in .exr");
+    if (opts[1].seen == opts[2].seen) return app_usage_error(cmd, "give exactly one of --spp or --seconds");
+    ref_transport tr;
+    if (strcmp(transport, "model") == 0)
+        tr = REF_TRANSPORT_MODEL;
+    else if (strcmp(transport, "full") == 0)
+        tr = REF_TRANSPORT_FULL;
+    else
+        return app_usage_error(cmd, "--transport is 'model' or 'full', not '%s'", transport);
+    if (tr == REF_TRANSPORT_FULL && opts[4].seen)
+        return app_usage_error(cmd, "--bounces applies to --transport model (full follows every bounce)");
+    if (opts[8].seen != opts[9].seen) return app_usage_error(cmd, "give both --width and --height");
+
+    scene_load_desc ld = {.path = npos ? pos[0] : NULL, .require_light = 1};
+    scene *s;
+    lm_error err;
+    lm_result res = scene_load(&ld, &s, &err);
+    if (res != LM_OK) return app_report(res, &err);
+    int cam = scene_find_camera(s, camera);
+    if (cam < 0) {
+        fprintf(stderr, "lumesh: %s: no camera named '%s'\n", s->source, camera);
+        scene_destroy(s);
+        return APP_EXIT_BAD_INPUT;
+    }
+    ref_desc rd = {.scene = s, .camera = cam, .width = (int)width, .height = (int)height,
+                   .transport = tr, .bounces = bounces == 0 ? REF_BOUNCES_NONE : (int)bounces,
+                   .seed = (uint32_t)seed, .threads = (int)threads};
+    ref_renderer *r;
+    res = ref_create(&rd, &r, &err);
+    if (res != LM_OK) {
+        scene_destroy(s);
+        return app_report(res, &err);
+    }
+
+    struct sigaction sa, old;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_sigint;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, &old);
+    int tty = isatty(STDERR_FILENO);
+    double start = lm_now_seconds(), deadline = opts[2].seen ? start + seconds : 0.0;
+    double last_draw = 0.0;
+    for (long pass = 0;; ++pass) {
+        /* The first pass always completes, so every pixel has a sample. */
+        ref_render_pass(r, pass == 0 ? NULL : &interrupted, pass == 0 ? 0.0 : deadline);
+        double now = lm_now_seconds();
+        int done = interrupted || (opts[1].seen ? pass + 1 >= spp : now >= deadline);
+        if (tty && (done || now - last_draw > 0.25)) {
+            double f = opts[1].seen ? (double)(pass + 1) / (double)spp : (now - start) / seconds;
+            progress(r, f > 1.0 ? 1.0 : f, done);
+            last_draw = now;
+        }
+        if (done) break;
+    }
+    res = write_result(r, out, &err);
+    sigaction(SIGINT, &old, NULL);
+    ref_stats st;
+    ref_get_stats(r, &st);
+    if (res == LM_OK) {
+        int w, h;
+        ref_get_size(r, &w, &h);
+        printf("wrote %s: %dx%d, transport %s, %u%s spp, %.2f s, %.2f Mrays/s, mean relative standard "
+               "error %.3f%%%s\n",
+               out, w, h, transport, st.min_samples, st.max_samples > st.min_samples ? "+" : "", st.seconds,
+               st.seconds > 0 ? st.rays / st.seconds * 1e-6 : 0.0, 100.0 * st.mean_rel_stderr,
+               interrupted ? " (interrupted)" : "");
+        if (st.bad_samples)
+            fprintf(stderr, "lumesh reference: %llu non-finite samples were dropped\n",
+                    (unsigned long long)st.bad_samples);
+    }
+    ref_destroy(r);
+    scene_destroy(s);
+    return res == LM_OK ? APP_EXIT_OK : app_report(res, &err);
+}
