@@ -1,7 +1,10 @@
 /* headers_c_test — every public header compiles as plain C11 on its own (this
  * file is C with -Wstrict-prototypes), and the shared result codes are named. */
+#include "compare.h"
 #include "geomesh.h"
 #include "image.h"
+#include "reference.h"
+#include "rt_scene.h"
 #include "scene.h"
 #include "tonemap.h"
 #include "util.h"

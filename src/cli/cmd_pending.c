@@ -59,24 +59,6 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     return not_available(cmd, "the multi-mesh renderer is not built yet");
 }
 
-int cmd_compare(const app_command *cmd, int argc, char **argv)
-{
-    int json = 0;
-    const char *heatmap = NULL;
-    double exposure = 0;
-    app_opt opts[] = {
-        {"--json", NULL, APP_OPT_FLAG, &json},
-        {"--heatmap", NULL, APP_OPT_STRING, &heatmap},
-        {"--exposure", NULL, APP_OPT_DOUBLE, &exposure, -64, 64},
-    };
-    const char *pos[2];
-    int npos, rc = app_parse_options(cmd, argc, argv, opts, 3, pos, 2, &npos);
-    if (rc < 0) return APP_EXIT_OK;
-    if (rc) return rc;
-    if (npos != 2) return app_usage_error(cmd, "give two images: the one to test, then the reference");
-    return not_available(cmd, "image comparison is not built yet");
-}
-
 int cmd_converge(const app_command *cmd, int argc, char **argv)
 {
     const char *ref = NULL, *out = NULL;
