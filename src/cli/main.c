@@ -32,9 +32,25 @@ static const app_command commands[] = {
     {"reference", "ray-traced ground truth (Embree path tracer)",
      "usage: lumesh reference [SCENE] -o OUT.exr (--spp N | --seconds T)\n"
      "                        [--transport model|full] [--bounces K] [--seed S] [--threads N]\n"
+     "                        [--camera NAME] [--width W --height H]\n"
      "\n"
-     "Path traces SCENE: --transport model computes exactly the light transport the\n"
-     "previewer models; --transport full is unbiased global illumination.\n",
+     "Progressive, multi-threaded path tracing of SCENE (built-in Cornell box if left out).\n"
+     "\n"
+     "  -o, --output FILE   EXR to write: channels R,G,B, stderr.R/G/B (standard error of\n"
+     "                      each pixel's mean) and samples\n"
+     "  --spp N             N samples per pixel (same seed and N: the same image)\n"
+     "  --seconds T         sample for T seconds\n"
+     "  --transport model   exactly the previewer's light transport (default): emission,\n"
+     "                      direct diffuse, exact direct Phong specular, K diffuse bounces\n"
+     "  --transport full    unbiased path tracing of all bounces (MIS, Russian roulette)\n"
+     "  --bounces K         diffuse bounces of the model transport (default 1; 0 = direct)\n"
+     "  --seed S            random seed (default 0)\n"
+     "  --threads N         worker threads (default: every core)\n"
+     "  --camera NAME       one of the scene's cameras (default: the first)\n"
+     "  --width W, --height H   image size (default: the camera's)\n"
+     "\n"
+     "Prints the mean relative standard error (mean over pixels of SE(Y)/sqrt(Y^2+0.01)).\n"
+     "Ctrl-C stops and still writes the complete samples; a second Ctrl-C quits at once.\n",
      cmd_reference},
     {"compare", "measure the error between two images",
      "usage: lumesh compare A.exr B.exr [--json] [--heatmap OUT.png] [--exposure E]\n"
