@@ -366,8 +366,9 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
     if (r->threads > MAX_THREADS) r->threads = MAX_THREADS;
     r->pixels = calloc((size_t)r->width * (size_t)r->height, sizeof *r->pixels);
     if (!r->pixels) {
+        int w = r->width, h = r->height;
         ref_destroy(r);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", r->width, r->height);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
     }
     lm_result res = rt_scene_create(&(rt_scene_desc){.scene = s}, &r->rt, err);
     if (res == LM_OK) res = ref_lights_init(&r->lights, s, err);
