@@ -117,10 +117,12 @@ int ref_sample_area_light(const ref_lights *L, ref_rng *g, lm_vec3 p, ref_light_
     float dist = v3_length(d);
     if (!(dist > 0.0f)) return 0;
     lm_vec3 wi = v3_scale(d, 1.0f / dist);
-    float cosy = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)tri), wi);
+    lm_vec3 ny = v3_load(s->tri_normals + 3 * (size_t)tri);
+    float cosy = -v3_dot(ny, wi);
     if (cosy <= 0.0f) return 0;
     out->wi = wi;
     out->dist = dist;
+    out->ny = ny;
     out->pdf = L->light_pmf[li] / A->area * dist * dist / cosy;
     out->le = A->le;
     return 1;

@@ -46,6 +46,7 @@ void ref_surface_from_hit(const scene *s, const rt_hit *h, lm_vec3 wo, ref_surfa
 typedef struct ref_light_sample {
     lm_vec3 wi;       /* unit direction from p to the point */
     float dist;       /* distance, scene units */
+    lm_vec3 ny;       /* unit front normal of the light at the point */
     float pdf;        /* solid-angle density at p of this direction (light choice included) */
     const float *le;  /* radiance of the light */
 } ref_light_sample;

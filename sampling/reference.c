@@ -64,13 +64,17 @@ static int trace(ctx *c, lm_vec3 org, lm_vec3 dir, rt_hit *h)
     return rt_intersect(c->r->rt, o, d, 0.0f, INFINITY, h);
 }
 
-static int visible(ctx *c, const ref_surface *x, lm_vec3 wi, float dist)
+/* Nothing between the surface point x and the point x + dist·wi, whose surface
+ * normal is ny (NULL for a point light). */
+static int visible(ctx *c, const ref_surface *x, lm_vec3 wi, float dist, const lm_vec3 *ny)
 {
-    lm_vec3 org = offset(c, x, wi);
-    float o[3] = {org.x, org.y, org.z}, d[3] = {wi.x, wi.y, wi.z};
-    float tfar = dist - 2.0f * c->r->eps;
+    float a[3], na[3], b[3], nb[3];
+    v3_store(a, x->p);
+    v3_store(na, x->ng);
+    v3_store(b, v3_add(x->p, v3_scale(wi, dist)));
+    if (ny) v3_store(nb, *ny);
     c->rays++;
-    return tfar <= 0.0f || !rt_occluded(c->r->rt, o, d, 0.0f, tfar);
+    return !rt_segment_occluded(c->r->rt, a, na, b, ny ? nb : NULL, c->r->eps);
 }
 
 static int emits_towards(const scene *s, uint32_t tri, lm_vec3 wi)
@@ -121,7 +125,7 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
         ref_light_sample ls;
         if (ref_sample_area_light(&c->r->lights, &c->g, x->p, &ls)) {
             float cosx = v3_dot(x->ns, ls.wi);
-            if (cosx > 0.0f && v3_dot(x->ng, ls.wi) > 0.0f && visible(c, x, ls.wi, ls.dist)) {
+            if (cosx > 0.0f && v3_dot(x->ng, ls.wi) > 0.0f && visible(c, x, ls.wi, ls.dist, &ls.ny)) {
                 float e = cosx / ls.pdf; /* E per unit radiance */
                 float wd = 1.0f, ws = 1.0f;
                 if (mode == MIS_FULL_BRDF) {
@@ -160,7 +164,7 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
         if (!(dist > 0.0f)) continue;
         lm_vec3 wi = v3_scale(d, 1.0f / dist);
         float cosx = v3_dot(x->ns, wi);
-        if (cosx <= 0.0f || v3_dot(x->ng, wi) <= 0.0f || !visible(c, x, wi, dist)) continue;
+        if (cosx <= 0.0f || v3_dot(x->ng, wi) <= 0.0f || !visible(c, x, wi, dist, NULL)) continue;
         float e = cosx / (dist * dist);
         float lobe = spec ? ref_phong_lobe(m->n, wi, wo, x->ns) : 0.0f;
         for (int k = 0; k < 3; ++k) {

@@ -127,4 +127,29 @@ int rt_occluded(const rt_scene *rt, const float org[3], const float dir[3], floa
     return r.tfar < 0.0f; /* Embree sets tfar to -inf when occluded */
 }
 
+/* p moved by eps along n, turned to the side of `towards`. */
+static void offset_towards(const float p[3], const float n[3], const float towards[3], float eps, float out[3])
+{
+    float d = (towards[0] - p[0]) * n[0] + (towards[1] - p[1]) * n[1] + (towards[2] - p[2]) * n[2];
+    float s = d >= 0.0f ? eps : -eps;
+    for (int k = 0; k < 3; ++k) out[k] = p[k] + s * n[k];
+}
+
+int rt_segment_occluded(const rt_scene *rt, const float a[3], const float na[3], const float b[3],
+                        const float nb[3], float eps)
+{
+    float oa[3], ob[3], d[3];
+    offset_towards(a, na, b, eps, oa);
+    if (nb)
+        offset_towards(b, nb, a, eps, ob);
+    else
+        for (int k = 0; k < 3; ++k) ob[k] = b[k];
+    for (int k = 0; k < 3; ++k) d[k] = ob[k] - oa[k];
+    float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    /* Ends closer than the offsets: the surfaces touch there, nothing fits between. */
+    if (!(len > eps)) return 0;
+    for (int k = 0; k < 3; ++k) d[k] /= len;
+    return rt_occluded(rt, oa, d, 0.0f, len);
+}
+
 float rt_scene_epsilon(const rt_scene *rt) { return rt->epsilon; }

@@ -47,6 +47,17 @@ int rt_intersect(const rt_scene *rt, const float org[3], const float dir[3], flo
 /* 1 when anything lies on (tnear, tfar). */
 int rt_occluded(const rt_scene *rt, const float org[3], const float dir[3], float tnear, float tfar);
 
+/* 1 when anything lies between the surface point a (normal na) and the point b
+ * (normal nb, or NULL for a point in space such as a point light). Each end is
+ * moved off its surface by `eps` along its normal, on the side that faces the
+ * other end, and the segment between the moved ends is tested. Moving only the
+ * origin and shortening the far end by a fixed length is wrong at grazing
+ * angles: an origin raised by eps reaches b's plane eps/cosθ_b early, so a ray
+ * to a light seen at more than 60° off its normal hit the light itself
+ * (measured by tests/reference_plane_test.c: image corners 2.4% dark). */
+int rt_segment_occluded(const rt_scene *rt, const float a[3], const float na[3], const float b[3],
+                        const float nb[3], float eps);
+
 /* Offset, in scene units, that moves a ray origin off a surface robustly for
  * this scene's scale (a small multiple of float precision at the scene extent). */
 float rt_scene_epsilon(const rt_scene *rt);
