@@ -139,7 +139,10 @@ int rt_segment_occluded(const rt_scene *rt, const float a[3], const float na[3],
                         const float nb[3], float eps)
 {
     float oa[3], ob[3], d[3];
-    offset_towards(a, na, b, eps, oa);
+    if (na)
+        offset_towards(a, na, b, eps, oa);
+    else
+        for (int k = 0; k < 3; ++k) oa[k] = a[k];
     if (nb)
         offset_towards(b, nb, a, eps, ob);
     else

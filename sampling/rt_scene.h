@@ -48,7 +48,8 @@ int rt_intersect(const rt_scene *rt, const float org[3], const float dir[3], flo
 int rt_occluded(const rt_scene *rt, const float org[3], const float dir[3], float tnear, float tfar);
 
 /* 1 when anything lies between the surface point a (normal na) and the point b
- * (normal nb, or NULL for a point in space such as a point light). Each end is
+ * (normal nb). A NULL normal leaves that end where it is (a point light, or an
+ * origin the caller has already moved off its surface). Each end with a normal is
  * moved off its surface by `eps` along its normal, on the side that faces the
  * other end, and the segment between the moved ends is tested. Moving only the
  * origin and shortening the far end by a fixed length is wrong at grazing

@@ -73,3 +73,8 @@ foreach(line IN LISTS corpus)
   endif()
   lumesh_cli_test(badinput_${file} ${code} ARGS ${args} ONE_ERR_LINE ERR "lumesh: .*${file}")
 endforeach()
+
+# --sampler and --gl: fixed spellings, checked before the scene is read.
+lumesh_cli_test(render_bad_sampler 1 ARGS render -o x.png --sampler cuda ERR "--sampler must be gl, embree or auto, not 'cuda'")
+lumesh_cli_test(converge_bad_gl 1 ARGS converge --reference r.exr --seconds 1 --out d --gl glx ERR "--gl must be egl or osmesa")
+lumesh_cli_test(view_sampler_ok 3 ARGS view --sampler embree --gl osmesa ONE_ERR_LINE ERR "not available yet")

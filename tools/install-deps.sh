@@ -9,6 +9,10 @@ packages=(
   libopenimageio-dev                 # EXR and PNG images
   libcjson-dev                       # JSON scene descriptions
   libembree-dev                      # CPU ray tracing: reference renderer, Embree sampler
+  python3-glad                       # generates the OpenGL 4.5 loader at build time (glad 2, MX)
+  libegl-dev libosmesa6-dev          # headless GL for the GL sampler: EGL, OSMesa
+  libegl-mesa0 libgl1-mesa-dri       # Mesa's EGL vendor and llvmpipe (run time; no GPU needed)
+  libgl-dev                          # GL headers (osmesa.h includes GL/gl.h); libGL is not linked
 )
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi

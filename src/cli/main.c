@@ -4,6 +4,12 @@
 
 #include "cli.h"
 
+/* The sampler options of render, converge and view. */
+#define SAMPLER_HELP                                                                          \
+    "  --sampler NAME      irradiance sampler: gl, embree, or auto (default: the cheaper at\n" \
+    "                      equal error on this machine, measured at start)\n"                \
+    "  --gl NAME           GL platform of the gl sampler: egl (default) or osmesa\n"
+
 static const app_command commands[] = {
     {"info", "print what a scene holds: triangles, materials, lights, cameras, what was dropped",
      "usage: lumesh info [SCENE]\n"
@@ -18,6 +24,7 @@ static const app_command commands[] = {
     {"render", "progressive multi-mesh render to an image (headless)",
      "usage: lumesh render [SCENE] -o OUT.png|OUT.exr [--seconds T | --samples N]\n"
      "                     [--width W --height H] [--camera NAME] [--stats STATS.json]\n"
+     "                     [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
      "\n"
      "Renders SCENE with the multi-mesh cache for T seconds or N samples and writes\n"
      "a tone-mapped PNG or a linear EXR. Without SCENE the built-in Cornell box.\n"
@@ -27,7 +34,8 @@ static const app_command commands[] = {
      "  --samples N         stop refining after N samples\n"
      "  --width W, --height H   image size (default: the camera's)\n"
      "  --camera NAME       one of the scene's cameras (default: the first)\n"
-     "  --stats FILE        write per-mesh sample statistics as JSON\n",
+     "  --stats FILE        write per-mesh sample statistics as JSON\n"
+     SAMPLER_HELP,
      cmd_render},
     {"reference", "ray-traced ground truth (Embree path tracer)",
      "usage: lumesh reference [SCENE] -o OUT.exr (--spp N | --seconds T)\n"
@@ -81,14 +89,19 @@ static const app_command commands[] = {
      cmd_compare},
     {"converge", "scripted convergence run: error against time",
      "usage: lumesh converge [SCENE] --reference REF.exr --seconds T --out DIR\n"
+     "                       [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
      "\n"
      "Renders progressively for T seconds, snapshots images, and writes CSV/JSON of\n"
-     "time, samples and error against REF into DIR.\n",
+     "time, samples and error against REF into DIR.\n"
+     "\n"
+     SAMPLER_HELP,
      cmd_converge},
     {"view", "interactive window that sharpens while the camera is idle",
-     "usage: lumesh view [SCENE]\n"
+     "usage: lumesh view [SCENE] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
      "\n"
-     "Opens a window on SCENE; lighting refines whenever the camera is still.\n",
+     "Opens a window on SCENE; lighting refines whenever the camera is still.\n"
+     "\n"
+     SAMPLER_HELP,
      cmd_view},
 };
 

@@ -1,0 +1,163 @@
+/* samp.h — irradiance samplers: one interface, several back ends (paper §5;
+ * DESIGN.md "Sampling").
+ *
+ * Two quantities, for a batch of receiver points x with unit normals n:
+ *   direct    G_ℓ(x) = ∫_ℓ V(x,y) cosθ_x cosθ_y / r² dA_y   for one light ℓ
+ *             (dimensionless; irradiance E_ℓ = L_ℓ·G_ℓ). For a point light of
+ *             intensity I the same call gives V·cosθ_x/r² (E = I·G), scene units⁻².
+ *   indirect  E_i(x) = ∫_Ω L(x ← ω) cosθ dω, RGB, where L is read from a supplied
+ *             coarse radiance mesh (radiance leaving the surface, W·m⁻²·sr⁻¹)
+ *             over the scene's triangles (paper eq. 7: kd(x')·L_dd(x')).
+ *
+ * Back ends:
+ *   SAMP_BACKEND_EMBREE  CPU rays. Direct: stratified points on the light,
+ *                        shadow rays, and the analytic unoccluded value as a
+ *                        control variate: G = G_unocc · (visible weight / total
+ *                        weight), exact wherever the light is fully visible.
+ *                        Indirect: stratified cosine-weighted rays; the hit's
+ *                        scene triangle and barycentrics look the radiance up.
+ *   SAMP_BACKEND_GL      Rasterization on an OpenGL 4.5 core context (EGL or
+ *                        OSMesa, headless): direct by a small frustum around the
+ *                        light per point, indirect by a hemicube; batched draws,
+ *                        reduced on the GPU (samp_gl.c).
+ *   SAMP_BACKEND_AUTO    the cheaper at equal error on this machine, by a short
+ *                        calibration at creation (samp_auto.c); samp_get_stats
+ *                        says which and why.
+ * Point lights are always sampled with one Embree shadow ray (exact; a frustum
+ * adds nothing for a point).
+ *
+ * Usage:
+ *     samp_sampler *sp; lm_error err;
+ *     if (samp_create(&(samp_desc){.scene = s}, &sp, &err) != LM_OK) ...
+ *     samp_point pts[2] = {{{0, 0, 0}, {0, 1, 0}}, {{1, 0, 0}, {0, 1, 0}}};
+ *     float G[2];
+ *     samp_direct(sp, 0, pts, 2, G, &err);           // light 0 of scene_light order
+ *     samp_destroy(sp);
+ *
+ * Light order: the scene's area lights first (scene.area_lights), then its point
+ * lights; scene_light_count(s) in all.
+ *
+ * Threads: a sampler belongs to the thread that created it (a GL back end's
+ * context is current there); calls on it are not thread-safe. The Embree back
+ * end spreads each batch over its own worker threads (desc.threads).
+ * Does NOT do: specular (Phong-lobe) integrals (eq. 6 is evaluated from G by the
+ * cache), visibility of emission itself, textures.
+ */
+#ifndef LUMESH_SAMP_H
+#define LUMESH_SAMP_H
+
+#include <math.h>
+#include <stdint.h>
+
+#include "scene.h"
+#include "util.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum samp_backend {
+    SAMP_BACKEND_AUTO = 0, /* default: measured at creation */
+    SAMP_BACKEND_EMBREE,
+    SAMP_BACKEND_GL,
+    SAMP_BACKEND_COUNT
+} samp_backend;
+
+typedef enum samp_gl_platform {
+    SAMP_GL_DEFAULT = 0, /* EGL */
+    SAMP_GL_EGL,         /* headless EGL: surfaceless, else device platform */
+    SAMP_GL_OSMESA,      /* Mesa's off-screen software renderer */
+    SAMP_GL_PLATFORM_COUNT
+} samp_gl_platform;
+
+typedef enum samp_indirect_mode {
+    SAMP_INDIRECT_HEMICUBE = 0, /* default: five faces, the whole hemisphere */
+    SAMP_INDIRECT_PLANE160,     /* GL: the paper's single 160° plane (misses the grazing ring) */
+    SAMP_INDIRECT_MODE_COUNT
+} samp_indirect_mode;
+
+typedef struct samp_desc {
+    const scene *scene;           /* must outlive the sampler */
+    samp_backend backend;
+    samp_gl_platform gl_platform;
+    int direct_res;               /* GL: frustum pixels per side; 0 = 64 */
+    int direct_rays;              /* Embree: light points per receiver (stratified); 0 = 64 */
+    int direct_control_variate;   /* 0 = on (default); SAMP_OFF = raw estimate */
+    int indirect_res;             /* GL: hemicube face pixels per side; 0 = 64 */
+    int indirect_rays;            /* Embree: hemisphere rays per receiver (stratified); 0 = 1024 */
+    samp_indirect_mode indirect_mode;
+    int threads;                  /* Embree worker threads; 0 = every core */
+    uint32_t seed;                /* random numbers: the same seed and calls give the same values */
+} samp_desc;
+
+enum { SAMP_OFF = -1 };
+
+/* Stated accuracy of the Embree direct estimate with the control variate: exact
+ * (to float rounding) where the light is wholly visible or wholly hidden; in
+ * penumbra a relative standard deviation of about 1.2·rays^-0.75 of G (measured
+ * with a straight edge across the middle of a quad light, tests/samp_embree_test.c). */
+#define SAMP_EMBREE_PENUMBRA_RMS(rays) (1.2 * pow((double)(rays), -0.75))
+
+/* A receiver: position (scene units) and unit normal of the side that receives.
+ * tri_plus_one names the scene triangle the point lies on (its id + 1; 0 = not
+ * given). With it, every back end moves the ray origin a few epsilons into that
+ * triangle before lifting it off the surface, so a point on an edge or corner of
+ * the mesh (a floor vertex where a wall stands) cannot see through the wall's
+ * plane at distance 0. Without it only the lift along n is applied. */
+typedef struct samp_point {
+    float p[3];
+    float n[3];
+    uint32_t tri_plus_one;
+} samp_point;
+
+/* A coarse radiance mesh over the scene's triangles: triangles lying inside scene
+ * triangles, each corner given by its barycentric coordinates (w1, w2) in the
+ * scene triangle (position = (1−w1−w2)·v0 + w1·v1 + w2·v2) and the RGB radiance
+ * leaving the surface there. Triangles are grouped by scene triangle:
+ * first[t] .. first[t+1] are those inside scene triangle t (first has
+ * scene.tri_count + 1 entries; a scene triangle may have none: it sends no light).
+ * Inside one scene triangle the sub-triangles tile it without overlap (the Embree
+ * back end finds the one containing a hit). Radiance is what leaves the front
+ * and the back alike (diffuse surfaces seen from either side). */
+typedef struct samp_radiance_mesh {
+    uint32_t tri_count;
+    const uint32_t *first;    /* scene.tri_count + 1 offsets */
+    const float *bary;        /* 6 floats per triangle: (w1, w2) of corners 0, 1, 2 */
+    const float *radiance;    /* 9 floats per triangle: RGB of corners 0, 1, 2, W·m⁻²·sr⁻¹ */
+} samp_radiance_mesh;
+
+typedef struct samp_sampler samp_sampler;
+
+lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err);
+void samp_destroy(samp_sampler *sp); /* NULL is a no-op */
+
+/* G of light `light` at each of the n points, into G[0..n). Points behind a
+ * one-sided light, or with the light below their horizon, get exactly 0. */
+lm_result samp_direct(samp_sampler *sp, uint32_t light, const samp_point *pts, uint32_t n, float *G,
+                      lm_error *err);
+
+/* RGB indirect irradiance from `mesh` at each of the n points, into E[3·i ..]. */
+lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                        float *E, lm_error *err);
+
+typedef struct samp_stats {
+    samp_backend backend;         /* the back end in use (never AUTO) */
+    const char *backend_name;     /* "embree", "gl-egl", "gl-osmesa" */
+    char choice[256];             /* why this back end (AUTO: the calibration's numbers) */
+    uint64_t direct_samples, indirect_samples;  /* points served */
+    double direct_seconds, indirect_seconds;    /* wall time inside the calls */
+} samp_stats;
+
+void samp_get_stats(const samp_sampler *sp, samp_stats *out);
+
+const char *samp_backend_name(samp_backend b);
+const char *samp_gl_platform_name(samp_gl_platform p);
+/* The spellings of the command line: "auto", "embree", "gl"; "egl", "osmesa".
+ * Return 0 (and leave *out alone) for anything else. */
+int samp_backend_from_name(const char *name, samp_backend *out);
+int samp_gl_platform_from_name(const char *name, samp_gl_platform *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

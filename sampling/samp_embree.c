@@ -1,0 +1,379 @@
+/* samp_embree.c — the CPU back end of the samplers (samp.h), Embree 3 rays
+ * (paper §5 names ray tracing as the alternative to hardware sampling; on a
+ * machine without a GPU it is the one to beat).
+ *
+ * Direct: k×k stratified points on the light (uniform by area over its
+ * triangles), weight w = cosθ_x·cosθ_y/r², one shadow ray each. With the control
+ * variate (default) the estimate is
+ *     G = G_unoccluded · Σ w·V / Σ w
+ * with G_unoccluded from Lambert's formula (analytic.c): exact wherever the light
+ * is fully visible or fully hidden, and in penumbra the error of the visible
+ * fraction only. Without it, G = A/N·Σ w·V.
+ * Indirect: k×k stratified cosine-weighted directions, E = π/N·Σ L(hit); L is
+ * interpolated in the coarse radiance mesh's sub-triangle that contains the hit's
+ * barycentrics. A ray that leaves the scene brings nothing.
+ *
+ * Random numbers: a point's stream is seeded by (seed, light, the bits of its
+ * position and normal), so a value depends on the point alone, not on the batch
+ * it came in or the thread that computed it.
+ * Threads: a batch is split over desc.threads workers (each takes chunks of
+ * points from an atomic counter); the caller's thread waits for them.
+ */
+#include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "ref_shading.h"
+#include "samp_internal.h"
+#include "vecmath.h"
+
+enum { MAX_THREADS = 64, CHUNK = 16 };
+
+typedef struct light_table {
+    double *cdf;         /* per triangle of the light, cumulative area fraction; last = 1 */
+    double area;         /* scene units² */
+    /* A light made of two triangles that form a parallelogram (every quad light
+     * of a JSON scene, the Cornell box's lamp) is sampled as one: corner + u·e1 +
+     * v·e2, so the k×k strata are parallelograms on the light and a straight
+     * shadow edge crosses about k of them (through the triangle parameterisation
+     * it crosses about 2k, bent). */
+    int parallelogram;
+    lm_dvec3 corner, e1, e2;
+    uint32_t tri;        /* either triangle: the normal */
+} light_table;
+
+typedef struct embree_impl {
+    samp_desc desc;
+    const scene *s;
+    const rt_scene *rt;
+    float eps;
+    int threads;
+    int direct_k, indirect_k; /* strata per side */
+    light_table *lights;      /* per area light; read-only after creation */
+} embree_impl;
+
+/* ---- random streams -------------------------------------------------------- */
+
+static uint64_t hash_point(const samp_point *x)
+{
+    uint64_t h = 0x84222325cbf29ce4ull;
+    const float *f[2] = {x->p, x->n};
+    for (int a = 0; a < 2; ++a)
+        for (int k = 0; k < 3; ++k) {
+            uint32_t bits;
+            memcpy(&bits, &f[a][k], sizeof bits);
+            h = (h ^ bits) * 0x100000001b3ull;
+        }
+    return h;
+}
+
+static void point_rng(const embree_impl *e, uint64_t stream, const samp_point *x, ref_rng *g)
+{
+    ref_rng_seed(g, e->desc.seed, hash_point(x), stream);
+}
+
+/* ---- direct ---------------------------------------------------------------- */
+
+/* Point on area light `li` for the unit-square sample (u, v); returns the triangle. */
+static uint32_t light_point(const embree_impl *e, uint32_t li, double u, double v, lm_vec3 *y)
+{
+    const scene *s = e->s;
+    const light_table *lt = &e->lights[li];
+    if (lt->parallelogram) {
+        lm_dvec3 p = dv3_add(lt->corner, dv3_add(dv3_scale(lt->e1, u), dv3_scale(lt->e2, v)));
+        *y = v3((float)p.x, (float)p.y, (float)p.z);
+        return lt->tri;
+    }
+    const scene_area_light *L = &s->area_lights[li];
+    const double *cdf = e->lights[li].cdf;
+    uint32_t lo = 0, hi = L->count - 1;
+    while (lo < hi) {
+        uint32_t mid = (lo + hi) / 2;
+        if (u < cdf[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    double start = lo ? cdf[lo - 1] : 0.0, width = cdf[lo] - start;
+    double uu = width > 0.0 ? (u - start) / width : 0.5;
+    uu = fmin(fmax(uu, 0.0), 1.0);
+    uint32_t tri = s->light_tris[L->first + lo];
+    const uint32_t *vi = s->tris[tri].v;
+    double su = sqrt(uu), b0 = 1.0 - su, b1 = v * su, b2 = 1.0 - b0 - b1;
+    lm_dvec3 a = dv3_load(s->positions + 3 * (size_t)vi[0]), b = dv3_load(s->positions + 3 * (size_t)vi[1]),
+             c = dv3_load(s->positions + 3 * (size_t)vi[2]);
+    lm_dvec3 p = dv3_add(dv3_add(dv3_scale(a, b0), dv3_scale(b, b1)), dv3_scale(c, b2));
+    *y = v3((float)p.x, (float)p.y, (float)p.z);
+    return tri;
+}
+
+static float direct_one(const embree_impl *e, uint32_t li, const samp_point *x)
+{
+    const scene *s = e->s;
+    double g0 = samp_area_light_unoccluded(s, li, x->p, x->n);
+    if (!(g0 > 0.0)) return 0.0f; /* behind the light or below the horizon: exactly 0 */
+    float origin[3];
+    samp_point_origin(s, x, e->eps, origin);
+    lm_vec3 o = v3_load(origin), nx = v3_load(x->n);
+    ref_rng g;
+    point_rng(e, 1u + li, x, &g);
+    int k = e->direct_k;
+    double sum_w = 0.0, sum_vis = 0.0;
+    for (int j = 0; j < k; ++j)
+        for (int i = 0; i < k; ++i) {
+            double u = (i + ref_rng_float(&g)) / k, v = (j + ref_rng_float(&g)) / k;
+            lm_vec3 y;
+            uint32_t tri = light_point(e, li, u, v, &y);
+            lm_vec3 ny = v3_load(s->tri_normals + 3 * (size_t)tri);
+            lm_vec3 d = v3_sub(y, o);
+            float r2 = v3_dot(d, d);
+            if (!(r2 > 0.0f)) continue;
+            float r = sqrtf(r2);
+            float cx = v3_dot(nx, d) / r, cy = -v3_dot(ny, d) / r;
+            if (cx <= 0.0f || cy <= 0.0f) continue;
+            double w = (double)cx * cy / r2;
+            sum_w += w;
+            float yf[3], nyf[3];
+            v3_store(yf, y);
+            v3_store(nyf, ny);
+            if (!rt_segment_occluded(e->rt, origin, NULL, yf, nyf, e->eps)) sum_vis += w;
+        }
+    double G;
+    if (e->desc.direct_control_variate == SAMP_OFF)
+        G = sum_vis * e->lights[li].area / ((double)k * k);
+    else
+        G = sum_w > 0.0 ? g0 * (sum_vis / sum_w) : 0.0;
+    return isfinite(G) && G > 0.0 ? (float)G : 0.0f;
+}
+
+/* ---- indirect -------------------------------------------------------------- */
+
+/* RGB radiance of the coarse mesh at barycentrics (w1, w2) of scene triangle t:
+ * the sub-triangle that contains the point (or, for a point on no sub-triangle
+ * by rounding, the one it is least outside of), linearly interpolated. */
+static void mesh_radiance(const samp_radiance_mesh *m, uint32_t t, float w1, float w2, float out[3])
+{
+    out[0] = out[1] = out[2] = 0.0f;
+    uint32_t best = UINT32_MAX;
+    float best_min = -INFINITY, best_l[3] = {0, 0, 0};
+    for (uint32_t i = m->first[t]; i < m->first[t + 1]; ++i) {
+        const float *b = m->bary + 6 * (size_t)i;
+        /* Barycentrics of (w1, w2) in the 2D triangle (b0, b1, b2). */
+        float ax = b[0], ay = b[1], bx = b[2], by = b[3], cx = b[4], cy = b[5];
+        float det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
+        if (det == 0.0f) continue;
+        float l1 = ((w1 - ax) * (cy - ay) - (cx - ax) * (w2 - ay)) / det;
+        float l2 = ((bx - ax) * (w2 - ay) - (w1 - ax) * (by - ay)) / det;
+        float l0 = 1.0f - l1 - l2;
+        float mn = fminf(l0, fminf(l1, l2));
+        if (mn > best_min) {
+            best_min = mn;
+            best = i;
+            best_l[0] = l0;
+            best_l[1] = l1;
+            best_l[2] = l2;
+            if (mn >= 0.0f) break;
+        }
+    }
+    if (best == UINT32_MAX) return;
+    const float *r = m->radiance + 9 * (size_t)best;
+    for (int c = 0; c < 3; ++c) {
+        float l = fmaxf(best_l[c], 0.0f);
+        for (int k = 0; k < 3; ++k) out[k] += l * r[3 * c + k];
+    }
+    float sum = fmaxf(best_l[0], 0.0f) + fmaxf(best_l[1], 0.0f) + fmaxf(best_l[2], 0.0f);
+    if (sum > 0.0f && sum != 1.0f)
+        for (int k = 0; k < 3; ++k) out[k] /= sum;
+}
+
+static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_point *x, float E[3])
+{
+    float origin[3];
+    samp_point_origin(e->s, x, e->eps, origin);
+    lm_vec3 n = v3_normalize(v3_load(x->n));
+    /* Orthonormal basis around n (Duff et al., "Building an orthonormal basis, revisited"). */
+    float sign = copysignf(1.0f, n.z), a = -1.0f / (sign + n.z), b = n.x * n.y * a;
+    lm_vec3 t1 = v3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    lm_vec3 t2 = v3(b, sign + n.y * n.y * a, -n.y);
+    ref_rng g;
+    point_rng(e, 0, x, &g);
+    int k = e->indirect_k;
+    double sum[3] = {0, 0, 0};
+    for (int j = 0; j < k; ++j)
+        for (int i = 0; i < k; ++i) {
+            float u = (i + ref_rng_float(&g)) / k, v = (j + ref_rng_float(&g)) / k;
+            float r = sqrtf(u), phi = 2.0f * (float)M_PI * v;
+            float lx = r * cosf(phi), ly = r * sinf(phi), lz = sqrtf(fmaxf(0.0f, 1.0f - u));
+            lm_vec3 d = v3_add(v3_add(v3_scale(t1, lx), v3_scale(t2, ly)), v3_scale(n, lz));
+            float dir[3];
+            v3_store(dir, d);
+            rt_hit h;
+            if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
+            float L[3];
+            mesh_radiance(m, h.tri, h.u, h.v, L);
+            for (int c = 0; c < 3; ++c) sum[c] += L[c];
+        }
+    for (int c = 0; c < 3; ++c) {
+        double v = M_PI * sum[c] / ((double)k * k);
+        E[c] = isfinite(v) ? (float)v : 0.0f;
+    }
+}
+
+/* ---- batches over threads ------------------------------------------------- */
+
+typedef struct batch {
+    const embree_impl *e;
+    uint32_t light;                 /* direct */
+    const samp_radiance_mesh *mesh; /* indirect when non-NULL */
+    const samp_point *pts;
+    uint32_t n;
+    float *out;
+    atomic_uint next;               /* next chunk start; shared by the workers */
+} batch;
+
+static void *batch_worker(void *arg)
+{
+    batch *b = arg;
+    for (;;) {
+        uint32_t start = atomic_fetch_add(&b->next, CHUNK);
+        if (start >= b->n) break;
+        uint32_t end = start + CHUNK < b->n ? start + CHUNK : b->n;
+        for (uint32_t i = start; i < end; ++i) {
+            if (b->mesh)
+                indirect_one(b->e, b->mesh, &b->pts[i], b->out + 3 * (size_t)i);
+            else
+                b->out[i] = direct_one(b->e, b->light, &b->pts[i]);
+        }
+    }
+    return NULL;
+}
+
+static void run_batch(const embree_impl *e, batch *b)
+{
+    atomic_init(&b->next, 0);
+    int want = (int)((b->n + CHUNK - 1) / CHUNK);
+    int nt = e->threads < want ? e->threads : want;
+    pthread_t tid[MAX_THREADS];
+    int started = 0;
+    for (int i = 1; i < nt; ++i)
+        if (pthread_create(&tid[started], NULL, batch_worker, b) == 0) started++;
+    batch_worker(b); /* the caller works too; if threads failed it does it all */
+    for (int i = 0; i < started; ++i) pthread_join(tid[i], NULL);
+}
+
+static lm_result embree_direct(void *impl, uint32_t light, const samp_point *pts, uint32_t n, float *G,
+                               lm_error *err)
+{
+    (void)err;
+    batch b = {.e = impl, .light = light, .pts = pts, .n = n, .out = G};
+    run_batch(impl, &b);
+    return LM_OK;
+}
+
+static lm_result embree_indirect(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                                 float *E, lm_error *err)
+{
+    (void)err;
+    batch b = {.e = impl, .mesh = mesh, .pts = pts, .n = n, .out = E};
+    run_batch(impl, &b);
+    return LM_OK;
+}
+
+static void embree_destroy(void *impl)
+{
+    embree_impl *e = impl;
+    if (!e) return;
+    if (e->lights)
+        for (uint32_t i = 0; i < e->s->area_light_count; ++i) free(e->lights[i].cdf);
+    free(e->lights);
+    free(e);
+}
+
+static const samp_backend_ops embree_ops = {
+    .name = "embree", .direct = embree_direct, .indirect = embree_indirect, .destroy = embree_destroy};
+
+/* Two triangles sharing an edge whose four corners satisfy a + c = b + d (to
+ * float rounding): record the parallelogram. */
+static void detect_parallelogram(const scene *s, const scene_area_light *L, light_table *t)
+{
+    if (L->count != 2) return;
+    const uint32_t *ta = s->tris[s->light_tris[L->first]].v, *tb = s->tris[s->light_tris[L->first + 1]].v;
+    /* the vertex of b that is not in a */
+    int extra = -1, shared = 0;
+    for (int i = 0; i < 3; ++i) {
+        int in_a = tb[i] == ta[0] || tb[i] == ta[1] || tb[i] == ta[2];
+        shared += in_a;
+        if (!in_a) extra = i;
+    }
+    if (shared != 2 || extra < 0) return;
+    /* the vertex of a opposite the shared edge */
+    int opp = -1;
+    for (int i = 0; i < 3; ++i)
+        if (ta[i] != tb[0] && ta[i] != tb[1] && ta[i] != tb[2]) opp = i;
+    if (opp < 0) return;
+    lm_dvec3 o = dv3_load(s->positions + 3 * (size_t)ta[opp]);
+    lm_dvec3 p1 = dv3_load(s->positions + 3 * (size_t)ta[(opp + 1) % 3]);
+    lm_dvec3 p2 = dv3_load(s->positions + 3 * (size_t)ta[(opp + 2) % 3]);
+    lm_dvec3 q = dv3_load(s->positions + 3 * (size_t)tb[extra]);
+    lm_dvec3 e1 = dv3_sub(p1, o), e2 = dv3_sub(p2, o);
+    lm_dvec3 miss = dv3_sub(q, dv3_add(o, dv3_add(e1, e2)));
+    double size = dv3_length(e1) + dv3_length(e2);
+    if (dv3_length(miss) > 1e-5 * size) return;
+    t->parallelogram = 1;
+    t->corner = o;
+    t->e1 = e1;
+    t->e2 = e2;
+    t->tri = s->light_tris[L->first];
+}
+
+static int strata_per_side(int rays)
+{
+    int k = (int)ceil(sqrt((double)rays));
+    return k < 1 ? 1 : k;
+}
+
+lm_result samp_embree_create(const samp_desc *desc, const rt_scene *rt, const samp_backend_ops **ops,
+                             void **impl, lm_error *err)
+{
+    embree_impl *e = calloc(1, sizeof *e);
+    if (!e) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the Embree sampler");
+    e->desc = *desc;
+    e->s = desc->scene;
+    e->rt = rt;
+    e->eps = rt_scene_epsilon(rt);
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    e->threads = desc->threads > 0 ? desc->threads : (cores > 0 ? (int)cores : 1);
+    if (e->threads > MAX_THREADS) e->threads = MAX_THREADS;
+    e->direct_k = strata_per_side(desc->direct_rays);
+    e->indirect_k = strata_per_side(desc->indirect_rays);
+    const scene *s = e->s;
+    e->lights = calloc(s->area_light_count ? s->area_light_count : 1, sizeof *e->lights);
+    if (!e->lights) {
+        embree_destroy(e);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the Embree sampler");
+    }
+    for (uint32_t li = 0; li < s->area_light_count; ++li) {
+        const scene_area_light *L = &s->area_lights[li];
+        light_table *t = &e->lights[li];
+        t->cdf = malloc(L->count * sizeof *t->cdf);
+        if (!t->cdf) {
+            embree_destroy(e);
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the Embree sampler");
+        }
+        double total = 0.0;
+        for (uint32_t i = 0; i < L->count; ++i) {
+            total += s->tri_areas[s->light_tris[L->first + i]];
+            t->cdf[i] = total;
+        }
+        for (uint32_t i = 0; i < L->count; ++i) t->cdf[i] /= total;
+        t->cdf[L->count - 1] = 1.0;
+        t->area = total;
+        detect_parallelogram(s, L, t);
+    }
+    *ops = &embree_ops;
+    *impl = e;
+    return LM_OK;
+}

@@ -1,0 +1,61 @@
+/* samp_internal.h — what a sampler back end implements (samp_embree.c, samp_gl.c)
+ * and what samp.c gives every back end. Not a public header.
+ *
+ * samp.c owns the sampler: it validates arguments, serves point lights with
+ * Embree shadow rays, counts and times the calls, and forwards area lights and
+ * indirect batches to the back end through samp_backend_ops.
+ */
+#ifndef LUMESH_SAMP_INTERNAL_H
+#define LUMESH_SAMP_INTERNAL_H
+
+#include "rt_scene.h"
+#include "samp.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct samp_backend_ops {
+    const char *name;  /* "embree", "gl-egl", "gl-osmesa" */
+    /* G of area light `area_light` (index into scene.area_lights) at n points. */
+    lm_result (*direct)(void *impl, uint32_t area_light, const samp_point *pts, uint32_t n, float *G,
+                        lm_error *err);
+    lm_result (*indirect)(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                          float *E, lm_error *err);
+    void (*destroy)(void *impl);
+} samp_backend_ops;
+
+/* Every back end is created from the user's descriptor with defaults filled in
+ * (samp_desc_defaults) and the shared Embree scene (owned by samp.c; it outlives
+ * the back end). */
+lm_result samp_embree_create(const samp_desc *desc, const rt_scene *rt, const samp_backend_ops **ops,
+                             void **impl, lm_error *err);
+lm_result samp_gl_create(const samp_desc *desc, const rt_scene *rt, const samp_backend_ops **ops, void **impl,
+                         lm_error *err);
+
+/* SAMP_BACKEND_AUTO (samp_auto.c): creates the back ends that can be made here,
+ * measures each at equal error, keeps the cheaper, and writes the numbers behind
+ * the choice into stats->choice. */
+lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, const samp_backend_ops **ops, void **impl,
+                           samp_stats *stats, lm_error *err);
+
+/* The descriptor with every zero field replaced by its default. */
+samp_desc samp_desc_defaults(const samp_desc *desc);
+
+/* Unoccluded G of area light `light` at (p, n): the sum over its triangles of
+ * samp_polygon_G (double precision inside). */
+double samp_area_light_unoccluded(const scene *s, uint32_t light, const float p[3], const float n[3]);
+
+/* Where rays and frusta for receiver x start: x moved `eps` towards the centroid
+ * of its triangle (when x->tri_plus_one names one), then `eps` along x->n. Every
+ * back end uses this, so they see the same thing from the same point. */
+void samp_point_origin(const scene *s, const samp_point *x, float eps, float out[3]);
+
+/* True when the radiance mesh is well formed for scene s: offsets non-decreasing,
+ * first[tri_count] == mesh->tri_count, barycentrics and radiance finite. */
+int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *mesh, lm_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
