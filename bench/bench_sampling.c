@@ -32,35 +32,6 @@ typedef struct point_set {
     uint32_t n_unocc, n_occ;
 } point_set;
 
-static samp_point random_receiver(const scene *s, ref_rng *g, const double *cdf)
-{
-    for (;;) {
-        double pick = ref_rng_float(g);
-        uint32_t lo = 0, hi = s->tri_count - 1;
-        while (lo < hi) {
-            uint32_t mid = (lo + hi) / 2;
-            if (pick < cdf[mid])
-                hi = mid;
-            else
-                lo = mid + 1;
-        }
-        if (s->tris[lo].light >= 0) continue;
-        float u = ref_rng_float(g), v = ref_rng_float(g);
-        if (u + v > 1.0f) {
-            u = 1.0f - u;
-            v = 1.0f - v;
-        }
-        const uint32_t *vi = s->tris[lo].v;
-        samp_point x = {.tri_plus_one = lo + 1};
-        for (int k = 0; k < 3; ++k) {
-            x.p[k] = (1.0f - u - v) * s->positions[3 * (size_t)vi[0] + (size_t)k] +
-                     u * s->positions[3 * (size_t)vi[1] + (size_t)k] + v * s->positions[3 * (size_t)vi[2] + (size_t)k];
-            x.n[k] = s->tri_normals[3 * (size_t)lo + (size_t)k];
-        }
-        if (samp_area_light_unoccluded(s, 0, x.p, x.n) > 0.0) return x;
-    }
-}
-
 static samp_sampler *make(const scene *s, samp_backend b, samp_gl_platform pl, int res, int rays, int ind_res,
                           int ind_rays, char *why, size_t why_n)
 {
@@ -77,9 +48,7 @@ static samp_sampler *make(const scene *s, samp_backend b, samp_gl_platform pl, i
 
 static void build_points(const scene *s, point_set *ps, int quick)
 {
-    double *cdf = malloc(s->tri_count * sizeof *cdf), total = 0.0;
-    for (uint32_t t = 0; t < s->tri_count; ++t) cdf[t] = (total += s->tri_areas[t]);
-    for (uint32_t t = 0; t < s->tri_count; ++t) cdf[t] /= total;
+    double *cdf = samp_area_cdf(s);
     ref_rng g;
     ref_rng_seed(&g, 77, 0, 0);
     char why[256];
@@ -88,7 +57,7 @@ static void build_points(const scene *s, point_set *ps, int quick)
     uint32_t want = quick ? 16 : 32;
     ps->n_unocc = ps->n_occ = 0;
     for (int tries = 0; tries < 20000 && (ps->n_unocc < want || ps->n_occ < want); ++tries) {
-        samp_point x = random_receiver(s, &g, cdf);
+        samp_point x = samp_random_receiver(s, cdf, &g);
         float G;
         lm_error err;
         samp_direct(probe, 0, &x, 1, &G, &err);
@@ -104,7 +73,11 @@ static void build_points(const scene *s, point_set *ps, int quick)
     }
     lm_error err;
     samp_direct(ref, 0, ps->occ, ps->n_occ, ps->occ_ref, &err);
-    for (int i = 0; i < BATCH; ++i) ps->timing[i] = random_receiver(s, &g, cdf);
+    /* Timing receivers face the light (a cache samples no light where it is behind). */
+    for (int i = 0; i < BATCH;) {
+        ps->timing[i] = samp_random_receiver(s, cdf, &g);
+        i += samp_area_light_unoccluded(s, 0, ps->timing[i].p, ps->timing[i].n) > 0.0;
+    }
     samp_destroy(probe);
     samp_destroy(ref);
     free(cdf);
@@ -168,41 +141,6 @@ static const config indirect_configs[] = {
     {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 256, 0}, {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 64, 0},
 };
 
-/* The first direct-diffuse mesh a cache would have: kd·Le·G_unoccluded/π at the
- * corners of every scene triangle. */
-typedef struct coarse_mesh {
-    uint32_t *first;
-    float *bary, *rad;
-    samp_radiance_mesh m;
-} coarse_mesh;
-
-static void coarse_mesh_build(const scene *s, coarse_mesh *c)
-{
-    static const float corners[6] = {0, 0, 1, 0, 0, 1};
-    c->first = malloc((s->tri_count + 1) * sizeof *c->first);
-    c->bary = malloc(6 * (size_t)s->tri_count * sizeof *c->bary);
-    c->rad = malloc(9 * (size_t)s->tri_count * sizeof *c->rad);
-    const scene_area_light *L = &s->area_lights[0];
-    for (uint32_t t = 0; t <= s->tri_count; ++t) c->first[t] = t;
-    for (uint32_t t = 0; t < s->tri_count; ++t) {
-        memcpy(c->bary + 6 * (size_t)t, corners, sizeof corners);
-        const scene_material *m = &s->materials[s->tris[t].material];
-        for (int v = 0; v < 3; ++v) {
-            const float *p = s->positions + 3 * (size_t)s->tris[t].v[v];
-            double g = s->tris[t].light >= 0 ? 0.0 : samp_area_light_unoccluded(s, 0, p, s->tri_normals + 3 * (size_t)t);
-            for (int k = 0; k < 3; ++k) c->rad[9 * (size_t)t + 3 * (size_t)v + (size_t)k] = (float)(m->kd[k] * L->le[k] * g / M_PI);
-        }
-    }
-    c->m = (samp_radiance_mesh){.tri_count = s->tri_count, .first = c->first, .bary = c->bary, .radiance = c->rad};
-}
-
-static void coarse_mesh_free(coarse_mesh *c)
-{
-    free(c->first);
-    free(c->bary);
-    free(c->rad);
-}
-
 static void bench_scene(const char *name, int quick)
 {
     char path[1024];
@@ -245,13 +183,17 @@ static void bench_scene(const char *name, int quick)
         samp_destroy(sp);
     }
 
-    coarse_mesh cm;
-    coarse_mesh_build(s, &cm);
+    samp_coarse_mesh cm;
+    if (samp_coarse_mesh_build(s, &cm, &err) != LM_OK) {
+        fprintf(stderr, "%s\n", err.msg);
+        scene_destroy(s);
+        return;
+    }
     char why[256];
     samp_sampler *ref = make(s, SAMP_BACKEND_EMBREE, 0, 0, 0, 0, quick ? 65536 : 262144, why, sizeof why);
     uint32_t ni = ps.n_unocc < 16 ? ps.n_unocc : 16;
     float eref[3 * 16], eg[3 * 16];
-    samp_indirect(ref, &cm.m, ps.unocc, ni, eref, &err);
+    samp_indirect(ref, &cm.mesh, ps.unocc, ni, eref, &err);
     samp_destroy(ref);
     printf("INDIRECT %-9s %-12s %10s   %-21s (batch %d, %u points vs %s-ray Embree)\n", "back end", "resolution",
            "us/sample", "mean/max rel error", BATCH, ni, quick ? "65,536" : "262,144");
@@ -268,8 +210,8 @@ static void bench_scene(const char *name, int quick)
             continue;
         }
         int batch = cf->backend == SAMP_BACKEND_GL && cf->res >= 256 ? 64 : BATCH;
-        double us = time_per_sample(sp, &cm.m, ps.timing, batch);
-        samp_indirect(sp, &cm.m, ps.unocc, ni, eg, &err);
+        double us = time_per_sample(sp, &cm.mesh, ps.timing, batch);
+        samp_indirect(sp, &cm.mesh, ps.unocc, ni, eg, &err);
         double mean = 0.0, max = 0.0;
         for (uint32_t i = 0; i < ni; ++i) {
             double e = 0.0, w = 0.0;
@@ -285,7 +227,7 @@ static void bench_scene(const char *name, int quick)
         fflush(stdout);
         samp_destroy(sp);
     }
-    coarse_mesh_free(&cm);
+    samp_coarse_mesh_free(&cm);
     scene_destroy(s);
 }
 

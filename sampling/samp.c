@@ -15,9 +15,8 @@
 struct samp_sampler {
     samp_desc desc;            /* defaults filled in */
     const scene *s;
-    rt_scene *rt;              /* owned; shared with the back end (read-only) */
-    const samp_backend_ops *ops;
-    void *impl;
+    rt_scene *rt;              /* owned; shared with the back ends (read-only) */
+    samp_choice be;            /* owned */
     samp_stats stats;
 };
 
@@ -104,6 +103,101 @@ void samp_point_origin(const scene *s, const samp_point *x, float eps, float out
     v3_store(out, v3_add(p, v3_scale(v3_load(x->n), eps)));
 }
 
+uint32_t samp_cdf_pick(const double *cdf, uint32_t n, double u)
+{
+    uint32_t lo = 0, hi = n - 1;
+    while (lo < hi) {
+        uint32_t mid = (lo + hi) / 2;
+        if (u < cdf[mid])
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
+    return lo;
+}
+
+double *samp_area_cdf(const scene *s)
+{
+    double *cdf = malloc((s->tri_count ? s->tri_count : 1) * sizeof *cdf), total = 0.0;
+    if (!cdf) return NULL;
+    for (uint32_t t = 0; t < s->tri_count; ++t) cdf[t] = (total += s->tri_areas[t]);
+    for (uint32_t t = 0; t < s->tri_count; ++t) cdf[t] /= total;
+    if (s->tri_count) cdf[s->tri_count - 1] = 1.0;
+    return cdf;
+}
+
+samp_point samp_random_receiver(const scene *s, const double *area_cdf, ref_rng *g)
+{
+    uint32_t t = 0;
+    for (int tries = 0; tries < 1000; ++tries) { /* a scene is never only lights (scene_load) */
+        t = samp_cdf_pick(area_cdf, s->tri_count, ref_rng_float(g));
+        if (s->tris[t].light < 0) break;
+    }
+    float u = ref_rng_float(g), v = ref_rng_float(g);
+    if (u + v > 1.0f) {
+        u = 1.0f - u;
+        v = 1.0f - v;
+    }
+    const uint32_t *vi = s->tris[t].v;
+    samp_point x = {.tri_plus_one = t + 1};
+    for (int k = 0; k < 3; ++k) {
+        x.p[k] = (1.0f - u - v) * s->positions[3 * (size_t)vi[0] + (size_t)k] +
+                 u * s->positions[3 * (size_t)vi[1] + (size_t)k] + v * s->positions[3 * (size_t)vi[2] + (size_t)k];
+        x.n[k] = s->tri_normals[3 * (size_t)t + (size_t)k];
+    }
+    return x;
+}
+
+lm_result samp_coarse_mesh_build(const scene *s, samp_coarse_mesh *out, lm_error *err)
+{
+    static const float corners[6] = {0, 0, 1, 0, 0, 1};
+    memset(out, 0, sizeof *out);
+    out->first = malloc(((size_t)s->tri_count + 1) * sizeof *out->first);
+    out->bary = malloc(6 * (size_t)s->tri_count * sizeof *out->bary);
+    out->radiance = calloc(9 * (size_t)s->tri_count, sizeof *out->radiance);
+    if (!out->first || !out->bary || !out->radiance) {
+        samp_coarse_mesh_free(out);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a coarse radiance mesh");
+    }
+    for (uint32_t t = 0; t <= s->tri_count; ++t) out->first[t] = t;
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        memcpy(out->bary + 6 * (size_t)t, corners, sizeof corners);
+        if (s->tris[t].light >= 0) continue; /* emission is not a source of indirect light (eq. 7) */
+        const scene_material *m = &s->materials[s->tris[t].material];
+        const float *nrm = s->tri_normals + 3 * (size_t)t;
+        for (int c = 0; c < 3; ++c) {
+            const float *p = s->positions + 3 * (size_t)s->tris[t].v[c];
+            double e[3] = {0, 0, 0};
+            for (uint32_t l = 0; l < s->area_light_count; ++l) {
+                double g = samp_area_light_unoccluded(s, l, p, nrm);
+                for (int k = 0; k < 3; ++k) e[k] += s->area_lights[l].le[k] * g;
+            }
+            const double P[3] = {p[0], p[1], p[2]}, N[3] = {nrm[0], nrm[1], nrm[2]};
+            for (uint32_t l = 0; l < s->point_light_count; ++l) {
+                const float *q = s->point_lights[l].position;
+                const double Q[3] = {q[0], q[1], q[2]};
+                double g = samp_point_G(Q, P, N);
+                for (int k = 0; k < 3; ++k) e[k] += s->point_lights[l].intensity[k] * g;
+            }
+            for (int k = 0; k < 3; ++k) {
+                double v = m->kd[k] * e[k] / M_PI;
+                out->radiance[9 * (size_t)t + 3 * (size_t)c + (size_t)k] = v < 3e38 ? (float)v : 3e38f;
+            }
+        }
+    }
+    out->mesh = (samp_radiance_mesh){.tri_count = s->tri_count, .first = out->first, .bary = out->bary,
+                                     .radiance = out->radiance};
+    return LM_OK;
+}
+
+void samp_coarse_mesh_free(samp_coarse_mesh *m)
+{
+    free(m->first);
+    free(m->bary);
+    free(m->radiance);
+    memset(m, 0, sizeof *m);
+}
+
 int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *m, lm_error *err)
 {
     if (!m || !m->first || (m->tri_count && (!m->bary || !m->radiance))) {
@@ -149,26 +243,34 @@ lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err)
     sp->s = desc->scene;
     lm_result r = rt_scene_create(&(rt_scene_desc){.scene = sp->s}, &sp->rt, err);
     if (r == LM_OK) {
+        samp_choice *be = &sp->be;
         switch (sp->desc.backend) {
         case SAMP_BACKEND_EMBREE:
-            r = samp_embree_create(&sp->desc, sp->rt, &sp->ops, &sp->impl, err);
+            r = samp_embree_create(&sp->desc, sp->rt, &be->direct_ops, &be->direct_impl, err);
             snprintf(sp->stats.choice, sizeof sp->stats.choice, "asked for (--sampler embree)");
             break;
         case SAMP_BACKEND_GL:
-            r = samp_gl_create(&sp->desc, sp->rt, &sp->ops, &sp->impl, err);
+            r = samp_gl_create(&sp->desc, sp->rt, &be->direct_ops, &be->direct_impl, err);
             snprintf(sp->stats.choice, sizeof sp->stats.choice, "asked for (--sampler gl)");
             break;
         default:
-            r = samp_auto_choose(&sp->desc, sp->rt, &sp->ops, &sp->impl, &sp->stats, err);
+            r = samp_auto_choose(&sp->desc, sp->rt, be, &sp->stats, err);
             break;
+        }
+        if (r == LM_OK && !be->indirect_ops) {
+            be->indirect_ops = be->direct_ops;
+            be->indirect_impl = be->direct_impl;
         }
     }
     if (r != LM_OK) {
         samp_destroy(sp);
         return r;
     }
-    sp->stats.backend = strncmp(sp->ops->name, "gl", 2) == 0 ? SAMP_BACKEND_GL : SAMP_BACKEND_EMBREE;
-    sp->stats.backend_name = sp->ops->name;
+    sp->stats.backend_name = sp->be.direct_ops->name;
+    sp->stats.backend = strncmp(sp->stats.backend_name, "gl", 2) == 0 ? SAMP_BACKEND_GL : SAMP_BACKEND_EMBREE;
+    sp->stats.indirect_backend_name = sp->be.indirect_ops->name;
+    sp->stats.indirect_backend =
+        strncmp(sp->stats.indirect_backend_name, "gl", 2) == 0 ? SAMP_BACKEND_GL : SAMP_BACKEND_EMBREE;
     *out = sp;
     return LM_OK;
 }
@@ -176,7 +278,10 @@ lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err)
 void samp_destroy(samp_sampler *sp)
 {
     if (!sp) return;
-    if (sp->ops && sp->impl) sp->ops->destroy(sp->impl);
+    samp_choice *be = &sp->be;
+    if (be->indirect_ops && be->indirect_impl && be->indirect_impl != be->direct_impl)
+        be->indirect_ops->destroy(be->indirect_impl);
+    if (be->direct_ops && be->direct_impl) be->direct_ops->destroy(be->direct_impl);
     rt_scene_destroy(sp->rt);
     free(sp);
 }
@@ -216,7 +321,7 @@ lm_result samp_direct(samp_sampler *sp, uint32_t light, const samp_point *pts, u
     double t0 = lm_now_seconds();
     lm_result r = LM_OK;
     if (light < s->area_light_count) {
-        r = sp->ops->direct(sp->impl, light, pts, n, G, err);
+        r = sp->be.direct_ops->direct(sp->be.direct_impl, light, pts, n, G, err);
     } else {
         const scene_point_light *pl = &s->point_lights[light - s->area_light_count];
         for (uint32_t i = 0; i < n; ++i) point_light_G(sp, pl, &pts[i], &G[i]);
@@ -234,7 +339,7 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
     if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect: non-finite point or normal");
     if (n == 0) return LM_OK;
     double t0 = lm_now_seconds();
-    lm_result r = sp->ops->indirect(sp->impl, mesh, pts, n, E, err);
+    lm_result r = sp->be.indirect_ops->indirect(sp->be.indirect_impl, mesh, pts, n, E, err);
     sp->stats.indirect_seconds += lm_now_seconds() - t0;
     if (r == LM_OK) sp->stats.indirect_samples += n;
     return r;

@@ -21,8 +21,9 @@
  *                        light per point, indirect by a hemicube; batched draws,
  *                        reduced on the GPU (samp_gl.c).
  *   SAMP_BACKEND_AUTO    the cheaper at equal error on this machine, by a short
- *                        calibration at creation (samp_auto.c); samp_get_stats
- *                        says which and why.
+ *                        calibration at creation (samp_auto.c), chosen for
+ *                        direct and for indirect samples separately;
+ *                        samp_get_stats says which and why.
  * Point lights are always sampled with one Embree shadow ray (exact; a frustum
  * adds nothing for a point).
  *
@@ -141,9 +142,11 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
                         float *E, lm_error *err);
 
 typedef struct samp_stats {
-    samp_backend backend;         /* the back end in use (never AUTO) */
+    samp_backend backend;         /* the back end of direct samples (never AUTO) */
     const char *backend_name;     /* "embree", "gl-egl", "gl-osmesa" */
-    char choice[256];             /* why this back end (AUTO: the calibration's numbers) */
+    samp_backend indirect_backend;/* the back end of indirect samples */
+    const char *indirect_backend_name;
+    char choice[512];             /* why these back ends (AUTO: the calibration's numbers) */
     uint64_t direct_samples, indirect_samples;  /* points served */
     double direct_seconds, indirect_seconds;    /* wall time inside the calls */
 } samp_stats;

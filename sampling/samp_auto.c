@@ -1,149 +1,250 @@
-/* samp_auto.c — SAMP_BACKEND_AUTO: pick the back end by measurement, never by
- * assumption (issue "Irradiance sampling", item 7).
+/* samp_auto.c — SAMP_BACKEND_AUTO: pick the back ends by measurement, never by
+ * assumption (issue "Irradiance sampling", item 7), for direct and for indirect
+ * samples separately (bench_sampling on this 2-core machine without a GPU: GL
+ * wins direct at equal error, Embree wins indirect by an order of magnitude).
  *
- * A short calibration on the scene itself: up to CAL_POINTS receivers drawn on
- * its triangles (by area, facing the first area light), a reference G from
- * Embree with CAL_REF_RAYS rays, then
- *   - the GL back end at the asked resolution: its cost per sample (second run,
- *     after warm-up) and its mean relative error against the reference;
- *   - Embree at growing ray counts until its error is at most GL's: its cost there.
- * The cheaper at equal error wins; Embree keeps the ray count it needed. The
- * numbers go into samp_stats.choice. The choice is made on direct samples, which
- * are most of the work (the paper: 26,000 direct against 9,000 indirect).
- * When GL cannot be created here, or the scene has no area light to measure on,
- * Embree is used and the reason is recorded.
+ * A short calibration on the scene itself:
+ *   direct    receivers in the penumbra of the first area light (drawn by area
+ *             on its triangles; fully lit points are exact for every back end with
+ *             the control variate, so they cannot tell the back ends apart), a
+ *             reference from Embree with CAL_DIRECT_REF_RAYS rays; cost is
+ *             measured on receivers drawn without that filter (the mix a cache
+ *             sees), error on the penumbra receivers;
+ *   indirect  receivers on the scene, the coarse radiance mesh of
+ *             samp_coarse_mesh_build, a reference from Embree with
+ *             CAL_INDIRECT_REF_RAYS rays.
+ * For each: GL at the asked resolution, then Embree up a ladder of ray counts
+ * until its mean relative error is at most GL's; the cheaper per sample at that
+ * error wins, and Embree keeps the ray counts it needed. The numbers go into
+ * samp_stats.choice. When GL cannot be created here, Embree serves both and the
+ * reason is recorded.
  */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #include "ref_shading.h"
 #include "samp_internal.h"
 #include "vecmath.h"
 
-enum { CAL_POINTS = 48, CAL_TRIES = 4096, CAL_REF_RAYS = 4096 };
+enum {
+    CAL_POINTS = 24,
+    CAL_TRIES = 20000,
+    CAL_DIRECT_REF_RAYS = 65536,
+    CAL_INDIRECT_POINTS = 12,
+    CAL_INDIRECT_REF_RAYS = 65536
+};
 
-static const int embree_ladder[] = {16, 36, 64, 144, 256, 576, 1024, 2304, 4096};
+static const int direct_ladder[] = {16, 36, 64, 144, 256, 576, 1024, 2304, 4096, 9216, 16384};
+static const int indirect_ladder[] = {256, 576, 1024, 2304, 4096, 9216, 16384};
 
-/* Receivers on the scene's triangles, by area, with the first area light above
- * their horizon. Returns how many were found. */
-static uint32_t calibration_points(const scene *s, samp_point *pts)
+typedef struct calib {
+    const scene *s;
+    const rt_scene *rt;
+    samp_desc desc;
+    samp_point pts[CAL_POINTS];      /* error is measured here */
+    samp_point timing[CAL_POINTS];   /* cost is measured here */
+    float ref[3 * CAL_POINTS];
+    uint32_t n, n_timing;
+    const samp_radiance_mesh *mesh;  /* NULL: direct */
+} calib;
+
+/* Cost (seconds per sample, on c->timing, the second of two runs) and mean
+ * relative error (on c->pts against c->ref, summed over channels). */
+static lm_result measure(const calib *c, const samp_backend_ops *ops, void *impl, double *cost, double *error,
+                         lm_error *err)
 {
-    double total = 0.0;
-    for (uint32_t t = 0; t < s->tri_count; ++t) total += s->tri_areas[t];
-    ref_rng g;
-    ref_rng_seed(&g, 0x5eed, 0, 0);
-    uint32_t n = 0;
-    for (int tries = 0; tries < CAL_TRIES && n < CAL_POINTS; ++tries) {
-        double pick = ref_rng_float(&g) * total, acc = 0.0;
-        uint32_t t = 0;
-        for (; t + 1 < s->tri_count; ++t) {
-            acc += s->tri_areas[t];
-            if (acc > pick) break;
-        }
-        if (s->tris[t].light >= 0) continue;
-        float u = ref_rng_float(&g), v = ref_rng_float(&g);
-        if (u + v > 1.0f) {
-            u = 1.0f - u;
-            v = 1.0f - v;
-        }
-        const uint32_t *vi = s->tris[t].v;
-        samp_point x = {.tri_plus_one = t + 1};
-        for (int k = 0; k < 3; ++k) {
-            x.p[k] = (1.0f - u - v) * s->positions[3 * (size_t)vi[0] + (size_t)k] +
-                     u * s->positions[3 * (size_t)vi[1] + (size_t)k] + v * s->positions[3 * (size_t)vi[2] + (size_t)k];
-            x.n[k] = s->tri_normals[3 * (size_t)t + (size_t)k];
-        }
-        if (samp_area_light_unoccluded(s, 0, x.p, x.n) > 0.0) pts[n++] = x;
+    float out[3 * CAL_POINTS];
+    lm_result r = LM_OK;
+    double t0 = 0.0;
+    for (int run = 0; run < 2 && r == LM_OK; ++run) {
+        t0 = lm_now_seconds();
+        r = c->mesh ? ops->indirect(impl, c->mesh, c->timing, c->n_timing, out, err)
+                    : ops->direct(impl, 0, c->timing, c->n_timing, out, err);
     }
-    return n;
-}
-
-/* Cost (seconds per sample, second of two runs) and mean relative error. */
-static lm_result measure(const samp_backend_ops *ops, void *impl, const samp_point *pts, uint32_t n,
-                         const float *ref, double *cost, double *error, lm_error *err)
-{
-    float G[CAL_POINTS];
-    lm_result r = ops->direct(impl, 0, pts, n, G, err);
     if (r != LM_OK) return r;
-    double t0 = lm_now_seconds();
-    r = ops->direct(impl, 0, pts, n, G, err);
+    *cost = (lm_now_seconds() - t0) / c->n_timing;
+    r = c->mesh ? ops->indirect(impl, c->mesh, c->pts, c->n, out, err) : ops->direct(impl, 0, c->pts, c->n, out, err);
     if (r != LM_OK) return r;
-    *cost = (lm_now_seconds() - t0) / n;
+    int ch = c->mesh ? 3 : 1;
     double num = 0.0, den = 0.0;
-    for (uint32_t i = 0; i < n; ++i) {
-        num += fabs((double)G[i] - ref[i]);
-        den += ref[i];
+    for (uint32_t i = 0; i < c->n * (uint32_t)ch; ++i) {
+        num += fabs((double)out[i] - c->ref[i]);
+        den += c->ref[i];
     }
     *error = den > 0.0 ? num / den : 0.0;
     return LM_OK;
 }
 
-lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, const samp_backend_ops **ops, void **impl,
-                           samp_stats *stats, lm_error *err)
+/* Embree with `rays` (direct or indirect, as c says) created, run, destroyed. */
+static lm_result measure_embree(const calib *c, int rays, double *cost, double *error, lm_error *err)
+{
+    samp_desc d = c->desc;
+    if (c->mesh)
+        d.indirect_rays = rays;
+    else
+        d.direct_rays = rays;
+    const samp_backend_ops *ops;
+    void *impl;
+    lm_result r = samp_embree_create(&d, c->rt, &ops, &impl, err);
+    if (r != LM_OK) return r;
+    r = measure(c, ops, impl, cost, error, err);
+    ops->destroy(impl);
+    return r;
+}
+
+typedef struct verdict {
+    int gl_wins;
+    int rays;                 /* Embree's ray count at GL's error (or its best) */
+    double gl_cost, gl_error, e_cost, e_error;
+} verdict;
+
+static lm_result compare(const calib *c, const samp_backend_ops *gl_ops, void *gl_impl, const int *ladder,
+                         size_t ladder_n, verdict *v, lm_error *err)
+{
+    lm_result r = measure(c, gl_ops, gl_impl, &v->gl_cost, &v->gl_error, err);
+    if (r != LM_OK) return r;
+    v->e_cost = INFINITY;
+    v->e_error = INFINITY;
+    for (size_t i = 0; i < ladder_n; ++i) {
+        if ((r = measure_embree(c, ladder[i], &v->e_cost, &v->e_error, err)) != LM_OK) return r;
+        v->rays = ladder[i];
+        if (v->e_error <= v->gl_error) break;
+    }
+    /* Embree never as accurate as GL within the ladder: GL wins, there is no
+     * equal-error Embree to compare its cost with. */
+    v->gl_wins = v->e_error > v->gl_error || v->gl_cost < v->e_cost;
+    return LM_OK;
+}
+
+static lm_result calibrate_direct(calib *c, const double *cdf, ref_rng *g, lm_error *err)
+{
+    samp_desc probe_d = c->desc;
+    probe_d.direct_rays = 256;
+    const samp_backend_ops *ops;
+    void *impl;
+    lm_result r = samp_embree_create(&probe_d, c->rt, &ops, &impl, err);
+    if (r != LM_OK) return r;
+    c->n = c->n_timing = 0;
+    for (int tries = 0; tries < CAL_TRIES && c->n < CAL_POINTS; ++tries) {
+        samp_point x = samp_random_receiver(c->s, cdf, g);
+        double g0 = samp_area_light_unoccluded(c->s, 0, x.p, x.n);
+        if (!(g0 > 0.0)) continue;
+        if (c->n_timing < CAL_POINTS) c->timing[c->n_timing++] = x;
+        float G;
+        if ((r = ops->direct(impl, 0, &x, 1, &G, err)) != LM_OK) break;
+        if (G > 0.02 * g0 && G < 0.98 * g0) c->pts[c->n++] = x;
+    }
+    ops->destroy(impl);
+    if (r != LM_OK) return r;
+    /* A scene without penumbra: every back end is exact; calibrate on lit points. */
+    for (uint32_t i = 0; c->n < 8 && i < c->n_timing; ++i) c->pts[c->n++] = c->timing[i];
+    if (c->n == 0) return LM_OK;
+    samp_desc rd = c->desc;
+    rd.direct_rays = CAL_DIRECT_REF_RAYS;
+    if ((r = samp_embree_create(&rd, c->rt, &ops, &impl, err)) != LM_OK) return r;
+    r = ops->direct(impl, 0, c->pts, c->n, c->ref, err);
+    ops->destroy(impl);
+    return r;
+}
+
+static lm_result calibrate_indirect(calib *c, const double *cdf, ref_rng *g, lm_error *err)
+{
+    c->n = c->n_timing = CAL_INDIRECT_POINTS;
+    for (uint32_t i = 0; i < c->n; ++i) {
+        c->pts[i] = samp_random_receiver(c->s, cdf, g);
+        c->timing[i] = samp_random_receiver(c->s, cdf, g);
+    }
+    samp_desc rd = c->desc;
+    rd.indirect_rays = CAL_INDIRECT_REF_RAYS;
+    const samp_backend_ops *ops;
+    void *impl;
+    lm_result r = samp_embree_create(&rd, c->rt, &ops, &impl, err);
+    if (r != LM_OK) return r;
+    r = ops->indirect(impl, c->mesh, c->pts, c->n, c->ref, err);
+    ops->destroy(impl);
+    return r;
+}
+
+lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choice *out, samp_stats *stats,
+                           lm_error *err)
 {
     const scene *s = desc->scene;
+    memset(out, 0, sizeof *out);
     lm_error gl_err = {{0}};
     const samp_backend_ops *gl_ops = NULL;
     void *gl_impl = NULL;
     if (samp_gl_create(desc, rt, &gl_ops, &gl_impl, &gl_err) != LM_OK) {
-        snprintf(stats->choice, sizeof stats->choice, "auto: embree, GL unavailable (%.200s)", gl_err.msg);
-        return samp_embree_create(desc, rt, ops, impl, err);
+        snprintf(stats->choice, sizeof stats->choice, "auto: embree for both, GL unavailable (%.400s)", gl_err.msg);
+        return samp_embree_create(desc, rt, &out->direct_ops, &out->direct_impl, err);
     }
-    samp_point pts[CAL_POINTS];
-    uint32_t n = s->area_light_count ? calibration_points(s, pts) : 0;
-    if (n < 8) {
-        gl_ops->destroy(gl_impl);
-        snprintf(stats->choice, sizeof stats->choice, "auto: embree, no receivers of an area light to calibrate on");
-        return samp_embree_create(desc, rt, ops, impl, err);
-    }
-
-    /* Reference values. */
-    float ref[CAL_POINTS];
-    samp_desc rd = *desc;
-    rd.direct_rays = CAL_REF_RAYS;
-    const samp_backend_ops *e_ops;
-    void *e_impl;
-    lm_result r = samp_embree_create(&rd, rt, &e_ops, &e_impl, err);
+    double t0 = lm_now_seconds();
+    calib *c = calloc(1, sizeof *c);
+    double *cdf = samp_area_cdf(s);
+    samp_coarse_mesh cm = {0};
+    lm_result r = c && cdf ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory calibrating the samplers");
+    verdict vd = {.gl_wins = 0, .rays = desc->direct_rays}, vi = {.gl_wins = 0, .rays = desc->indirect_rays};
+    int have_direct = 0;
     if (r == LM_OK) {
-        r = e_ops->direct(e_impl, 0, pts, n, ref, err);
-        e_ops->destroy(e_impl);
+        ref_rng g;
+        ref_rng_seed(&g, 0x5eed, 0, 0);
+        c->s = s;
+        c->rt = rt;
+        c->desc = *desc;
+        if (s->area_light_count) {
+            r = calibrate_direct(c, cdf, &g, err);
+            if (r == LM_OK && c->n > 0) {
+                r = compare(c, gl_ops, gl_impl, direct_ladder, sizeof direct_ladder / sizeof *direct_ladder, &vd, err);
+                have_direct = r == LM_OK;
+            }
+        }
+        if (r == LM_OK) r = samp_coarse_mesh_build(s, &cm, err);
+        if (r == LM_OK) {
+            c->mesh = &cm.mesh;
+            r = calibrate_indirect(c, cdf, &g, err);
+        }
+        if (r == LM_OK)
+            r = compare(c, gl_ops, gl_impl, indirect_ladder, sizeof indirect_ladder / sizeof *indirect_ladder, &vi,
+                        err);
     }
-    double gl_cost = 0.0, gl_error = 0.0;
-    if (r == LM_OK) r = measure(gl_ops, gl_impl, pts, n, ref, &gl_cost, &gl_error, err);
+    samp_coarse_mesh_free(&cm);
+    free(cdf);
+    free(c);
     if (r != LM_OK) {
         gl_ops->destroy(gl_impl);
         return r;
     }
 
-    /* Embree up the ladder until it is as accurate as GL. */
-    int rays = embree_ladder[0];
-    double e_cost = INFINITY, e_error = INFINITY;
-    for (size_t i = 0; i < sizeof embree_ladder / sizeof *embree_ladder; ++i) {
-        rd.direct_rays = embree_ladder[i];
-        if ((r = samp_embree_create(&rd, rt, &e_ops, &e_impl, err)) != LM_OK) break;
-        r = measure(e_ops, e_impl, pts, n, ref, &e_cost, &e_error, err);
-        e_ops->destroy(e_impl);
-        if (r != LM_OK) break;
-        rays = embree_ladder[i];
-        if (e_error <= gl_error) break;
-    }
-    if (r != LM_OK) {
+    /* One Embree object serves whatever Embree won, with the ray counts it needed. */
+    samp_desc ed = *desc;
+    ed.direct_rays = have_direct ? vd.rays : desc->direct_rays;
+    ed.indirect_rays = vi.rays;
+    const samp_backend_ops *e_ops = NULL;
+    void *e_impl = NULL;
+    if ((!vd.gl_wins || !vi.gl_wins) && (r = samp_embree_create(&ed, rt, &e_ops, &e_impl, err)) != LM_OK) {
         gl_ops->destroy(gl_impl);
         return r;
     }
-    int gl_wins = gl_cost < e_cost || e_error > gl_error;
+    out->direct_ops = vd.gl_wins ? gl_ops : e_ops;
+    out->direct_impl = vd.gl_wins ? gl_impl : e_impl;
+    out->indirect_ops = vi.gl_wins ? gl_ops : e_ops;
+    out->indirect_impl = vi.gl_wins ? gl_impl : e_impl;
+    if (!vd.gl_wins && !vi.gl_wins) gl_ops->destroy(gl_impl);
+
+    char direct_text[200];
+    if (have_direct)
+        snprintf(direct_text, sizeof direct_text,
+                 "direct %s (%s %dx%d: %.1f us at %.2g%% error; embree %d rays: %.1f us at %.2g%%)",
+                 vd.gl_wins ? gl_ops->name : "embree", gl_ops->name, desc->direct_res, desc->direct_res,
+                 vd.gl_cost * 1e6, 100.0 * vd.gl_error, vd.rays, vd.e_cost * 1e6, 100.0 * vd.e_error);
+    else
+        snprintf(direct_text, sizeof direct_text, "direct embree (no area light to calibrate on)");
     snprintf(stats->choice, sizeof stats->choice,
-             "auto: %s; direct sample on %u points: %s %dx%d %.1f us at %.2g%% error, embree %d rays %.1f us at "
-             "%.2g%% error",
-             gl_wins ? gl_ops->name : "embree", n, gl_ops->name, desc->direct_res, desc->direct_res, gl_cost * 1e6,
-             100.0 * gl_error, rays, e_cost * 1e6, 100.0 * e_error);
-    if (gl_wins) {
-        *ops = gl_ops;
-        *impl = gl_impl;
-        return LM_OK;
-    }
-    gl_ops->destroy(gl_impl);
-    rd.direct_rays = rays;
-    return samp_embree_create(&rd, rt, ops, impl, err);
+             "auto, calibrated in %.2f s: %s; indirect %s (%s %dx%d hemicube: %.1f us at %.2g%% error; embree %d "
+             "rays: %.1f us at %.2g%%)",
+             lm_now_seconds() - t0, direct_text, vi.gl_wins ? gl_ops->name : "embree", gl_ops->name,
+             desc->indirect_res, desc->indirect_res, vi.gl_cost * 1e6, 100.0 * vi.gl_error, vi.rays, vi.e_cost * 1e6,
+             100.0 * vi.e_error);
+    return LM_OK;
 }

@@ -89,14 +89,7 @@ static uint32_t light_point(const embree_impl *e, uint32_t li, double u, double 
     }
     const scene_area_light *L = &s->area_lights[li];
     const double *cdf = e->lights[li].cdf;
-    uint32_t lo = 0, hi = L->count - 1;
-    while (lo < hi) {
-        uint32_t mid = (lo + hi) / 2;
-        if (u < cdf[mid])
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
+    uint32_t lo = samp_cdf_pick(cdf, L->count, u);
     double start = lo ? cdf[lo - 1] : 0.0, width = cdf[lo] - start;
     double uu = width > 0.0 ? (u - start) / width : 0.5;
     uu = fmin(fmax(uu, 0.0), 1.0);

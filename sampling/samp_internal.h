@@ -8,6 +8,7 @@
 #ifndef LUMESH_SAMP_INTERNAL_H
 #define LUMESH_SAMP_INTERNAL_H
 
+#include "ref_shading.h"
 #include "rt_scene.h"
 #include "samp.h"
 
@@ -33,11 +34,39 @@ lm_result samp_embree_create(const samp_desc *desc, const rt_scene *rt, const sa
 lm_result samp_gl_create(const samp_desc *desc, const rt_scene *rt, const samp_backend_ops **ops, void **impl,
                          lm_error *err);
 
+/* The back ends behind one sampler: one serves direct samples, one indirect
+ * samples; they are the same object unless AUTO measured that they should differ
+ * (then destroy both). */
+typedef struct samp_choice {
+    const samp_backend_ops *direct_ops, *indirect_ops;
+    void *direct_impl, *indirect_impl;
+} samp_choice;
+
 /* SAMP_BACKEND_AUTO (samp_auto.c): creates the back ends that can be made here,
- * measures each at equal error, keeps the cheaper, and writes the numbers behind
- * the choice into stats->choice. */
-lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, const samp_backend_ops **ops, void **impl,
-                           samp_stats *stats, lm_error *err);
+ * measures each at equal error, for direct and for indirect samples, keeps the
+ * cheaper of each, and writes the numbers behind the choice into stats->choice. */
+lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choice *out, samp_stats *stats,
+                           lm_error *err);
+
+/* Index i with cdf[i-1] <= u < cdf[i] (cdf non-decreasing, cdf[n-1] = 1). */
+uint32_t samp_cdf_pick(const double *cdf, uint32_t n, double u);
+/* Cumulative area fractions of the scene's triangles (malloc'd; NULL: no memory). */
+double *samp_area_cdf(const scene *s);
+/* A receiver drawn by area on the scene's non-emitting triangles: a uniform point,
+ * the triangle's front normal, tri_plus_one set. For calibration, tests, benches. */
+samp_point samp_random_receiver(const scene *s, const double *area_cdf, ref_rng *g);
+
+/* A first coarse radiance mesh: one sub-triangle per scene triangle, corner
+ * radiance kd·Σ_ℓ L_ℓ·G_ℓ,unoccluded/π (no visibility: what a cache has before its
+ * first direct samples). For calibration and benchmarks. */
+typedef struct samp_coarse_mesh {
+    uint32_t *first;
+    float *bary, *radiance;
+    samp_radiance_mesh mesh;
+} samp_coarse_mesh;
+
+lm_result samp_coarse_mesh_build(const scene *s, samp_coarse_mesh *out, lm_error *err);
+void samp_coarse_mesh_free(samp_coarse_mesh *m);
 
 /* The descriptor with every zero field replaced by its default. */
 samp_desc samp_desc_defaults(const samp_desc *desc);
