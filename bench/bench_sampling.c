@@ -139,6 +139,7 @@ static const config indirect_configs[] = {
     {"embree", SAMP_BACKEND_EMBREE, 0, 0, 16384},   {"embree", SAMP_BACKEND_EMBREE, 0, 0, 65536},
     {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 64, 0},  {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 128, 0},
     {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 256, 0}, {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 64, 0},
+    {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 128, 0}, {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 256, 0},
 };
 
 static void bench_scene(const char *name, int quick)

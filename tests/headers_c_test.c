@@ -1,10 +1,13 @@
 /* headers_c_test — every public header compiles as plain C11 on its own (this
  * file is C with -Wstrict-prototypes), and the shared result codes are named. */
+#include "analytic.h"
 #include "compare.h"
+#include "gl_context.h"
 #include "geomesh.h"
 #include "image.h"
 #include "reference.h"
 #include "rt_scene.h"
+#include "samp.h"
 #include "scene.h"
 #include "tonemap.h"
 #include "util.h"
@@ -25,6 +28,14 @@ int main(void)
             CHECK(strcmp(lm_result_name((lm_result)a), lm_result_name((lm_result)b)) != 0);
     }
     CHECK(strcmp(lm_result_name(LM_RESULT_COUNT), "unknown result") == 0);
+    /* The sampler's command-line spellings round-trip. */
+    for (int b = 0; b < SAMP_BACKEND_COUNT; ++b) {
+        samp_backend got = SAMP_BACKEND_COUNT;
+        CHECK(samp_backend_from_name(samp_backend_name((samp_backend)b), &got) && got == (samp_backend)b);
+    }
+    samp_gl_platform pl = SAMP_GL_DEFAULT;
+    CHECK(samp_gl_platform_from_name("osmesa", &pl) && pl == SAMP_GL_OSMESA);
+    CHECK(!samp_gl_platform_from_name("glx", &pl) && !samp_backend_from_name(NULL, &(samp_backend){0}));
     /* lm_fail formats one line and returns the code. */
     lm_error err;
     CHECK(lm_fail(&err, LM_ERR_IO, "%s: %d\nsecond", "x.obj", 7) == LM_ERR_IO);
