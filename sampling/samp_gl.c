@@ -32,6 +32,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "gl_program.h"
 #include "samp_gl_internal.h"
 #include "vfs.h"
 
@@ -60,91 +61,6 @@ lm_result samp_gl_upload(samp_gl *g, GLuint buf, size_t *cap, const void *data, 
     }
     if (bytes) gl->NamedBufferSubData(buf, 0, (GLsizeiptr)bytes, data);
     return glctx_check(g->ctx, "a buffer upload", err);
-}
-
-/* ---- shaders -------------------------------------------------------------- */
-
-/* Reads builtin:/name and inserts `defines` after its #version line. */
-static lm_result load_source(const char *name, const char *defines, char **out, lm_error *err)
-{
-    char path[128], *text = NULL;
-    size_t size = 0;
-    snprintf(path, sizeof path, VFS_BUILTIN_PREFIX "%s", name);
-    lm_result r = vfs_read(path, 1 << 20, &text, &size, err);
-    if (r != LM_OK) return r;
-    const char *eol = strchr(text, '\n');
-    size_t head = eol ? (size_t)(eol - text) + 1 : size, dl = strlen(defines);
-    char *src = malloc(size + dl + 1);
-    if (!src) {
-        free(text);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "GL sampler: out of memory reading %s", path);
-    }
-    memcpy(src, text, head);
-    memcpy(src + head, defines, dl);
-    memcpy(src + head + dl, text + head, size - head + 1);
-    free(text);
-    *out = src;
-    return LM_OK;
-}
-
-static lm_result compile(samp_gl *g, GLenum type, const char *name, const char *defines, GLuint *out,
-                         lm_error *err)
-{
-    const GladGLContext *gl = g->gl;
-    char *src = NULL;
-    lm_result r = load_source(name, defines, &src, err);
-    if (r != LM_OK) return r;
-    GLuint sh = gl->CreateShader(type);
-    const GLchar *s = src;
-    gl->ShaderSource(sh, 1, &s, NULL);
-    gl->CompileShader(sh);
-    free(src);
-    GLint ok = 0;
-    gl->GetShaderiv(sh, GL_COMPILE_STATUS, &ok);
-    if (!ok) {
-        char log[700];
-        gl->GetShaderInfoLog(sh, sizeof log, NULL, log);
-        gl->DeleteShader(sh);
-        return lm_fail(err, LM_ERR_RUNTIME, "%s: shader %s does not compile: %s", g->ops.name, name, log);
-    }
-    *out = sh;
-    return LM_OK;
-}
-
-/* Links the shaders named in `names` (NULL-terminated, stages by extension). */
-static lm_result program(samp_gl *g, const char *const *names, const char *defines, GLuint *out, lm_error *err)
-{
-    const GladGLContext *gl = g->gl;
-    GLuint prog = gl->CreateProgram(), sh[4] = {0};
-    int n = 0;
-    lm_result r = LM_OK;
-    for (; names[n] && r == LM_OK; ++n) {
-        const char *ext = strrchr(names[n], '.');
-        GLenum type = strcmp(ext, ".vert") == 0   ? GL_VERTEX_SHADER
-                      : strcmp(ext, ".frag") == 0 ? GL_FRAGMENT_SHADER
-                                                  : GL_COMPUTE_SHADER;
-        r = compile(g, type, names[n], defines, &sh[n], err);
-        if (r == LM_OK) gl->AttachShader(prog, sh[n]);
-    }
-    if (r == LM_OK) {
-        gl->LinkProgram(prog);
-        GLint ok = 0;
-        gl->GetProgramiv(prog, GL_LINK_STATUS, &ok);
-        if (!ok) {
-            char log[700];
-            gl->GetProgramInfoLog(prog, sizeof log, NULL, log);
-            r = lm_fail(err, LM_ERR_RUNTIME, "%s: shaders %s + %s do not link: %s", g->ops.name, names[0],
-                        names[1] ? names[1] : "", log);
-        }
-    }
-    for (int i = 0; i < n; ++i)
-        if (sh[i]) gl->DeleteShader(sh[i]); /* flagged; freed with the program */
-    if (r != LM_OK) {
-        gl->DeleteProgram(prog);
-        return r;
-    }
-    *out = prog;
-    return LM_OK;
 }
 
 /* ---- atlas ---------------------------------------------------------------- */
@@ -401,10 +317,10 @@ lm_result samp_gl_create(const samp_desc *desc, const rt_scene *rt, const samp_b
                                 .destroy = samp_gl_destroy};
     gl->GetIntegerv(GL_MAX_TEXTURE_SIZE, &g->max_tex);
 
-    r = program(g, direct_names, "", &g->prog_direct, err);
-    if (r == LM_OK) r = program(g, indirect_names, "", &g->prog_indirect, err);
-    if (r == LM_OK) r = program(g, reduce_names, "", &g->prog_reduce2, err);
-    if (r == LM_OK) r = program(g, reduce_names, "#define INDIRECT 1\n", &g->prog_reduce3, err);
+    r = glprog_build(g->gl, g->ops.name, direct_names, "", &g->prog_direct, err);
+    if (r == LM_OK) r = glprog_build(g->gl, g->ops.name, indirect_names, "", &g->prog_indirect, err);
+    if (r == LM_OK) r = glprog_build(g->gl, g->ops.name, reduce_names, "", &g->prog_reduce2, err);
+    if (r == LM_OK) r = glprog_build(g->gl, g->ops.name, reduce_names, "#define INDIRECT 1\n", &g->prog_reduce3, err);
     if (r == LM_OK) {
         g->loc_direct_atlas = gl->GetUniformLocation(g->prog_direct, "u_atlas");
         g->loc_direct_light = gl->GetUniformLocation(g->prog_direct, "u_light");
