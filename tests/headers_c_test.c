@@ -5,7 +5,10 @@
 #include "gl_context.h"
 #include "geomesh.h"
 #include "image.h"
+#include "qmesh.h"
 #include "reference.h"
+#include "rend_camera.h"
+#include "rend_id.h"
 #include "rt_scene.h"
 #include "samp.h"
 #include "scene.h"
@@ -13,6 +16,7 @@
 #include "util.h"
 #include "vecmath.h"
 #include "vfs.h"
+#include "vtable.h"
 
 #include <string.h>
 

@@ -1,0 +1,620 @@
+/* qmesh.c — a cache mesh as a forest of triangle quadtrees (qmesh.h; paper §4.1–4.3).
+ *
+ * Nodes live in one index-based pool: roots first (one per chosen scene triangle),
+ * then blocks of four children, recycled through a free list of blocks. A node
+ * stores its corner-0 address (two weights over 2^depth) and an orientation rather
+ * than three addresses: in the midpoint-subdivision lattice every node is one of six
+ * shapes, corner1 = corner0 + D1[o], corner2 = corner0 + D2[o]. Children 0..2 keep
+ * the parent's shape; the middle child 3 turns it (D1' = D2, D2' = D2 − D1), which
+ * cycles through the six with period 6 (two turns of three = a half turn).
+ *
+ * Vertex references: the mesh holds exactly one vtable reference per vertex it uses
+ * (use count > 0), so a vertex's vtable count is the number of meshes holding it —
+ * which is also how the stats split a vertex's bytes between meshes. Use counts
+ * count node corners over all live nodes, internal ones included.
+ *
+ * Crack-free output: a leaf's edge carries this mesh's vertices exactly when the
+ * mesh uses the vertex at the edge's midpoint address (deeper points on the edge
+ * can only exist beneath a node that made that midpoint), so the points along an
+ * edge are found by recursive midpoint lookups in the vtable — with the leaf's own
+ * scene triangle as the address, which shares keys with the neighbour across an
+ * un-creased scene edge.
+ */
+#include "qmesh.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* D1[o], D2[o]: corner1 − corner0 and corner2 − corner0 in units of 2^-depth. */
+static const int k_d1[6][3] = {{-1, 1, 0}, {-1, 0, 1}, {0, -1, 1}, {1, -1, 0}, {1, 0, -1}, {0, 1, -1}};
+static const int k_d2[6][3] = {{-1, 0, 1}, {0, -1, 1}, {1, -1, 0}, {1, 0, -1}, {0, 1, -1}, {-1, 1, 0}};
+
+struct mesh_qmesh {
+    mesh_vtable *vt;
+    const scene *s;
+    uint32_t channels;
+    uint32_t node_cap;      /* UINT32_MAX when the desc gave 0 */
+
+    mesh_qnode *nodes;      /* [node_alloc]; roots at [0, root_count) */
+    uint32_t node_hw, node_alloc;
+    uint32_t *free_blocks;  /* first index of each free block of four */
+    uint32_t free_count, free_alloc;
+    uint32_t *root_of_tri;  /* [scene tri_count], MESH_QMESH_NONE when no tree */
+    uint32_t root_count;
+
+    /* Per vtable id, [vcap]: */
+    uint32_t *use;
+    float *values;          /* channels per id */
+    uint8_t *sampled;
+    uint32_t vcap;
+
+    uint32_t nodes_live, leaves, used, sampled_count;
+    uint32_t hist[MESH_QMESH_DEPTHS];
+    uint64_t splits, merges;
+};
+
+mesh_bary mesh_qmesh_node_corner(const mesh_qnode *n, int c)
+{
+    const int64_t w[3] = {n->a0, n->a1, ((int64_t)1 << n->depth) - n->a0 - n->a1};
+    mesh_bary b = {{0, 0, 0}, n->depth};
+    for (int k = 0; k < 3; ++k) {
+        int64_t x = w[k] + (c == 1 ? k_d1[n->orient % 6][k] : c == 2 ? k_d2[n->orient % 6][k] : 0);
+        b.w[k] = (uint32_t)x;
+    }
+    return b;
+}
+
+static lm_result ensure_vcap(mesh_qmesh *m, uint32_t need, lm_error *err)
+{
+    if (need <= m->vcap) return LM_OK;
+    uint32_t ncap = m->vcap ? m->vcap : 256;
+    while (ncap < need) ncap = ncap > UINT32_MAX / 2 ? need : 2 * ncap;
+    uint32_t *nu = realloc(m->use, (size_t)ncap * sizeof *nu);
+    if (!nu) goto oom;
+    m->use = nu;
+    float *nv = realloc(m->values, (size_t)ncap * m->channels * sizeof *nv);
+    if (!nv) goto oom;
+    m->values = nv;
+    uint8_t *ns = realloc(m->sampled, (size_t)ncap);
+    if (!ns) goto oom;
+    m->sampled = ns;
+    memset(m->use + m->vcap, 0, (size_t)(ncap - m->vcap) * sizeof *nu);
+    memset(m->values + (size_t)m->vcap * m->channels, 0, (size_t)(ncap - m->vcap) * m->channels * sizeof *nv);
+    memset(m->sampled + m->vcap, 0, (size_t)(ncap - m->vcap));
+    m->vcap = ncap;
+    return LM_OK;
+oom:
+    return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u vertex values", ncap);
+}
+
+/* Gets the vertex at `p` with one vtable reference held by this mesh. *fresh says
+ * whether this mesh did not use it yet (then the reference is new and must be
+ * released if the caller backs out); otherwise the extra reference was returned. */
+static lm_result take_vertex(mesh_qmesh *m, uint32_t tri, mesh_bary p, uint32_t *id, int *fresh,
+                             lm_error *err)
+{
+    lm_result r = mesh_vtable_acquire(m->vt, tri, p, id, err);
+    if (r != LM_OK) return r;
+    r = ensure_vcap(m, *id + 1, err);
+    if (r != LM_OK) {
+        mesh_vtable_release(m->vt, *id, NULL);
+        return r;
+    }
+    *fresh = m->use[*id] == 0;
+    if (!*fresh) mesh_vtable_release(m->vt, *id, NULL); /* we already hold one: never frees */
+    return LM_OK;
+}
+
+static void use_add(mesh_qmesh *m, uint32_t id, uint32_t n)
+{
+    if (m->use[id] == 0) m->used++;
+    m->use[id] += n;
+}
+
+/* Drops n uses; at zero the value goes and this mesh's vtable reference with it. */
+static void use_drop(mesh_qmesh *m, uint32_t id, uint32_t n)
+{
+    m->use[id] -= n;
+    if (m->use[id] > 0) return;
+    m->used--;
+    if (m->sampled[id]) m->sampled_count--;
+    m->sampled[id] = 0;
+    memset(m->values + (size_t)id * m->channels, 0, m->channels * sizeof *m->values);
+    mesh_vtable_release(m->vt, id, NULL);
+}
+
+static int accept_all(const scene *s, uint32_t tri, void *user)
+{
+    (void)s, (void)tri, (void)user;
+    return 1;
+}
+
+lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_error *err)
+{
+    if (out) *out = NULL;
+    if (!desc || !out || !desc->vtable)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: desc, desc->vtable and out are required");
+    const scene *s = mesh_vtable_scene(desc->vtable);
+    if ((desc->scene && desc->scene != s) || (desc->geo && desc->geo != mesh_vtable_geo(desc->vtable)))
+        return lm_fail(err, LM_ERR_INVALID_ARG,
+                       "cache mesh: scene and geometric mesh must be the vertex table's");
+    uint32_t channels = desc->channels ? desc->channels : 1;
+    if (channels != 1 && channels != 3)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: %u channels; 1 or 3 are supported", channels);
+    if (desc->root_count && !desc->root_tris)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: root_count %u with no root_tris",
+                       desc->root_count);
+
+    mesh_qmesh *m = calloc(1, sizeof *m);
+    if (!m) return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
+    m->vt = desc->vtable;
+    m->s = s;
+    m->channels = channels;
+    m->node_cap = desc->node_cap ? desc->node_cap : UINT32_MAX;
+    lm_result r = LM_OK;
+    m->root_of_tri = malloc(((size_t)s->tri_count + 1) * sizeof *m->root_of_tri);
+    if (!m->root_of_tri) {
+        r = lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
+        goto fail;
+    }
+    for (uint32_t t = 0; t < s->tri_count; ++t) m->root_of_tri[t] = MESH_QMESH_NONE;
+
+    /* Choose the roots; root_of_tri temporarily marks chosen triangles with 0. */
+    uint32_t nroots = 0;
+    if (desc->root_tris) {
+        for (uint32_t i = 0; i < desc->root_count; ++i) {
+            uint32_t t = desc->root_tris[i];
+            if (t >= s->tri_count) {
+                r = lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: root %u is triangle %u of %u", i, t,
+                            s->tri_count);
+                goto fail;
+            }
+            if (m->root_of_tri[t] != MESH_QMESH_NONE) {
+                r = lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: triangle %u is a root twice", t);
+                goto fail;
+            }
+            m->root_of_tri[t] = 0;
+            nroots++;
+        }
+    } else {
+        mesh_qmesh_root_filter f = desc->root_filter ? desc->root_filter : accept_all;
+        for (uint32_t t = 0; t < s->tri_count; ++t)
+            if (f(s, t, desc->root_filter_user)) m->root_of_tri[t] = 0, nroots++;
+    }
+    if (nroots > m->node_cap) {
+        r = lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: %u roots exceed the node cap of %u", nroots,
+                    m->node_cap);
+        goto fail;
+    }
+    m->node_alloc = nroots > 16 ? nroots : 16;
+    m->nodes = calloc(m->node_alloc, sizeof *m->nodes);
+    if (!m->nodes) {
+        r = lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u roots", nroots);
+        goto fail;
+    }
+    /* Roots in triangle order, so node ids do not depend on root_tris order. */
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        if (m->root_of_tri[t] == MESH_QMESH_NONE) continue;
+        const uint32_t id = m->root_count;
+        mesh_qnode *n = &m->nodes[id];
+        *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1,
+                          .a1 = 0, .depth = 0, .orient = 0, .flags = MESH_QNODE_LIVE};
+        for (int c = 0; c < 3; ++c) {
+            int fresh;
+            r = take_vertex(m, t, mesh_qmesh_node_corner(n, c), &n->v[c], &fresh, err);
+            if (r != LM_OK) goto fail; /* destroy releases what the roots so far hold */
+            use_add(m, n->v[c], 1);
+        }
+        m->root_of_tri[t] = id;
+        m->root_count++, m->node_hw++, m->nodes_live++, m->leaves++, m->hist[0]++;
+    }
+    *out = m;
+    return LM_OK;
+fail:
+    mesh_qmesh_destroy(m); /* releases the vertices the roots made so far hold */
+    return r;
+}
+
+void mesh_qmesh_destroy(mesh_qmesh *m)
+{
+    if (!m) return;
+    for (uint32_t id = 0; id < m->vcap; ++id)
+        if (m->use[id] > 0) mesh_vtable_release(m->vt, id, NULL);
+    free(m->nodes);
+    free(m->free_blocks);
+    free(m->root_of_tri);
+    free(m->use);
+    free(m->values);
+    free(m->sampled);
+    free(m);
+}
+
+uint32_t mesh_qmesh_root(const mesh_qmesh *m, uint32_t tri)
+{
+    return m && tri < m->s->tri_count ? m->root_of_tri[tri] : MESH_QMESH_NONE;
+}
+
+const mesh_qnode *mesh_qmesh_node(const mesh_qmesh *m, uint32_t node)
+{
+    if (!m || node >= m->node_hw || !(m->nodes[node].flags & MESH_QNODE_LIVE)) return NULL;
+    return &m->nodes[node];
+}
+
+/* A block of four free nodes (the pool grows by doubling when none is free). */
+static lm_result alloc_block(mesh_qmesh *m, uint32_t *first, lm_error *err)
+{
+    if (m->free_count) {
+        *first = m->free_blocks[--m->free_count];
+        return LM_OK;
+    }
+    if (m->node_hw > UINT32_MAX - 8)
+        return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: node id space exhausted");
+    if (m->node_hw + 4 > m->node_alloc) {
+        uint32_t na = m->node_alloc > UINT32_MAX / 2 ? UINT32_MAX - 4 : 2 * m->node_alloc;
+        mesh_qnode *nn = realloc(m->nodes, (size_t)na * sizeof *nn);
+        if (!nn) return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u nodes", na);
+        m->nodes = nn;
+        m->node_alloc = na;
+    }
+    /* Room on the free list for every block there is, so merge never allocates. */
+    const uint32_t blocks = (m->node_hw + 4 - m->root_count) / 4;
+    if (blocks > m->free_alloc) {
+        uint32_t fa = m->free_alloc ? 2 * m->free_alloc : 64;
+        uint32_t *nf = realloc(m->free_blocks, (size_t)fa * sizeof *nf);
+        if (!nf) return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for the free list");
+        m->free_blocks = nf;
+        m->free_alloc = fa;
+    }
+    *first = m->node_hw;
+    m->node_hw += 4;
+    return LM_OK;
+}
+
+lm_result mesh_qmesh_split(mesh_qmesh *m, uint32_t node, lm_error *err)
+{
+    const mesh_qnode *pn = mesh_qmesh_node(m, node);
+    if (!pn) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: split of a dead node %u", node);
+    if (pn->child != MESH_QMESH_NONE)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: split of node %u, which is not a leaf", node);
+    if (pn->depth >= MESH_DEPTH_MAX)
+        return lm_fail(err, LM_ERR_UNSUPPORTED, "cache mesh: node %u is at the depth limit of %d",
+                       node, MESH_DEPTH_MAX);
+    if ((uint64_t)m->nodes_live + 4 > m->node_cap)
+        return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: node cap of %u reached", m->node_cap);
+
+    const mesh_qnode p = *pn; /* the pool may move below */
+    mesh_bary c[3], mid[3];
+    for (int k = 0; k < 3; ++k) c[k] = mesh_qmesh_node_corner(&p, k);
+    uint32_t mv[3];
+    int fresh[3] = {0, 0, 0}, got = 0;
+    lm_result r = LM_OK;
+    for (; got < 3; ++got) { /* mid[e] is the midpoint of edge e: m01, m12, m20 */
+        r = mesh_bary_midpoint(c[got], c[(got + 1) % 3], &mid[got]);
+        if (r == LM_OK) r = take_vertex(m, p.tri, mid[got], &mv[got], &fresh[got], err);
+        if (r != LM_OK) break;
+    }
+    uint32_t first = 0;
+    if (r == LM_OK) r = alloc_block(m, &first, err);
+    if (r != LM_OK) {
+        while (got-- > 0)
+            if (fresh[got]) mesh_vtable_release(m->vt, mv[got], NULL);
+        return r;
+    }
+    /* Commit. Children's corner-0 weights (over 2^(depth+1)) and orientations. */
+    const mesh_bary anchor[4] = {{{2 * c[0].w[0], 2 * c[0].w[1], 2 * c[0].w[2]}, p.depth + 1u},
+                                 mid[0], mid[2], mid[0]};
+    const uint32_t cv[4][3] = {{p.v[0], mv[0], mv[2]}, {mv[0], p.v[1], mv[1]},
+                               {mv[2], mv[1], p.v[2]}, {mv[0], mv[1], mv[2]}};
+    for (int k = 0; k < 4; ++k) {
+        mesh_qnode *ch = &m->nodes[first + (uint32_t)k];
+        *ch = (mesh_qnode){.parent = node, .child = MESH_QMESH_NONE, .tri = p.tri,
+                           .a0 = anchor[k].w[0], .a1 = anchor[k].w[1],
+                           .depth = (uint8_t)(p.depth + 1),
+                           .orient = (uint8_t)(k == 3 ? (p.orient + 1) % 6 : p.orient),
+                           .flags = MESH_QNODE_LIVE};
+        memcpy(ch->v, cv[k], sizeof ch->v);
+    }
+    m->nodes[node].child = first;
+    for (int k = 0; k < 3; ++k) use_add(m, p.v[k], 1);
+    for (int k = 0; k < 3; ++k) use_add(m, mv[k], 3);
+    m->nodes_live += 4;
+    m->leaves += 3;
+    m->hist[p.depth]--;
+    m->hist[p.depth + 1] += 4;
+    m->splits++;
+    return LM_OK;
+}
+
+lm_result mesh_qmesh_merge(mesh_qmesh *m, uint32_t node, lm_error *err)
+{
+    const mesh_qnode *pn = mesh_qmesh_node(m, node);
+    if (!pn) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: merge of a dead node %u", node);
+    if (pn->child == MESH_QMESH_NONE)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: merge of leaf %u", node);
+    const uint32_t first = pn->child;
+    for (uint32_t k = 0; k < 4; ++k)
+        if (m->nodes[first + k].child != MESH_QMESH_NONE)
+            return lm_fail(err, LM_ERR_INVALID_ARG,
+                           "cache mesh: merge of node %u, whose child %u is split", node, first + k);
+    const mesh_qnode *mid = &m->nodes[first + 3]; /* (m01, m12, m20) */
+    const uint32_t mv[3] = {mid->v[0], mid->v[1], mid->v[2]};
+    for (int k = 0; k < 3; ++k) use_drop(m, pn->v[k], 1);
+    /* Reverse order of the split's acquisitions: the vtable's id stack comes back
+     * exactly as it was when the split took fresh vertices off it. */
+    for (int k = 2; k >= 0; --k) use_drop(m, mv[k], 3);
+    for (uint32_t k = 0; k < 4; ++k) m->nodes[first + k].flags = 0;
+    m->free_blocks[m->free_count++] = first; /* room reserved below, never fails */
+    m->nodes[node].child = MESH_QMESH_NONE;
+    m->nodes_live -= 4;
+    m->leaves -= 3;
+    m->hist[pn->depth + 1] -= 4;
+    m->hist[pn->depth]++;
+    m->merges++;
+    return LM_OK;
+}
+
+uint32_t mesh_qmesh_vertex_use(const mesh_qmesh *m, uint32_t id)
+{
+    return m && id < m->vcap ? m->use[id] : 0;
+}
+
+uint32_t mesh_qmesh_channels(const mesh_qmesh *m) { return m ? m->channels : 0; }
+
+lm_result mesh_qmesh_set_value(mesh_qmesh *m, uint32_t id, const float *value, lm_error *err)
+{
+    if (!m || !value) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: NULL argument");
+    if (mesh_qmesh_vertex_use(m, id) == 0)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: vertex %u is not in this mesh", id);
+    memcpy(m->values + (size_t)id * m->channels, value, m->channels * sizeof *value);
+    if (!m->sampled[id]) m->sampled_count++;
+    m->sampled[id] = 1;
+    return LM_OK;
+}
+
+int mesh_qmesh_get_value(const mesh_qmesh *m, uint32_t id, float *out)
+{
+    if (mesh_qmesh_vertex_use(m, id) == 0) return -1;
+    if (out) memcpy(out, m->values + (size_t)id * m->channels, m->channels * sizeof *out);
+    return m->sampled[id];
+}
+
+/* The id of this mesh's vertex at address p of `tri`, or MESH_VTABLE_NONE. */
+static uint32_t used_at(const mesh_qmesh *m, uint32_t tri, mesh_bary p)
+{
+    uint32_t id = mesh_vtable_find(m->vt, tri, p);
+    return id != MESH_VTABLE_NONE && id < m->vcap && m->use[id] > 0 ? id : MESH_VTABLE_NONE;
+}
+
+lm_result mesh_qmesh_interpolate(const mesh_qmesh *m, uint32_t tri, double w1, double w2,
+                                 float *out, lm_error *err)
+{
+    const uint32_t root = mesh_qmesh_root(m, tri);
+    if (root == MESH_QMESH_NONE || !out)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: no tree at triangle %u", tri);
+    double l[3] = {1.0 - w1 - w2, w1, w2};
+    double sum = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        if (!isfinite(l[k]) || l[k] < -1e-6)
+            return lm_fail(err, LM_ERR_INVALID_ARG,
+                           "cache mesh: point (%g, %g) is outside triangle %u", w1, w2, tri);
+        if (l[k] < 0.0) l[k] = 0.0;
+        sum += l[k];
+    }
+    for (int k = 0; k < 3; ++k) l[k] /= sum;
+    /* Descend, keeping l as barycentrics within the current node (see the header of
+     * each branch: the child's corners expressed through the parent's). */
+    uint32_t n = root;
+    while (m->nodes[n].child != MESH_QMESH_NONE) {
+        const uint32_t f = m->nodes[n].child;
+        if (l[0] >= 0.5) { /* (c0, m01, m20) */
+            l[0] = 2 * l[0] - 1, l[1] *= 2, l[2] *= 2, n = f;
+        } else if (l[1] >= 0.5) { /* (m01, c1, m12) */
+            l[0] *= 2, l[1] = 2 * l[1] - 1, l[2] *= 2, n = f + 1;
+        } else if (l[2] >= 0.5) { /* (m20, m12, c2) */
+            l[0] *= 2, l[1] *= 2, l[2] = 2 * l[2] - 1, n = f + 2;
+        } else { /* (m01, m12, m20) */
+            const double a = 1 - 2 * l[2], b = 1 - 2 * l[0], c = 1 - 2 * l[1];
+            l[0] = a, l[1] = b, l[2] = c, n = f + 3;
+        }
+    }
+    const mesh_qnode *leaf = &m->nodes[n];
+    const uint32_t ch = m->channels;
+    int zero = -1, zeros = 0;
+    for (int k = 0; k < 3; ++k)
+        if (l[k] <= 0.0) zero = k, zeros++;
+    if (zeros == 1) {
+        /* On the edge opposite corner `zero`: walk down the midpoints this mesh has
+         * (and has sampled) there, to the finest segment holding the point. */
+        const int ka = (zero + 1) % 3, kb = (zero + 2) % 3;
+        mesh_bary A = mesh_qmesh_node_corner(leaf, ka), B = mesh_qmesh_node_corner(leaf, kb);
+        uint32_t va = leaf->v[ka], vb = leaf->v[kb];
+        double s = l[kb] / (l[ka] + l[kb]);
+        for (;;) {
+            mesh_bary mid;
+            if (mesh_bary_midpoint(A, B, &mid) != LM_OK) break;
+            const uint32_t id = used_at(m, tri, mid);
+            if (id == MESH_VTABLE_NONE || !m->sampled[id]) break;
+            if (s == 0.5) {
+                memcpy(out, m->values + (size_t)id * ch, ch * sizeof *out);
+                return LM_OK;
+            }
+            if (s < 0.5) B = mid, vb = id, s = 2 * s;
+            else A = mid, va = id, s = 2 * s - 1;
+        }
+        for (uint32_t c = 0; c < ch; ++c)
+            out[c] = (float)((1 - s) * m->values[(size_t)va * ch + c] + s * m->values[(size_t)vb * ch + c]);
+        return LM_OK;
+    }
+    for (uint32_t c = 0; c < ch; ++c) {
+        double acc = 0.0;
+        for (int k = 0; k < 3; ++k) acc += l[k] * m->values[(size_t)leaf->v[k] * ch + c];
+        out[c] = (float)acc;
+    }
+    return LM_OK;
+}
+
+/* ---- crack-free leaf triangles ---- */
+
+typedef struct pt {
+    uint32_t id;
+    mesh_bary b;
+} pt;
+
+typedef struct emitter {
+    const mesh_qmesh *m;
+    uint32_t tri, leaf;
+    mesh_qmesh_tri **buf;
+    size_t *cap, count;
+    pt *line; /* scratch: points along one edge */
+    size_t line_len, line_cap;
+    lm_result r;
+    lm_error *err;
+} emitter;
+
+static void emit(emitter *e, pt a, pt b, pt c)
+{
+    if (e->r != LM_OK) return;
+    if (e->count == *e->cap) {
+        size_t nc = *e->cap ? 2 * *e->cap : 1024;
+        mesh_qmesh_tri *nb = realloc(*e->buf, nc * sizeof *nb);
+        if (!nb) {
+            e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu triangles", nc);
+            return;
+        }
+        *e->buf = nb;
+        *e->cap = nc;
+    }
+    mesh_qmesh_tri *t = &(*e->buf)[e->count++];
+    t->tri = e->tri, t->leaf = e->leaf;
+    t->v[0] = a.id, t->v[1] = b.id, t->v[2] = c.id;
+    t->bary[0] = a.b, t->bary[1] = b.b, t->bary[2] = c.b;
+}
+
+static void line_push(emitter *e, pt p)
+{
+    if (e->r != LM_OK) return;
+    if (e->line_len == e->line_cap) {
+        size_t nc = e->line_cap ? 2 * e->line_cap : 64;
+        pt *nl = realloc(e->line, nc * sizeof *nl);
+        if (!nl) {
+            e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
+            return;
+        }
+        e->line = nl;
+        e->line_cap = nc;
+    }
+    e->line[e->line_len++] = p;
+}
+
+/* The mesh's vertex at the midpoint of a-b, if any. */
+static int mid_of(const emitter *e, pt a, pt b, pt *out)
+{
+    if (mesh_bary_midpoint(a.b, b.b, &out->b) != LM_OK) return 0;
+    out->id = used_at(e->m, e->tri, out->b);
+    return out->id != MESH_VTABLE_NONE;
+}
+
+/* Pushes the mesh's vertices strictly between a and b, in order from a. */
+static void collect(emitter *e, pt a, pt b)
+{
+    pt mid;
+    if (!mid_of(e, a, b, &mid)) return;
+    collect(e, a, mid);
+    line_push(e, mid);
+    collect(e, mid, b);
+}
+
+/* Fan from apex o over the segment a->b and the vertices on it (o, a, b CCW). */
+static void fan(emitter *e, pt o, pt a, pt b)
+{
+    e->line_len = 0;
+    line_push(e, a);
+    collect(e, a, b);
+    line_push(e, b);
+    if (e->r != LM_OK) return;
+    /* emit() never touches e->line, so iterating it while emitting is safe. */
+    for (size_t i = 0; i + 1 < e->line_len; ++i) emit(e, o, e->line[i], e->line[i + 1]);
+}
+
+/* Tiles lattice triangle p (CCW) whose edges may carry vertices; its interior
+ * carries none. Missing midpoint on an edge = no vertex on that edge at all. */
+static void fill(emitter *e, const pt p[3])
+{
+    pt mid[3];
+    int has[3], n = 0;
+    for (int k = 0; k < 3; ++k) n += has[k] = mid_of(e, p[k], p[(k + 1) % 3], &mid[k]);
+    if (n == 0) {
+        emit(e, p[0], p[1], p[2]);
+    } else if (n == 1) {
+        const int k = has[0] ? 0 : has[1] ? 1 : 2;
+        fan(e, p[(k + 2) % 3], p[k], p[(k + 1) % 3]);
+    } else if (n == 2) {
+        /* s: the corner between the two edges with vertices (the third edge has
+         * none). Its corner child is a lattice triangle again; the rest, a quad,
+         * splits along mid[s]-p[s+2] into two triangles with vertices on at most
+         * one edge each, fanned from the opposite corner. */
+        const int s = !has[1] ? 0 : !has[2] ? 1 : 2;
+        const pt ms = mid[s], mp = mid[(s + 2) % 3]; /* on edges s and s+2 */
+        const pt corner[3] = {p[s], ms, mp};
+        fill(e, corner);
+        fan(e, p[(s + 2) % 3], ms, p[(s + 1) % 3]);
+        fan(e, ms, p[(s + 2) % 3], mp);
+    } else {
+        const pt c0[3] = {p[0], mid[0], mid[2]}, c1[3] = {mid[0], p[1], mid[1]},
+                 c2[3] = {mid[2], mid[1], p[2]};
+        fill(e, c0);
+        fill(e, c1);
+        fill(e, c2);
+        emit(e, mid[0], mid[1], mid[2]);
+    }
+}
+
+lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, size_t *cap,
+                                    size_t *count, lm_error *err)
+{
+    if (count) *count = 0;
+    if (!m || !buf || !cap || !count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: NULL argument to leaf_triangles");
+    if (!*buf) *cap = 0;
+    emitter e = {.m = m, .buf = buf, .cap = cap, .r = LM_OK, .err = err};
+    for (uint32_t i = 0; i < m->node_hw && e.r == LM_OK; ++i) {
+        const mesh_qnode *n = &m->nodes[i];
+        if (!(n->flags & MESH_QNODE_LIVE) || n->child != MESH_QMESH_NONE) continue;
+        e.tri = n->tri, e.leaf = i;
+        pt p[3];
+        for (int k = 0; k < 3; ++k) p[k].id = n->v[k], p[k].b = mesh_qmesh_node_corner(n, k);
+        fill(&e, p);
+    }
+    free(e.line);
+    *count = e.r == LM_OK ? e.count : 0;
+    return e.r;
+}
+
+void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out)
+{
+    if (!out) return;
+    memset(out, 0, sizeof *out);
+    if (!m) return;
+    out->roots = m->root_count;
+    out->nodes = m->nodes_live;
+    out->leaves = m->leaves;
+    out->vertices_used = m->used;
+    out->vertices_sampled = m->sampled_count;
+    memcpy(out->leaves_at_depth, m->hist, sizeof m->hist);
+    out->splits = m->splits;
+    out->merges = m->merges;
+    out->bytes_nodes = (size_t)m->node_alloc * sizeof *m->nodes +
+                       (size_t)m->free_alloc * sizeof *m->free_blocks +
+                       (size_t)m->s->tri_count * sizeof *m->root_of_tri + sizeof *m;
+    out->bytes_values = (size_t)m->vcap * (sizeof *m->use + m->channels * sizeof *m->values + 1);
+    const double bpv = mesh_vtable_bytes_per_vertex(m->vt);
+    double share = 0.0;
+    for (uint32_t id = 0; id < m->vcap; ++id) {
+        if (m->use[id] == 0) continue;
+        const mesh_vertex *v = mesh_vtable_vertex(m->vt, id);
+        share += v && v->refs ? bpv / v->refs : 0.0;
+    }
+    out->bytes_vtable_share = (size_t)(share + 0.5);
+    out->bytes = out->bytes_nodes + out->bytes_values + out->bytes_vtable_share;
+}
