@@ -185,7 +185,7 @@ static void bench_scene(const char *name, int quick)
     }
 
     samp_coarse_mesh cm;
-    if (samp_coarse_mesh_build(s, &cm, &err) != LM_OK) {
+    if (samp_coarse_mesh_build(s, 8192, &cm, &err) != LM_OK) {
         fprintf(stderr, "%s\n", err.msg);
         scene_destroy(s);
         return;

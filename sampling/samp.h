@@ -88,6 +88,9 @@ typedef struct samp_desc {
     int indirect_rays;            /* Embree: hemisphere rays per receiver (stratified); 0 = 1024 */
     samp_indirect_mode indirect_mode;
     int threads;                  /* Embree worker threads; 0 = every core */
+    float direct_target_error;    /* AUTO: mean relative error the client tolerates in penumbra;
+                                     0 = as accurate as GL at direct_res (equal-error comparison) */
+    float indirect_target_error;  /* AUTO: the same for indirect samples; 0 = as accurate as GL */
     uint32_t seed;                /* random numbers: the same seed and calls give the same values */
 } samp_desc;
 

@@ -56,16 +56,18 @@ double *samp_area_cdf(const scene *s);
  * the triangle's front normal, tri_plus_one set. For calibration, tests, benches. */
 samp_point samp_random_receiver(const scene *s, const double *area_cdf, ref_rng *g);
 
-/* A first coarse radiance mesh: one sub-triangle per scene triangle, corner
- * radiance kd·Σ_ℓ L_ℓ·G_ℓ,unoccluded/π (no visibility: what a cache has before its
- * first direct samples). For calibration and benchmarks. */
+/* A coarse radiance mesh with no visibility, corner radiance
+ * kd·Σ_ℓ L_ℓ·G_ℓ,unoccluded/π: every scene triangle cut into the same number of
+ * dyadic sub-triangles, as many as keep the total at or under target_triangles
+ * (one each at least). Shaped like the cache's indirect source, for calibration
+ * and benchmarks. */
 typedef struct samp_coarse_mesh {
     uint32_t *first;
     float *bary, *radiance;
     samp_radiance_mesh mesh;
 } samp_coarse_mesh;
 
-lm_result samp_coarse_mesh_build(const scene *s, samp_coarse_mesh *out, lm_error *err);
+lm_result samp_coarse_mesh_build(const scene *s, uint32_t target_triangles, samp_coarse_mesh *out, lm_error *err);
 void samp_coarse_mesh_free(samp_coarse_mesh *m);
 
 /* The descriptor with every zero field replaced by its default. */

@@ -121,6 +121,28 @@ int main(void)
         for (uint32_t i = 0; i < n; ++i) CHECK(isfinite(ga[i]) && ga[i] >= 0.0f);
         samp_destroy(au);
     }
+    /* Auto with a stated tolerance: the choice says so, and the chosen back end's
+     * penumbra error on these points is within twice the tolerance (the
+     * calibration measured it on other points of the same scene). */
+    samp_desc td = {.scene = s, .direct_target_error = 0.02f, .indirect_target_error = 0.02f};
+    samp_sampler *tol = NULL;
+    CHECK(samp_create(&td, &tol, &err) == LM_OK);
+    if (tol) {
+        samp_stats st;
+        samp_get_stats(tol, &st);
+        printf("auto, 2%% asked: direct %s, indirect %s\n  %s\n", st.backend_name, st.indirect_backend_name, st.choice);
+        CHECK(strstr(st.choice, "direct") && strstr(st.choice, "for the asked error"));
+        float gt[N];
+        CHECK(samp_direct(tol, 0, pts, n, gt, &err) == LM_OK);
+        double num = 0.0, den = 0.0;
+        for (uint32_t i = 0; i < n; ++i) {
+            num += fabs(gt[i] - gr[i]);
+            den += gr[i];
+        }
+        printf("  its mean relative error on the shadowed points: %.2f%%\n", 100.0 * num / den);
+        CHECK_MSG(num / den <= 0.04, "mean relative error %.3f", num / den);
+        samp_destroy(tol);
+    }
     samp_destroy(emb);
     samp_destroy(ref);
     samp_destroy(gl);

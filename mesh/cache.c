@@ -1,0 +1,591 @@
+/* cache.c — the multi-mesh cache's meshes and values (cache.h; paper §4.1–4.2,
+ * §4.3.4). The refinement scheduler is src/cache_refine.c. */
+#include "cache_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "analytic.h"
+#include "samp_internal.h"
+#include "vecmath.h"
+
+/* V within this of 1 (or of 0) at a light leaf's corners counts as wholly visible
+ * (hidden): the control-variate samplers return exactly 1 and 0 there, up to float
+ * rounding of G/G_unocc. */
+#define CACHE_V_EPS 1e-4f
+/* The direct mesh's leaves feed indirect samples; rebuild that source when the
+ * direct mesh has changed by this many splits and merges since the last build
+ * (and always before the first indirect samples). */
+#define CACHE_RMESH_STALE 256u
+
+/* ---- lights ----------------------------------------------------------------- */
+
+static const float *light_radiance(const scene *s, uint32_t l)
+{
+    return l < s->area_light_count ? s->area_lights[l].le : s->point_lights[l - s->area_light_count].intensity;
+}
+
+typedef struct light_filter {
+    const scene *s;
+    uint32_t light;
+} light_filter;
+
+/* A triangle can receive light l at all: some light point is above its plane
+ * and some corner of it is in front of the light (conservative: a triangle that
+ * fails gets no mesh for this light, and G = 0 there exactly). */
+static int sees_light(const scene *s, uint32_t t, void *user)
+{
+    const light_filter *f = user;
+    uint32_t l = f->light;
+    if (s->tris[t].light >= 0 && (uint32_t)s->tris[t].light == l) return 0;
+    lm_dvec3 n = dv3_load(s->tri_normals + 3 * (size_t)t), p0 = dv3_load(s->positions + 3 * (size_t)s->tris[t].v[0]);
+    if (l >= s->area_light_count) {
+        lm_dvec3 q = dv3_load(s->point_lights[l - s->area_light_count].position);
+        return dv3_dot(dv3_sub(q, p0), n) > 0.0;
+    }
+    const scene_area_light *L = &s->area_lights[l];
+    int above = 0, in_front = 0;
+    lm_dvec3 nl = dv3_load(L->normal), cl = dv3_load(L->centroid);
+    for (uint32_t i = 0; i < L->count && !above; ++i) {
+        const uint32_t *v = s->tris[s->light_tris[L->first + i]].v;
+        for (int k = 0; k < 3 && !above; ++k)
+            above = dv3_dot(dv3_sub(dv3_load(s->positions + 3 * (size_t)v[k]), p0), n) > 0.0;
+    }
+    for (int k = 0; k < 3 && !in_front; ++k)
+        in_front = dv3_dot(dv3_sub(dv3_load(s->positions + 3 * (size_t)s->tris[t].v[k]), cl), nl) > 0.0;
+    return above && in_front;
+}
+
+static int has_albedo(const scene *s, uint32_t t, void *user)
+{
+    (void)user;
+    const float *kd = s->materials[s->tris[t].material].kd;
+    return kd[0] > 0.0f || kd[1] > 0.0f || kd[2] > 0.0f;
+}
+
+samp_point cache_vertex_point(const cache *c, uint32_t vid)
+{
+    const mesh_vertex *v = mesh_vtable_vertex(c->vt, vid);
+    samp_point p = {.tri_plus_one = v->tri + 1};
+    memcpy(p.p, v->position, sizeof p.p);
+    memcpy(p.n, v->normal, sizeof p.n);
+    return p;
+}
+
+double cache_unoccluded(const cache *c, uint32_t l, uint32_t vid)
+{
+    const mesh_vertex *v = mesh_vtable_vertex(c->vt, vid);
+    if (l < c->s->area_light_count) return samp_area_light_unoccluded(c->s, l, v->position, v->normal);
+    const float *q = c->s->point_lights[l - c->s->area_light_count].position;
+    const double Q[3] = {q[0], q[1], q[2]}, X[3] = {v->position[0], v->position[1], v->position[2]},
+                 N[3] = {v->normal[0], v->normal[1], v->normal[2]};
+    return samp_point_G(Q, X, N);
+}
+
+/* ---- leaves ------------------------------------------------------------------ */
+
+void cache_node_corner_bary(const mesh_qnode *n, int k, double *w1, double *w2)
+{
+    mesh_bary b = mesh_qmesh_node_corner(n, k);
+    double scale = ldexp(1.0, -(int)b.depth);
+    *w1 = b.w[1] * scale;
+    *w2 = b.w[2] * scale;
+}
+
+/* Is (w1, w2) inside the node's triangle (barycentric space of its scene triangle)? */
+static int node_contains(const mesh_qnode *n, double w1, double w2)
+{
+    double a[2], b[2], c[2];
+    cache_node_corner_bary(n, 0, &a[0], &a[1]);
+    cache_node_corner_bary(n, 1, &b[0], &b[1]);
+    cache_node_corner_bary(n, 2, &c[0], &c[1]);
+    const double eps = 1e-12;
+    double d0 = (b[0] - a[0]) * (w2 - a[1]) - (b[1] - a[1]) * (w1 - a[0]);
+    double d1 = (c[0] - b[0]) * (w2 - b[1]) - (c[1] - b[1]) * (w1 - b[0]);
+    double d2 = (a[0] - c[0]) * (w2 - c[1]) - (a[1] - c[1]) * (w1 - c[0]);
+    int neg = d0 < -eps || d1 < -eps || d2 < -eps, pos = d0 > eps || d1 > eps || d2 > eps;
+    return !(neg && pos);
+}
+
+uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2)
+{
+    uint32_t node = mesh_qmesh_root(m, tri);
+    if (node == MESH_QMESH_NONE) return MESH_QMESH_NONE;
+    for (;;) {
+        const mesh_qnode *n = mesh_qmesh_node(m, node);
+        if (n->child == MESH_QMESH_NONE) return node;
+        uint32_t next = n->child + 3; /* the centre child when rounding leaves no other */
+        for (uint32_t k = 0; k < 4; ++k)
+            if (node_contains(mesh_qmesh_node(m, n->child + k), w1, w2)) {
+                next = n->child + k;
+                break;
+            }
+        node = next;
+    }
+}
+
+/* ---- visibility (§4.3.4) ----------------------------------------------------- */
+
+/* Interpolated V at (w1, w2) when leaf can answer confidently, else -1. */
+static float confident_V(const mesh_qmesh *m, const mesh_qnode *leaf, uint32_t asking_depth)
+{
+    if ((uint32_t)leaf->depth + CACHE_LIGHT_LAG < asking_depth) return -1.0f;
+    float v[3];
+    for (int k = 0; k < 3; ++k)
+        if (mesh_qmesh_get_value(m, leaf->v[k], &v[k]) != 1) return -1.0f;
+    if (v[0] >= 1.0f - CACHE_V_EPS && v[1] >= 1.0f - CACHE_V_EPS && v[2] >= 1.0f - CACHE_V_EPS) return 1.0f;
+    if (v[0] <= CACHE_V_EPS && v[1] <= CACHE_V_EPS && v[2] <= CACHE_V_EPS) return 0.0f;
+    return -1.0f;
+}
+
+/* Samples V of light l at the given vertices of its mesh and stores them. */
+static lm_result sample_light(cache *c, uint32_t l, const uint32_t *vids, uint32_t n, lm_error *err)
+{
+    if (n == 0) return LM_OK;
+    samp_point *pts = calloc(n, sizeof *pts);
+    float *G = calloc(n, sizeof *G);
+    lm_result r = pts && G ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling a light");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
+    if (r == LM_OK) r = samp_direct(c->sp, l, pts, n, G, err);
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        double g0 = cache_unoccluded(c, l, vids[i]);
+        /* Where the light is below the horizon V is moot (G = V·0); 1 keeps such
+         * corners from making a lit leaf look uncertain. */
+        float V = g0 > 0.0 ? (float)fmin(1.0, fmax(0.0, G[i] / g0)) : 1.0f;
+        r = mesh_qmesh_set_value(c->light[l], vids[i], &V, err);
+    }
+    if (r == LM_OK) c->light_stats[l].samples += n;
+    free(pts);
+    free(G);
+    return r;
+}
+
+/* Appends to *need (deduplicated by a sampled check) the corners of node that
+ * light mesh m uses but has not sampled. */
+static lm_result want_unsampled(const mesh_qmesh *m, const mesh_qnode *n, uint32_t **need, uint32_t *count,
+                                uint32_t *cap, lm_error *err)
+{
+    for (int k = 0; k < 3; ++k) {
+        float dummy;
+        if (mesh_qmesh_get_value(m, n->v[k], &dummy) == 1) continue;
+        int dup = 0;
+        for (uint32_t i = 0; i < *count && !dup; ++i) dup = (*need)[i] == n->v[k];
+        if (dup) continue;
+        if (*count == *cap) {
+            uint32_t nc = *cap ? 2 * *cap : 64, *p = realloc(*need, nc * sizeof *p);
+            if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining a light mesh");
+            *need = p;
+            *cap = nc;
+        }
+        (*need)[(*count)++] = n->v[k];
+    }
+    return LM_OK;
+}
+
+lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err)
+{
+    const uint32_t L = c->light_count;
+    uint8_t *resolved = calloc(n ? n : 1, 1);
+    uint32_t *need = NULL, need_n = 0, need_cap = 0;
+    lm_result r = resolved ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory fetching visibility");
+    for (uint32_t l = 0; r == LM_OK && l < L; ++l) {
+        mesh_qmesh *m = c->light[l];
+        memset(resolved, 0, n);
+        /* Each round splits, once, the light leaves that hold an unresolved site
+         * and cannot answer, and samples their new corners in one batch. */
+        for (int round = 0; r == LM_OK && round <= MESH_DEPTH_MAX + 1; ++round) {
+            need_n = 0;
+            for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+                if (resolved[i]) continue;
+                const cache_site *st = &sites[i];
+                float v;
+                /* A vertex shared with a triangle that sees the light has its value
+                 * there even when the asking triangle does not. */
+                if (m && mesh_qmesh_get_value(m, st->vid, &v) == 1) {
+                    V[(size_t)i * L + l] = v;
+                    resolved[i] = 1;
+                    continue;
+                }
+                if (!m || mesh_qmesh_root(m, st->tri) == MESH_QMESH_NONE) {
+                    V[(size_t)i * L + l] = 0.0f; /* this triangle cannot see the light */
+                    resolved[i] = 1;
+                    continue;
+                }
+                uint32_t leaf = cache_find_leaf(m, st->tri, st->w1, st->w2);
+                const mesh_qnode *ln = mesh_qmesh_node(m, leaf);
+                int corners_known = 1;
+                for (int k = 0; k < 3; ++k) corners_known &= mesh_qmesh_get_value(m, ln->v[k], &v) == 1;
+                if (!corners_known) {
+                    /* Split earlier in this round: its corners are in this round's
+                     * batch; ask again once they are sampled. */
+                    r = want_unsampled(m, ln, &need, &need_n, &need_cap, err);
+                    continue;
+                }
+                float cv = confident_V(m, ln, st->depth);
+                if (cv >= 0.0f) {
+                    V[(size_t)i * L + l] = cv;
+                    resolved[i] = 1;
+                    c->light_stats[l].interpolated++;
+                    continue;
+                }
+                if (ln->depth > st->depth) { /* cannot happen: sites lie on the lattice of depth+1 */
+                    r = lm_fail(err, LM_ERR_RUNTIME, "light mesh deeper than its radiance site");
+                    break;
+                }
+                r = mesh_qmesh_split(m, leaf, err);
+                if (r == LM_OK) {
+                    const mesh_qnode *p = mesh_qmesh_node(m, leaf);
+                    for (uint32_t k = 0; r == LM_OK && k < 4; ++k)
+                        r = want_unsampled(m, mesh_qmesh_node(m, p->child + k), &need, &need_n, &need_cap, err);
+                }
+            }
+            if (r != LM_OK || need_n == 0) break;
+            r = sample_light(c, l, need, need_n, err);
+        }
+    }
+    free(need);
+    free(resolved);
+    return r;
+}
+
+void cache_direct_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3])
+{
+    double e[3] = {0, 0, 0};
+    for (uint32_t l = 0; l < c->light_count; ++l) {
+        if (V[l] <= 0.0f) continue;
+        double g = V[l] * cache_unoccluded(c, l, vid);
+        const float *le = light_radiance(c->s, l);
+        for (int k = 0; k < 3; ++k) e[k] += le[k] * g;
+    }
+    for (int k = 0; k < 3; ++k) {
+        double v = e[k] / M_PI;
+        rgb[k] = v < 3e38 ? (float)v : 3e38f;
+    }
+}
+
+/* ---- indirect source and samples --------------------------------------------- */
+
+/* The indirect source is the direct mesh cut at this many triangles (about):
+ * indirect irradiance is smooth, and every indirect sample draws or searches the
+ * whole source (the paper gathers from a coarse direct mesh, §5). Measured on the
+ * built-in Cornell box: the full leaf set (31,000 triangles) made GL hemicube
+ * samples cost 6 ms each. */
+#define CACHE_RMESH_TRIANGLES 8192u
+
+/* Appends the nodes of the tree under `node` cut at depth `cut` (a leaf above
+ * the cut is taken whole) to c->leaf_buf as source triangles. */
+static lm_result collect_source(cache *c, uint32_t node, uint32_t cut, size_t *count, lm_error *err)
+{
+    const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
+    if (n->child != MESH_QMESH_NONE && n->depth < cut) {
+        uint32_t child = n->child;
+        for (uint32_t k = 0; k < 4; ++k) {
+            lm_result r = collect_source(c, child + k, cut, count, err);
+            if (r != LM_OK) return r;
+        }
+        return LM_OK;
+    }
+    if (*count == c->leaf_cap) {
+        size_t nc = c->leaf_cap ? 2 * c->leaf_cap : 1024;
+        mesh_qmesh_tri *b = realloc(c->leaf_buf, nc * sizeof *b);
+        if (!b) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+        c->leaf_buf = b;
+        c->leaf_cap = nc;
+    }
+    mesh_qmesh_tri *t = &c->leaf_buf[(*count)++];
+    t->tri = n->tri;
+    t->leaf = node;
+    for (int k = 0; k < 3; ++k) {
+        t->v[k] = n->v[k];
+        t->bary[k] = mesh_qmesh_node_corner(n, k);
+    }
+    return LM_OK;
+}
+
+lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
+{
+    mesh_qmesh_stats st;
+    mesh_qmesh_get_stats(c->direct, &st);
+    uint64_t changes = st.splits + st.merges;
+    if (!force && c->rmesh.first && changes - c->rm_built_at < CACHE_RMESH_STALE) return LM_OK;
+    const scene *s = c->s;
+    uint32_t cut = 0; /* deepest level with at most CACHE_RMESH_TRIANGLES nodes in a full tree */
+    while (cut < MESH_DEPTH_MAX && ((uint64_t)st.roots << (2 * (cut + 1))) <= CACHE_RMESH_TRIANGLES) cut++;
+    size_t count = 0;
+    lm_result r = LM_OK;
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
+        uint32_t root = mesh_qmesh_root(c->direct, t);
+        if (root != MESH_QMESH_NONE) r = collect_source(c, root, cut, &count, err);
+    }
+    if (r != LM_OK) return r;
+    if (!c->rm_first) {
+        c->rm_first = calloc((size_t)s->tri_count + 1, sizeof *c->rm_first);
+        if (!c->rm_first) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+    }
+    if (count > c->rm_cap) {
+        float *b = realloc(c->rm_bary, count * 6 * sizeof *b), *rd = b ? realloc(c->rm_rad, count * 9 * sizeof *rd) : NULL;
+        if (b) c->rm_bary = b;
+        if (rd) c->rm_rad = rd;
+        if (!b || !rd) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+        c->rm_cap = count;
+    }
+    /* Counting sort by scene triangle. */
+    memset(c->rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->rm_first);
+    for (size_t i = 0; i < count; ++i) c->rm_first[c->leaf_buf[i].tri + 1]++;
+    for (uint32_t t = 0; t < s->tri_count; ++t) c->rm_first[t + 1] += c->rm_first[t];
+    uint32_t *fill = malloc(((size_t)s->tri_count + 1) * sizeof *fill);
+    if (!fill) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+    memcpy(fill, c->rm_first, ((size_t)s->tri_count + 1) * sizeof *fill);
+    for (size_t i = 0; i < count; ++i) {
+        const mesh_qmesh_tri *lt = &c->leaf_buf[i];
+        uint32_t at = fill[lt->tri]++;
+        const float *kd = s->materials[s->tris[lt->tri].material].kd;
+        for (int k = 0; k < 3; ++k) {
+            double scale = ldexp(1.0, -(int)lt->bary[k].depth);
+            c->rm_bary[6 * (size_t)at + 2 * (size_t)k] = (float)(lt->bary[k].w[1] * scale);
+            c->rm_bary[6 * (size_t)at + 2 * (size_t)k + 1] = (float)(lt->bary[k].w[2] * scale);
+            float L[3], Ei[3] = {0, 0, 0};
+            mesh_qmesh_get_value(c->direct, lt->v[k], L);
+            if (c->desc.bounces >= 2 && mesh_qmesh_get_value(c->indirect, lt->v[k], Ei) < 0) Ei[0] = Ei[1] = Ei[2] = 0;
+            for (int ch = 0; ch < 3; ++ch)
+                c->rm_rad[9 * (size_t)at + 3 * (size_t)k + (size_t)ch] =
+                    kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
+        }
+    }
+    free(fill);
+    c->rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->rm_first, .bary = c->rm_bary,
+                                    .radiance = c->rm_rad};
+    c->rm_built_at = changes;
+    return LM_OK;
+}
+
+lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+{
+    if (n == 0) return LM_OK;
+    lm_result r = cache_update_radiance_source(c, 0, err);
+    if (r != LM_OK) return r;
+    samp_point *pts = malloc(n * sizeof *pts);
+    if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
+    for (uint32_t i = 0; i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
+    r = samp_indirect(c->sp, &c->rmesh, pts, n, E, err);
+    free(pts);
+    if (r == LM_OK) c->indirect_stats.samples += n;
+    return r;
+}
+
+/* ---- create, init, destroy ---------------------------------------------------- */
+
+void cache_destroy(cache *c)
+{
+    if (!c) return;
+    if (c->light)
+        for (uint32_t l = 0; l < c->light_count; ++l) mesh_qmesh_destroy(c->light[l]);
+    mesh_qmesh_destroy(c->direct);
+    mesh_qmesh_destroy(c->indirect);
+    mesh_vtable_destroy(c->vt);
+    free(c->light);
+    free(c->light_stats);
+    free(c->rm_first);
+    free(c->rm_bary);
+    free(c->rm_rad);
+    free(c->leaf_buf);
+    free(c->q_direct.e);
+    free(c->q_indirect.e);
+    free(c->done_direct);
+    free(c->done_indirect);
+    free(c);
+}
+
+lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
+{
+    *out = NULL;
+    if (!desc || !desc->scene || !desc->sampler) return lm_fail(err, LM_ERR_INVALID_ARG, "cache: needs a scene and a sampler");
+    if (desc->bounces < 0 || desc->bounces > 2 || !(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounces must be 1 or 2, the JND and leaf size non-negative");
+    cache *c = calloc(1, sizeof *c);
+    if (!c) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
+    c->desc = *desc;
+    if (c->desc.jnd == 0.0f) c->desc.jnd = 2.0f;
+    if (c->desc.bounces == 0) c->desc.bounces = 1;
+    if (c->desc.min_leaf_pixels == 0.0f) c->desc.min_leaf_pixels = 16.0f;
+    c->s = desc->scene;
+    c->sp = desc->sampler;
+    c->tm.exposure = c->s->exposure + desc->exposure_offset;
+    c->light_count = scene_light_count(c->s);
+    lm_result r = mesh_vtable_create(&(mesh_vtable_desc){.scene = c->s}, &c->vt, err);
+    c->light = calloc(c->light_count ? c->light_count : 1, sizeof *c->light);
+    c->light_stats = calloc(c->light_count ? c->light_count : 1, sizeof *c->light_stats);
+    if (r == LM_OK && (!c->light || !c->light_stats)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
+    uint32_t cap = desc->node_cap;
+    for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
+        light_filter f = {c->s, l};
+        uint32_t roots = 0;
+        for (uint32_t t = 0; t < c->s->tri_count; ++t) roots += sees_light(c->s, t, &f) != 0;
+        if (roots == 0) continue; /* a light nothing can see gets no mesh */
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = sees_light, .root_filter_user = &f,
+                                                 .channels = 1, .node_cap = cap},
+                              &c->light[l], err);
+    }
+    if (r == LM_OK)
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
+                              &c->direct, err);
+    if (r == LM_OK)
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
+                              &c->indirect, err);
+    if (r != LM_OK) {
+        cache_destroy(c);
+        return r;
+    }
+    *out = c;
+    return LM_OK;
+}
+
+/* The distinct corner vertices of every root of m. */
+static lm_result root_vertices(const cache *c, const mesh_qmesh *m, uint32_t **out, uint32_t *n, lm_error *err)
+{
+    const scene *s = c->s;
+    uint8_t *seen = NULL;
+    uint32_t *v = malloc(3 * (size_t)(s->tri_count ? s->tri_count : 1) * sizeof *v), cnt = 0, limit = 0;
+    mesh_vtable_stats vs;
+    mesh_vtable_get_stats(c->vt, &vs);
+    limit = vs.id_limit;
+    seen = calloc(limit ? limit : 1, 1);
+    if (!v || !seen) {
+        free(v);
+        free(seen);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
+    }
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        uint32_t root = mesh_qmesh_root(m, t);
+        if (root == MESH_QMESH_NONE) continue;
+        const mesh_qnode *nd = mesh_qmesh_node(m, root);
+        for (int k = 0; k < 3; ++k)
+            if (nd->v[k] < limit && !seen[nd->v[k]]) {
+                seen[nd->v[k]] = 1;
+                v[cnt++] = nd->v[k];
+            }
+    }
+    free(seen);
+    *out = v;
+    *n = cnt;
+    return LM_OK;
+}
+
+lm_result cache_init(cache *c, lm_error *err)
+{
+    uint32_t *v = NULL, n = 0;
+    lm_result r = LM_OK;
+    for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
+        if (!c->light[l]) continue;
+        r = root_vertices(c, c->light[l], &v, &n, err);
+        if (r == LM_OK) r = sample_light(c, l, v, n, err);
+        free(v);
+        v = NULL;
+    }
+    if (r == LM_OK) r = root_vertices(c, c->direct, &v, &n, err);
+    float *V = r == LM_OK ? malloc(((size_t)n * c->light_count + 1) * sizeof *V) : NULL;
+    cache_site *sites = r == LM_OK ? malloc((n ? n : 1) * sizeof *sites) : NULL;
+    if (r == LM_OK && (!V || !sites)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, v[i]);
+        double scale = ldexp(1.0, -(int)mv->bary.depth);
+        sites[i] = (cache_site){.vid = v[i], .tri = mv->tri, .w1 = mv->bary.w[1] * scale,
+                                .w2 = mv->bary.w[2] * scale, .depth = 0};
+    }
+    if (r == LM_OK) r = cache_fetch_visibility(c, sites, n, V, err);
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        float rgb[3];
+        cache_direct_from_visibility(c, v[i], V + (size_t)i * c->light_count, rgb);
+        r = mesh_qmesh_set_value(c->direct, v[i], rgb, err);
+        c->direct_stats.samples++;
+    }
+    free(V);
+    free(sites);
+    free(v);
+    v = NULL;
+    /* Indirect: gathered from the coarse direct mesh just made (§5). */
+    if (r == LM_OK) r = cache_update_radiance_source(c, 1, err);
+    if (r == LM_OK) r = root_vertices(c, c->indirect, &v, &n, err);
+    float *E = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E) : NULL;
+    if (r == LM_OK && !E) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
+    if (r == LM_OK) r = cache_sample_indirect(c, v, n, E, err);
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, v[i], E + 3 * (size_t)i, err);
+    free(E);
+    free(v);
+    if (r == LM_OK) c->initialised = 1;
+    return r;
+}
+
+/* ---- evaluation and statistics ------------------------------------------------- */
+
+lm_result cache_eval_direct(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err)
+{
+    return mesh_qmesh_interpolate(c->direct, tri, w1, w2, rgb, err);
+}
+
+lm_result cache_eval_indirect(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err)
+{
+    return mesh_qmesh_interpolate(c->indirect, tri, w1, w2, rgb, err);
+}
+
+lm_result cache_eval_G(const cache *c, uint32_t light, uint32_t tri, double w1, double w2, double *G, lm_error *err)
+{
+    *G = 0.0;
+    if (light >= c->light_count) return lm_fail(err, LM_ERR_INVALID_ARG, "cache: light %u does not exist", light);
+    const mesh_qmesh *m = c->light[light];
+    if (!m || mesh_qmesh_root(m, tri) == MESH_QMESH_NONE) return LM_OK;
+    float V;
+    lm_result r = mesh_qmesh_interpolate(m, tri, w1, w2, &V, err);
+    if (r != LM_OK) return r;
+    const scene *s = c->s;
+    const uint32_t *tv = s->tris[tri].v;
+    float p[3], n[3];
+    for (int k = 0; k < 3; ++k) {
+        p[k] = (float)((1.0 - w1 - w2) * s->positions[3 * (size_t)tv[0] + (size_t)k] +
+                       w1 * s->positions[3 * (size_t)tv[1] + (size_t)k] + w2 * s->positions[3 * (size_t)tv[2] + (size_t)k]);
+        const float *cn = s->corner_normals + 9 * (size_t)tri;
+        n[k] = (float)((1.0 - w1 - w2) * cn[k] + w1 * cn[3 + k] + w2 * cn[6 + k]);
+    }
+    lm_vec3 nn = v3_normalize(v3_load(n));
+    v3_store(n, nn);
+    double g0;
+    if (light < s->area_light_count) {
+        g0 = samp_area_light_unoccluded(s, light, p, n);
+    } else {
+        const float *q = s->point_lights[light - s->area_light_count].position;
+        const double Q[3] = {q[0], q[1], q[2]}, X[3] = {p[0], p[1], p[2]}, N[3] = {n[0], n[1], n[2]};
+        g0 = samp_point_G(Q, X, N);
+    }
+    *G = V * g0;
+    return LM_OK;
+}
+
+void cache_get_stats(cache *c, cache_stats *out)
+{
+    memset(out, 0, sizeof *out);
+    out->light_count = c->light_count;
+    out->direct = c->direct_stats;
+    out->indirect = c->indirect_stats;
+    mesh_qmesh_get_stats(c->direct, &out->direct.mesh);
+    mesh_qmesh_get_stats(c->indirect, &out->indirect.mesh);
+    out->bytes = out->direct.mesh.bytes + out->indirect.mesh.bytes;
+    for (uint32_t l = 0; l < c->light_count; ++l) {
+        if (c->light[l]) mesh_qmesh_get_stats(c->light[l], &c->light_stats[l].mesh);
+        out->bytes += c->light_stats[l].mesh.bytes;
+    }
+    out->lights = c->light_stats;
+    out->undone = c->undone;
+    mesh_vtable_stats vs;
+    mesh_vtable_get_stats(c->vt, &vs);
+    out->bytes += vs.bytes + c->rm_cap * (6 + 9) * sizeof(float) + c->leaf_cap * sizeof *c->leaf_buf +
+                  (c->q_direct.cap + c->q_indirect.cap) * sizeof(cache_queue_entry) + c->done_direct_cap +
+                  c->done_indirect_cap;
+}
+
+const mesh_qmesh *cache_direct_mesh(const cache *c) { return c->direct; }
+const mesh_qmesh *cache_indirect_mesh(const cache *c) { return c->indirect; }
+const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light)
+{
+    return light < c->light_count ? c->light[light] : NULL;
+}

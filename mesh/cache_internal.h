@@ -1,0 +1,83 @@
+/* cache_internal.h — what mesh/cache.c (meshes, values) and src/cache_refine.c
+ * (the refinement scheduler) share. Not a public header. Everything belongs to
+ * the refinement worker thread. */
+#ifndef LUMESH_CACHE_INTERNAL_H
+#define LUMESH_CACHE_INTERNAL_H
+
+#include "cache.h"
+#include "tonemap.h"
+
+/* A point of a scene triangle where a value is wanted: its vertex in the shared
+ * table, and its barycentric address in the triangle being refined (a vertex on
+ * a shared edge is reached from either triangle; the asking one is named). */
+typedef struct cache_site {
+    uint32_t vid;      /* vtable id */
+    uint32_t tri;      /* scene triangle of the asking leaf */
+    double w1, w2;     /* barycentrics in tri */
+    uint32_t depth;    /* depth of the asking radiance leaf */
+} cache_site;
+
+/* Max-heap of leaves to test, lazily invalidated (an entry names a node and its
+ * first corner; a node reused after a merge no longer matches). */
+typedef struct cache_queue_entry {
+    float priority;
+    uint32_t node, v0;
+} cache_queue_entry;
+
+typedef struct cache_queue {
+    cache_queue_entry *e;
+    size_t n, cap;
+} cache_queue;
+
+struct cache {
+    cache_desc desc;           /* defaults filled in */
+    const scene *s;
+    samp_sampler *sp;
+    tm_desc tm;
+    mesh_vtable *vt;
+    uint32_t light_count;      /* area lights, then point lights */
+    mesh_qmesh **light;        /* per light, NULL when no triangle can see it */
+    mesh_qmesh *direct, *indirect;
+    cache_mesh_stats *light_stats;
+    cache_mesh_stats direct_stats, indirect_stats; /* .mesh filled by cache_get_stats */
+    uint64_t undone;
+    int initialised;
+
+    /* The radiance source of indirect samples: kd·L_dd over the direct mesh's
+     * leaves, rebuilt when the direct mesh has changed enough. */
+    samp_radiance_mesh rmesh;
+    uint32_t *rm_first;
+    float *rm_bary, *rm_rad;
+    size_t rm_cap;             /* triangles allocated */
+    uint64_t rm_built_at;      /* direct mesh splits+merges when last built */
+    mesh_qmesh_tri *leaf_buf;
+    size_t leaf_cap;
+
+    /* Scheduler (cache_refine.c) */
+    cache_queue q_direct, q_indirect;
+    uint8_t *done_direct, *done_indirect; /* per node id: tested, nothing found */
+    size_t done_direct_cap, done_indirect_cap;
+    int queues_seeded;
+};
+
+/* G_ℓ,unoccluded at vertex vid (analytic; point lights cosθ/r²). */
+double cache_unoccluded(const cache *c, uint32_t light, uint32_t vid);
+/* The sampler's receiver for vertex vid. */
+samp_point cache_vertex_point(const cache *c, uint32_t vid);
+
+/* Fills V_ℓ at every site (V[i·light_count + ℓ]), sampling light meshes where
+ * they cannot interpolate confidently (see cache.h). */
+lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err);
+/* L_dd (RGB per unit albedo) at vertex vid from visible fractions V[0..light_count). */
+void cache_direct_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3]);
+/* Samples E_i at the given vertices (batched) from the current radiance source. */
+lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
+/* Rebuilds the radiance source from the direct mesh when it is stale. */
+lm_result cache_update_radiance_source(cache *c, int force, lm_error *err);
+
+/* Leaf lookup: the leaf of mesh m holding barycentric (w1, w2) of scene triangle tri. */
+uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2);
+/* Barycentrics (w1, w2) of corner k of a node. */
+void cache_node_corner_bary(const mesh_qnode *n, int k, double *w1, double *w2);
+
+#endif

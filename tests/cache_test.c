@@ -1,0 +1,266 @@
+/* cache_test — the multi-mesh cache (mesh/cache.c, src/cache_refine.c):
+ *   - a lone quad light over a plane: after refinement the cached direct radiance
+ *     matches Lambert's closed form everywhere within the JND (tone-mapped CIELAB
+ *     ΔE), G is exact, and the light mesh samples a small fraction of the
+ *     vertices (the visible fraction is 1 everywhere and interpolates; it samples
+ *     only to stay within CACHE_LIGHT_LAG levels of the radiance mesh);
+ *   - the same with a blocker: the cache against a 4096-ray Embree G at random
+ *     points; light samples only where there is penumbra;
+ *   - determinism: two caches, same calls, identical statistics;
+ *   - the node cap: refinement stops with LM_ERR_NO_MEMORY and a usable cache.
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "analytic.h"
+#include "cache.h"
+#include "ref_shading.h"
+#include "samp.h"
+#include "samp_internal.h"
+#include "test_util.h"
+#include "tonemap.h"
+#include "vecmath.h"
+
+#define KD 0.6f
+#define LE 5.0f
+
+static scene *load(const char *name, int blocker)
+{
+    char obj[1024], json[1024], text[2048];
+    test_write_file("cache_plane.obj", "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 4 3\nf 1 3 2\n", obj, sizeof obj);
+    test_write_file("cache_blocker.obj", "v -0.2 0.5 -0.2\nv 0.2 0.5 -0.2\nv 0.2 0.5 0.2\nv -0.2 0.5 0.2\nf 1 2 3\nf 1 3 4\n",
+                    obj, sizeof obj);
+    snprintf(text, sizeof text,
+             "{\"meshes\": [{\"file\": \"cache_plane.obj\", \"material\": \"paint\"}%s],"
+             " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}},"
+             " \"lights\": [{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0],"
+             " \"edge2\": [0, 0, 1], \"radiance\": [%g, %g, %g]}]}",
+             blocker ? ", {\"file\": \"cache_blocker.obj\", \"material\": \"paint\"}" : "", KD, KD, KD, LE, LE, LE);
+    test_write_file(name, text, json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
+    CHECK_MSG(r == LM_OK, "%s", err.msg);
+    return s;
+}
+
+typedef struct run {
+    samp_sampler *sp;
+    cache *c;
+    uint32_t *pixels;
+} run;
+
+static int start(run *u, const scene *s, uint32_t pixels_per_tri, uint32_t node_cap)
+{
+    lm_error err;
+    memset(u, 0, sizeof *u);
+    lm_result r = samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .seed = 5}, &u->sp, &err);
+    CHECK_MSG(r == LM_OK, "%s", err.msg);
+    if (r != LM_OK) return 0;
+    r = cache_create(&(cache_desc){.scene = s, .sampler = u->sp, .node_cap = node_cap}, &u->c, &err);
+    CHECK_MSG(r == LM_OK, "%s", err.msg);
+    u->pixels = malloc(s->tri_count * sizeof *u->pixels);
+    /* Only the plane (triangles 0, 1) is seen, 40,000 pixels each. */
+    for (uint32_t t = 0; t < s->tri_count; ++t) u->pixels[t] = t < 2 ? pixels_per_tri : 0;
+    return r == LM_OK;
+}
+
+static void stop(run *u)
+{
+    cache_destroy(u->c);
+    samp_destroy(u->sp);
+    free(u->pixels);
+}
+
+/* Refines until nothing is left to test (or `rounds` calls). */
+static lm_result converge(run *u, int rounds, cache_refine_result *total)
+{
+    lm_error err;
+    memset(total, 0, sizeof *total);
+    for (int i = 0; i < rounds; ++i) {
+        cache_refine_result res;
+        lm_result r = cache_refine(u->c, &(cache_refine_desc){.pixels = u->pixels, .budget = 4096}, &res, &err);
+        total->tested += res.tested;
+        total->split += res.split;
+        total->undone += res.undone;
+        total->remaining = res.remaining;
+        if (r != LM_OK) {
+            printf("  refinement stopped: %s\n", err.msg);
+            return r;
+        }
+        if (res.remaining == 0) break;
+    }
+    return LM_OK;
+}
+
+static void lab_of(float radiance, float lab[3])
+{
+    tm_desc tm = {0};
+    float rgb[3] = {KD * radiance, KD * radiance, KD * radiance}, d[3];
+    tm_to_display(&tm, rgb, d);
+    tm_display_to_lab(d, lab);
+}
+
+/* Random point on the plane's central 3×3 (barycentrics in its triangle). */
+static void random_plane_point(ref_rng *g, const scene *s, uint32_t *tri, double *w1, double *w2, float p[3])
+{
+    *tri = ref_rng_float(g) < 0.5f ? 0 : 1;
+    double u, v;
+    do {
+        u = ref_rng_float(g);
+        v = ref_rng_float(g);
+    } while (u + v > 1.0);
+    *w1 = u;
+    *w2 = v;
+    const uint32_t *tv = s->tris[*tri].v;
+    for (int k = 0; k < 3; ++k)
+        p[k] = (float)((1 - u - v) * s->positions[3 * tv[0] + k] + u * s->positions[3 * tv[1] + k] +
+                       v * s->positions[3 * tv[2] + k]);
+}
+
+static void test_lone_light(void)
+{
+    scene *s = load("cache_lone.json", 0);
+    run u;
+    if (!s || !start(&u, s, 40000, 0)) return;
+    cache_refine_result tot;
+    lm_error err;
+    CHECK(converge(&u, 200, &tot) == LM_OK);
+    cache_stats st;
+    cache_get_stats(u.c, &st);
+    ref_rng g;
+    ref_rng_seed(&g, 3, 0, 0);
+    const float up[3] = {0, 1, 0};
+    double worst_de = 0.0, worst_g = 0.0;
+    int n = 0;
+    for (int i = 0; i < 4000; ++i) {
+        uint32_t tri;
+        double w1, w2;
+        float p[3];
+        random_plane_point(&g, s, &tri, &w1, &w2, p);
+        double G0 = samp_area_light_unoccluded(s, 0, p, up), G;
+        float rgb[3], a[3], b[3];
+        CHECK(cache_eval_direct(u.c, tri, w1, w2, rgb, &err) == LM_OK);
+        CHECK(cache_eval_G(u.c, 0, tri, w1, w2, &G, &err) == LM_OK);
+        lab_of(rgb[0], a);
+        lab_of((float)(LE * G0 / M_PI), b);
+        worst_de = fmax(worst_de, tm_delta_e(a, b));
+        if (G0 > 1e-3) worst_g = fmax(worst_g, fabs(G - G0) / G0);
+        n++;
+    }
+    printf("lone light over a plane: %u tested, %u splits kept, %u undone; direct mesh %u leaves (depth <= ",
+           tot.tested, tot.split, tot.undone, st.direct.mesh.leaves);
+    int deepest = 0;
+    for (int d = 0; d < MESH_QMESH_DEPTHS; ++d)
+        if (st.direct.mesh.leaves_at_depth[d]) deepest = d;
+    printf("%d); direct values %llu; light samples %llu, interpolated %llu\n", deepest,
+           (unsigned long long)st.direct.samples, (unsigned long long)st.lights[0].samples,
+           (unsigned long long)st.lights[0].interpolated);
+    printf("  %d random points: worst ΔE against Lambert %.3f (JND 2), worst relative G error %.2e\n", n, worst_de,
+           worst_g);
+    CHECK(tot.remaining == 0);
+    CHECK_MSG(worst_de <= 2.0, "ΔE %.3f above the JND", worst_de);
+    CHECK_MSG(worst_g <= 1e-5, "G error %.3e", worst_g);
+    /* Wholly visible: V = 1 interpolates; the light mesh samples only to stay within
+     * CACHE_LIGHT_LAG levels of the radiance mesh (16 times its area per vertex). */
+    CHECK_MSG(st.lights[0].samples * 16 <= st.direct.samples, "the unoccluded light took %llu samples for %llu values",
+              (unsigned long long)st.lights[0].samples, (unsigned long long)st.direct.samples);
+    /* Size criterion: 40,000 pixels per triangle, leaves stop at <= 16 pixels. */
+    CHECK(deepest >= 6);
+    stop(&u);
+    scene_destroy(s);
+}
+
+static void test_blocker(void)
+{
+    scene *s = load("cache_block.json", 1);
+    run u;
+    if (!s || !start(&u, s, 40000, 0)) return;
+    cache_refine_result tot;
+    lm_error err;
+    CHECK(converge(&u, 400, &tot) == LM_OK);
+    cache_stats st;
+    cache_get_stats(u.c, &st);
+    samp_sampler *ref = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .direct_rays = 4096}, &ref, &err) ==
+          LM_OK);
+    ref_rng g;
+    ref_rng_seed(&g, 4, 0, 0);
+    int n = 0, above = 0;
+    double sum_de = 0.0;
+    for (int i = 0; i < 1000 && ref; ++i) {
+        uint32_t tri;
+        double w1, w2, G;
+        samp_point x = {.n = {0, 1, 0}};
+        random_plane_point(&g, s, &tri, &w1, &w2, x.p);
+        x.tri_plus_one = tri + 1;
+        float Gr, a[3], b[3];
+        CHECK(samp_direct(ref, 0, &x, 1, &Gr, &err) == LM_OK);
+        CHECK(cache_eval_G(u.c, 0, tri, w1, w2, &G, &err) == LM_OK);
+        lab_of((float)(LE * G / M_PI), a);
+        lab_of((float)(LE * Gr / M_PI), b);
+        double de = tm_delta_e(a, b);
+        sum_de += de;
+        above += de > 2.0;
+        n++;
+    }
+    printf("blocker: %u tested, %u kept, %u undone; light mesh %u leaves, %llu samples, %llu interpolated\n",
+           tot.tested, tot.split, tot.undone, st.lights[0].mesh.leaves, (unsigned long long)st.lights[0].samples,
+           (unsigned long long)st.lights[0].interpolated);
+    printf("  %d random points vs 4096-ray Embree: mean ΔE %.3f, %d above the JND\n", n, sum_de / n, above);
+    CHECK(tot.remaining == 0);
+    CHECK_MSG(above <= n / 50, "%d of %d points beyond the JND", above, n);
+    CHECK_MSG(sum_de / n <= 0.5, "mean ΔE %.3f", sum_de / n);
+    /* The light mesh samples penumbra only: far fewer vertices than the radiance mesh. */
+    CHECK_MSG(st.lights[0].samples * 2 < st.direct.samples, "light samples %llu vs direct values %llu",
+              (unsigned long long)st.lights[0].samples, (unsigned long long)st.direct.samples);
+    samp_destroy(ref);
+    stop(&u);
+    scene_destroy(s);
+}
+
+static void test_determinism_and_cap(void)
+{
+    scene *s = load("cache_det.json", 1);
+    run a, b;
+    if (!s || !start(&a, s, 40000, 0) || !start(&b, s, 40000, 0)) return;
+    cache_refine_result ra, rb;
+    CHECK(converge(&a, 3, &ra) == LM_OK);
+    CHECK(converge(&b, 3, &rb) == LM_OK);
+    cache_stats sa, sb;
+    cache_get_stats(a.c, &sa);
+    cache_get_stats(b.c, &sb);
+    CHECK(ra.tested == rb.tested && ra.split == rb.split && ra.undone == rb.undone);
+    CHECK(sa.direct.samples == sb.direct.samples && sa.lights[0].samples == sb.lights[0].samples);
+    CHECK(sa.direct.mesh.nodes == sb.direct.mesh.nodes && sa.lights[0].mesh.nodes == sb.lights[0].mesh.nodes);
+    CHECK(memcmp(sa.direct.mesh.leaves_at_depth, sb.direct.mesh.leaves_at_depth,
+                 sizeof sa.direct.mesh.leaves_at_depth) == 0);
+    stop(&a);
+    stop(&b);
+
+    run c;
+    if (!start(&c, s, 40000, 300)) return;
+    cache_refine_result rc;
+    lm_result r = converge(&c, 50, &rc);
+    cache_stats sc;
+    cache_get_stats(c.c, &sc);
+    printf("node cap 300: refinement ended with %s after %u splits; direct mesh %u nodes\n", lm_result_name(r),
+           rc.split, sc.direct.mesh.nodes);
+    CHECK(r == LM_ERR_NO_MEMORY);
+    CHECK(sc.direct.mesh.nodes <= 300 && sc.indirect.mesh.nodes <= 300);
+    float rgb[3];
+    lm_error err;
+    CHECK(cache_eval_direct(c.c, 0, 0.3, 0.3, rgb, &err) == LM_OK && isfinite(rgb[0]));
+    stop(&c);
+    scene_destroy(s);
+}
+
+int main(void)
+{
+    test_lone_light();
+    test_blocker();
+    test_determinism_and_cap();
+    return test_finish("cache_test");
+}
