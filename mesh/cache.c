@@ -249,19 +249,61 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
     return r;
 }
 
-void cache_direct_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3])
+/* L_dd = (1/π)·Σ_ℓ L_ℓ·G_ℓ from the G row of one vertex. */
+static void direct_from_G(const cache *c, const float *G, float rgb[3])
 {
     double e[3] = {0, 0, 0};
-    for (uint32_t l = 0; l < c->light_count; ++l) {
-        if (V[l] <= 0.0f) continue;
-        double g = V[l] * cache_unoccluded(c, l, vid);
-        const float *le = light_radiance(c->s, l);
-        for (int k = 0; k < 3; ++k) e[k] += le[k] * g;
-    }
+    for (uint32_t l = 0; l < c->light_count; ++l)
+        for (int k = 0; k < 3; ++k) e[k] += (double)c->light_le[3 * l + (uint32_t)k] * G[l];
     for (int k = 0; k < 3; ++k) {
         double v = e[k] / M_PI;
         rgb[k] = v < 3e38 ? (float)v : 3e38f;
     }
+}
+
+lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err)
+{
+    const size_t L = c->light_count;
+    if (vid >= c->vertex_G_cap) {
+        size_t cap = c->vertex_G_cap ? c->vertex_G_cap : 1024;
+        while (cap <= vid) cap *= 2;
+        float *g = realloc(c->vertex_G, cap * (L ? L : 1) * sizeof *g);
+        if (!g) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the cache's G values");
+        c->vertex_G = g;
+        c->vertex_G_cap = cap;
+    }
+    float *G = c->vertex_G + (size_t)vid * L;
+    for (uint32_t l = 0; l < L; ++l) {
+        double g = V[l] > 0.0f ? V[l] * cache_unoccluded(c, l, vid) : 0.0;
+        G[l] = g < 3e38 ? (float)g : 3e38f;
+    }
+    direct_from_G(c, G, rgb);
+    return LM_OK;
+}
+
+lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err)
+{
+    if (!c || !value || light >= c->light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_light: light %u does not exist", light);
+    for (int k = 0; k < 3; ++k)
+        if (!(value[k] >= 0.0f) || !isfinite(value[k]))
+            return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_light: radiance must be finite and non-negative");
+    memcpy(c->light_le + 3 * (size_t)light, value, 3 * sizeof *value);
+    mesh_vtable_stats vs;
+    mesh_vtable_get_stats(c->vt, &vs);
+    for (uint32_t id = 0; id < vs.id_limit && id < c->vertex_G_cap; ++id) {
+        float old[3], rgb[3];
+        if (mesh_qmesh_get_value(c->direct, id, old) != 1) continue;
+        direct_from_G(c, c->vertex_G + (size_t)id * c->light_count, rgb);
+        lm_result r = mesh_qmesh_set_value(c->direct, id, rgb, err);
+        if (r != LM_OK) return r;
+    }
+    c->rm_stale = 1; /* the indirect source is stale (indirect itself is not re-gathered) */
+    /* What was below the JND may not be now (a shadow no longer masked by another
+     * light): every leaf is tested again, without new light samples unless the
+     * test splits it. */
+    c->requeue_leaves = 1;
+    return LM_OK;
 }
 
 /* ---- indirect source and samples --------------------------------------------- */
@@ -308,7 +350,7 @@ lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
     mesh_qmesh_stats st;
     mesh_qmesh_get_stats(c->direct, &st);
     uint64_t changes = st.splits + st.merges;
-    if (!force && c->rmesh.first && changes - c->rm_built_at < CACHE_RMESH_STALE) return LM_OK;
+    if (!force && !c->rm_stale && c->rmesh.first && changes - c->rm_built_at < CACHE_RMESH_STALE) return LM_OK;
     const scene *s = c->s;
     uint32_t cut = 0; /* deepest level with at most CACHE_RMESH_TRIANGLES nodes in a full tree */
     while (cut < MESH_DEPTH_MAX && ((uint64_t)st.roots << (2 * (cut + 1))) <= CACHE_RMESH_TRIANGLES) cut++;
@@ -357,6 +399,7 @@ lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
     c->rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->rm_first, .bary = c->rm_bary,
                                     .radiance = c->rm_rad};
     c->rm_built_at = changes;
+    c->rm_stale = 0;
     return LM_OK;
 }
 
@@ -386,6 +429,8 @@ void cache_destroy(cache *c)
     mesh_vtable_destroy(c->vt);
     free(c->light);
     free(c->light_stats);
+    free(c->light_le);
+    free(c->vertex_G);
     free(c->rm_first);
     free(c->rm_bary);
     free(c->rm_rad);
@@ -416,7 +461,11 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     lm_result r = mesh_vtable_create(&(mesh_vtable_desc){.scene = c->s}, &c->vt, err);
     c->light = calloc(c->light_count ? c->light_count : 1, sizeof *c->light);
     c->light_stats = calloc(c->light_count ? c->light_count : 1, sizeof *c->light_stats);
-    if (r == LM_OK && (!c->light || !c->light_stats)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
+    c->light_le = calloc(3 * (size_t)(c->light_count ? c->light_count : 1), sizeof *c->light_le);
+    if (r == LM_OK && (!c->light || !c->light_stats || !c->light_le))
+        r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
+    for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l)
+        memcpy(c->light_le + 3 * (size_t)l, light_radiance(c->s, l), 3 * sizeof(float));
     uint32_t cap = desc->node_cap;
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
         light_filter f = {c->s, l};
@@ -496,8 +545,8 @@ lm_result cache_init(cache *c, lm_error *err)
     if (r == LM_OK) r = cache_fetch_visibility(c, sites, n, V, err);
     for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
         float rgb[3];
-        cache_direct_from_visibility(c, v[i], V + (size_t)i * c->light_count, rgb);
-        r = mesh_qmesh_set_value(c->direct, v[i], rgb, err);
+        r = cache_direct_from_visibility(c, v[i], V + (size_t)i * c->light_count, rgb, err);
+        if (r == LM_OK) r = mesh_qmesh_set_value(c->direct, v[i], rgb, err);
         c->direct_stats.samples++;
     }
     free(V);

@@ -32,7 +32,8 @@
  *
  * Threads: a cache, its meshes and its sampler belong to one thread (the
  * refinement worker); nothing here is thread safe.
- * Does NOT do: specular radiance, publishing to the display, camera moves.
+ * Does NOT do: specular radiance, publishing to the display, camera moves,
+ * re-gathering indirect light after a light edit.
  */
 #ifndef LUMESH_CACHE_H
 #define LUMESH_CACHE_H
@@ -87,6 +88,13 @@ typedef struct cache_refine_result {
  * interpolated one by more than the JND, or where a leaf covers more than
  * min_leaf_pixels; undoes splits that found nothing. */
 lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
+
+/* Changes light `light`'s radiance (area light, W·m⁻²·sr⁻¹) or intensity (point
+ * light, W·sr⁻¹): the direct mesh is recomputed from the G_ℓ it keeps per vertex,
+ * with no new sample (that is why G_ℓ is stored per light). The indirect mesh
+ * keeps its values until refined again; its source is rebuilt at the next
+ * indirect sample. */
+lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err);
 
 /* Values at barycentric point (1−w1−w2, w1, w2) of scene triangle tri,
  * interpolated from the leaves: L_dd (RGB, per unit albedo), E_i (RGB), G_ℓ. */

@@ -42,6 +42,11 @@ struct cache {
     cache_mesh_stats direct_stats, indirect_stats; /* .mesh filled by cache_get_stats */
     uint64_t undone;
     int initialised;
+    float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
+    /* G_ℓ at every vertex of the direct mesh (vtable id × light_count), kept so a
+     * light's colour or power can change with no new sample (cache_set_light). */
+    float *vertex_G;
+    size_t vertex_G_cap;       /* vertex ids with room */
 
     /* The radiance source of indirect samples: kd·L_dd over the direct mesh's
      * leaves, rebuilt when the direct mesh has changed enough. */
@@ -50,6 +55,7 @@ struct cache {
     float *rm_bary, *rm_rad;
     size_t rm_cap;             /* triangles allocated */
     uint64_t rm_built_at;      /* direct mesh splits+merges when last built */
+    int rm_stale;              /* rebuild before the next indirect sample (a light changed) */
     mesh_qmesh_tri *leaf_buf;
     size_t leaf_cap;
 
@@ -58,6 +64,7 @@ struct cache {
     uint8_t *done_direct, *done_indirect; /* per node id: tested, nothing found */
     size_t done_direct_cap, done_indirect_cap;
     int queues_seeded;
+    int requeue_leaves;        /* a light changed: test every leaf again (cache_refine) */
 };
 
 /* G_ℓ,unoccluded at vertex vid (analytic; point lights cosθ/r²). */
@@ -68,8 +75,9 @@ samp_point cache_vertex_point(const cache *c, uint32_t vid);
 /* Fills V_ℓ at every site (V[i·light_count + ℓ]), sampling light meshes where
  * they cannot interpolate confidently (see cache.h). */
 lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err);
-/* L_dd (RGB per unit albedo) at vertex vid from visible fractions V[0..light_count). */
-void cache_direct_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3]);
+/* L_dd (RGB per unit albedo) at vertex vid from visible fractions V[0..light_count);
+ * remembers G_ℓ there for cache_set_light. */
+lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err);
 /* Samples E_i at the given vertices (batched) from the current radiance source. */
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
 /* Rebuilds the radiance source from the direct mesh when it is stale. */

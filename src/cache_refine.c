@@ -206,7 +206,8 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     if (r == LM_OK && kind == KIND_DIRECT) {
         r = cache_fetch_visibility(c, sites, ns, V, err);
         for (uint32_t i = 0; r == LM_OK && i < ns; ++i)
-            cache_direct_from_visibility(c, sites[i].vid, V + (size_t)i * c->light_count, vals + 3 * (size_t)i);
+            r = cache_direct_from_visibility(c, sites[i].vid, V + (size_t)i * c->light_count, vals + 3 * (size_t)i,
+                                             err);
         if (r == LM_OK) c->direct_stats.samples += ns;
     } else if (r == LM_OK) {
         r = cache_sample_indirect(c, vids, ns, vals, err);
@@ -268,12 +269,40 @@ static lm_result seed_queues(cache *c, const uint32_t *pixels, lm_error *err)
     return r;
 }
 
+/* Empties the queues and the done flags and queues every leaf of both meshes. */
+static lm_result requeue_leaves(cache *c, const uint32_t *pixels, lm_error *err)
+{
+    lm_result r = LM_OK;
+    for (int kind = 0; r == LM_OK && kind < 2; ++kind) {
+        mesh_qmesh *m = kind == KIND_DIRECT ? c->direct : c->indirect;
+        cache_queue *q = kind == KIND_DIRECT ? &c->q_direct : &c->q_indirect;
+        uint8_t *done = kind == KIND_DIRECT ? c->done_direct : c->done_indirect;
+        size_t cap = kind == KIND_DIRECT ? c->done_direct_cap : c->done_indirect_cap;
+        q->n = 0;
+        if (done) memset(done, 0, cap);
+        size_t count = 0;
+        r = mesh_qmesh_leaf_triangles(m, &c->leaf_buf, &c->leaf_cap, &count, err);
+        uint32_t last = MESH_QMESH_NONE;
+        for (size_t i = 0; r == LM_OK && i < count; ++i) {
+            uint32_t leaf = c->leaf_buf[i].leaf;
+            if (leaf == last) continue; /* a fan emits several triangles per leaf */
+            last = leaf;
+            const mesh_qnode *n = mesh_qmesh_node(m, leaf);
+            if (pixels && pixels[n->tri] == 0) continue;
+            r = queue_push(q, leaf_priority(c, m, (refine_kind)kind, n, pixels), leaf, n->v[0], err);
+        }
+    }
+    if (r == LM_OK) c->requeue_leaves = 0;
+    return r;
+}
+
 lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err)
 {
     cache_refine_result res = {0};
     if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
     lm_result r = c->initialised ? LM_OK : cache_init(c, err);
     if (r == LM_OK && !c->queues_seeded) r = seed_queues(c, desc->pixels, err);
+    if (r == LM_OK && c->requeue_leaves) r = requeue_leaves(c, desc->pixels, err);
     uint32_t budget = desc->budget ? desc->budget : 256;
     /* Direct light first; indirect gets a quarter of the leaves (it is smoother
      * and each of its samples costs more). */

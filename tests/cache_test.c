@@ -26,7 +26,7 @@
 #define KD 0.6f
 #define LE 5.0f
 
-static scene *load(const char *name, int blocker)
+static scene *load_lights(const char *name, int blocker, const char *lights)
 {
     char obj[1024], json[1024], text[2048];
     test_write_file("cache_plane.obj", "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 4 3\nf 1 3 2\n", obj, sizeof obj);
@@ -34,16 +34,24 @@ static scene *load(const char *name, int blocker)
                     obj, sizeof obj);
     snprintf(text, sizeof text,
              "{\"meshes\": [{\"file\": \"cache_plane.obj\", \"material\": \"paint\"}%s],"
-             " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}},"
-             " \"lights\": [{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0],"
-             " \"edge2\": [0, 0, 1], \"radiance\": [%g, %g, %g]}]}",
-             blocker ? ", {\"file\": \"cache_blocker.obj\", \"material\": \"paint\"}" : "", KD, KD, KD, LE, LE, LE);
+             " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}}, \"lights\": [%s]}",
+             blocker ? ", {\"file\": \"cache_blocker.obj\", \"material\": \"paint\"}" : "", KD, KD, KD, lights);
     test_write_file(name, text, json, sizeof json);
     scene *s = NULL;
     lm_error err;
     lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
     CHECK_MSG(r == LM_OK, "%s", err.msg);
     return s;
+}
+
+static scene *load(const char *name, int blocker)
+{
+    char light[256];
+    snprintf(light, sizeof light,
+             "{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0], \"edge2\": [0, 0, 1],"
+             " \"radiance\": [%g, %g, %g]}",
+             LE, LE, LE);
+    return load_lights(name, blocker, light);
 }
 
 typedef struct run {
@@ -257,10 +265,84 @@ static void test_determinism_and_cap(void)
     scene_destroy(s);
 }
 
+/* Two lights of different colours over a plane with a blocker; light 1 switched
+ * off at run time must give the image of a scene that never had it, with no new
+ * light sample at the switch. */
+static void test_light_edit(void)
+{
+#define RED "{\"type\": \"quad\", \"corner\": [-1.2, 1, -0.3], \"edge1\": [0.6, 0, 0], \"edge2\": [0, 0, 0.6], \"radiance\": [12, 2, 2]}"
+#define BLUE "{\"type\": \"quad\", \"corner\": [0.6, 1.2, -0.3], \"edge1\": [0.6, 0, 0], \"edge2\": [0, 0, 0.6], \"radiance\": [2, 2, 12]}"
+    scene *both = load_lights("cache_two.json", 1, RED ", " BLUE), *one = load_lights("cache_one.json", 1, RED);
+    run a, b;
+    if (!both || !one || !start(&a, both, 40000, 0) || !start(&b, one, 40000, 0)) return;
+    cache_refine_result ta, tb;
+    lm_error err;
+    CHECK(converge(&a, 400, &ta) == LM_OK);
+    CHECK(converge(&b, 400, &tb) == LM_OK);
+    cache_stats before, after;
+    cache_get_stats(a.c, &before);
+    uint64_t s0 = before.lights[0].samples, s1 = before.lights[1].samples;
+    const float off[3] = {0, 0, 0};
+    double t0 = lm_now_seconds();
+    CHECK(cache_set_light(a.c, 1, off, &err) == LM_OK);
+    double t_edit = lm_now_seconds() - t0;
+    cache_get_stats(a.c, &after);
+    CHECK_MSG(after.lights[0].samples == s0 && after.lights[1].samples == s1, "the edit took light samples");
+    for (int pass = 0; pass < 2; ++pass) {
+        ref_rng g;
+        ref_rng_seed(&g, 9, 0, 0);
+        int n = 0, above = 0;
+        double sum = 0.0, worst = 0.0;
+        for (int i = 0; i < 2000; ++i) {
+            uint32_t tri;
+            double w1, w2;
+            float p[3], ra[3], rb[3], la[3], lb[3], da[3], db[3];
+            random_plane_point(&g, both, &tri, &w1, &w2, p);
+            CHECK(cache_eval_direct(a.c, tri, w1, w2, ra, &err) == LM_OK);
+            CHECK(cache_eval_direct(b.c, tri, w1, w2, rb, &err) == LM_OK);
+            tm_desc tm = {0};
+            for (int k = 0; k < 3; ++k) {
+                ra[k] *= KD;
+                rb[k] *= KD;
+            }
+            tm_to_display(&tm, ra, da);
+            tm_to_display(&tm, rb, db);
+            tm_display_to_lab(da, la);
+            tm_display_to_lab(db, lb);
+            double de = tm_delta_e(la, lb);
+            sum += de;
+            worst = fmax(worst, de);
+            above += de > 2.0;
+            n++;
+        }
+        printf("light edit, %s: mean ΔE %.3f, worst %.3f, %d of %d points above the JND against a scene without the "
+               "light%s\n",
+               pass == 0 ? "at once" : "after refinement resumed", sum / n, worst, above, n,
+               pass == 0 ? "" : "");
+        if (pass == 0) {
+            printf("  the edit took %.2f ms and no light sample (light samples %llu / %llu before and after)\n",
+                   t_edit * 1e3, (unsigned long long)s0, (unsigned long long)after.lights[0].samples);
+            CHECK_MSG(above <= n / 20, "at once: %d points beyond the JND", above);
+            cache_refine_result tr;
+            CHECK(converge(&a, 400, &tr) == LM_OK);
+        } else {
+            CHECK_MSG(above <= n / 100, "after refinement: %d points beyond the JND", above);
+            CHECK_MSG(sum / n <= 0.3, "after refinement: mean ΔE %.3f", sum / n);
+        }
+    }
+    stop(&a);
+    stop(&b);
+    scene_destroy(both);
+    scene_destroy(one);
+#undef RED
+#undef BLUE
+}
+
 int main(void)
 {
     test_lone_light();
     test_blocker();
     test_determinism_and_cap();
+    test_light_edit();
     return test_finish("cache_test");
 }
