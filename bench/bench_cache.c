@@ -2,15 +2,26 @@
  * ID pass (640×480, the scene's first camera, EGL), then refinement until nothing
  * is left to test or the time budget is spent. Prints, per mesh, samples, values
  * served by interpolation, nodes, leaves and bytes, and the time taken.
- * usage: bench_cache [SCENE (default: CornellBox-Original)] [SECONDS (60)] [embree|gl|auto (auto)] */
+ * With "schedulers" last: the heap and the paper's randomized scheduler side by
+ * side, the direct error against samples taken: mean ΔE of Le + kd·L_dd at 2000
+ * visible points (random pixels, their primary-ray hits) against
+ * (1/π)·Σ L_ℓ·G_ℓ from a 4096-ray Embree estimate there.
+ * usage: bench_cache [SCENE (default: CornellBox-Original)] [SECONDS (60)] [embree|gl|auto (auto)] [schedulers] */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include <math.h>
+
 #include "cache.h"
 #include "gl_context.h"
+#include "ref_shading.h"
+#include "rend_camera.h"
 #include "rend_id.h"
+#include "rt_scene.h"
 #include "samp.h"
+#include "tonemap.h"
+#include "vecmath.h"
 
 static void print_mesh(const char *name, const cache_mesh_stats *m)
 {
@@ -18,10 +29,130 @@ static void print_mesh(const char *name, const cache_mesh_stats *m)
            (unsigned long long)m->interpolated, m->mesh.nodes, m->mesh.leaves, m->mesh.bytes / 1024.0);
 }
 
+enum { PROBES = 2000 };
+
+typedef struct probe {
+    uint32_t tri;
+    double w1, w2;
+    float lab[3]; /* the reference colour */
+} probe;
+
+/* Random visible points: pixels of the id image, their primary-ray hits. */
+static int make_probes(const scene *s, rend_id *ip, probe *pr, lm_error *err)
+{
+    static uint32_t ids[640 * 480];
+    if (rend_id_read_image(ip, ids, err) != LM_OK) return 0;
+    rt_scene *rt;
+    samp_sampler *ref;
+    if (rt_scene_create(&(rt_scene_desc){.scene = s}, &rt, err) != LM_OK) return 0;
+    if (samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .direct_rays = 4096}, &ref, err) !=
+        LM_OK)
+        return 0;
+    const scene_camera *cam = &s->cameras[0];
+    lm_dvec3 pos = dv3_load(cam->position), fwd = dv3_normalize(dv3_sub(dv3_load(cam->target), pos));
+    lm_dvec3 right = dv3_normalize(dv3_cross(fwd, dv3_load(cam->up))), up = dv3_cross(right, fwd);
+    double ty = tan(0.5 * cam->fov_y_deg * M_PI / 180.0), tx = ty * 640.0 / 480.0;
+    ref_rng g;
+    ref_rng_seed(&g, 21, 0, 0);
+    tm_desc tm = {.exposure = s->exposure};
+    int n = 0;
+    for (int tries = 0; n < PROBES && tries < 100 * PROBES; ++tries) {
+        int px = (int)(ref_rng_float(&g) * 640) % 640, py = (int)(ref_rng_float(&g) * 480) % 480;
+        if (!ids[py * 640 + px]) continue;
+        double sx = 2.0 * (px + 0.5) / 640 - 1.0, sy = 1.0 - 2.0 * (py + 0.5) / 480;
+        lm_dvec3 d = dv3_normalize(dv3_add(fwd, dv3_add(dv3_scale(right, sx * tx), dv3_scale(up, sy * ty))));
+        float o[3] = {cam->position[0], cam->position[1], cam->position[2]}, df[3] = {(float)d.x, (float)d.y, (float)d.z};
+        rt_hit h;
+        if (!rt_intersect(rt, o, df, 0.0f, INFINITY, &h)) continue;
+        const scene_material *m = &s->materials[s->tris[h.tri].material];
+        if (s->tris[h.tri].light >= 0 || !(m->kd[0] + m->kd[1] + m->kd[2] > 0.0f)) continue;
+        samp_point x = {.tri_plus_one = h.tri + 1};
+        for (int k = 0; k < 3; ++k) {
+            x.p[k] = (1 - h.u - h.v) * s->positions[3 * (size_t)s->tris[h.tri].v[0] + (size_t)k] +
+                     h.u * s->positions[3 * (size_t)s->tris[h.tri].v[1] + (size_t)k] +
+                     h.v * s->positions[3 * (size_t)s->tris[h.tri].v[2] + (size_t)k];
+            x.n[k] = s->tri_normals[3 * (size_t)h.tri + (size_t)k];
+        }
+        double e[3] = {0, 0, 0};
+        for (uint32_t l = 0; l < scene_light_count(s); ++l) {
+            float G;
+            samp_direct(ref, l, &x, 1, &G, err);
+            const float *le = l < s->area_light_count ? s->area_lights[l].le
+                                                      : s->point_lights[l - s->area_light_count].intensity;
+            for (int k = 0; k < 3; ++k) e[k] += le[k] * G;
+        }
+        float rgb[3], disp[3];
+        for (int k = 0; k < 3; ++k) rgb[k] = m->le[k] + m->kd[k] * (float)(e[k] / M_PI);
+        tm_to_display(&tm, rgb, disp);
+        pr[n] = (probe){.tri = h.tri, .w1 = h.u, .w2 = h.v};
+        tm_display_to_lab(disp, pr[n].lab);
+        n++;
+    }
+    samp_destroy(ref);
+    rt_scene_destroy(rt);
+    return n;
+}
+
+static double probe_error(const scene *s, const cache *c, const probe *pr, int n)
+{
+    tm_desc tm = {.exposure = s->exposure};
+    double sum = 0.0;
+    lm_error err;
+    for (int i = 0; i < n; ++i) {
+        float L[3], rgb[3], disp[3], lab[3];
+        if (cache_eval_direct(c, pr[i].tri, pr[i].w1, pr[i].w2, L, &err) != LM_OK) continue;
+        const scene_material *m = &s->materials[s->tris[pr[i].tri].material];
+        for (int k = 0; k < 3; ++k) rgb[k] = m->le[k] + m->kd[k] * L[k];
+        tm_to_display(&tm, rgb, disp);
+        tm_display_to_lab(disp, lab);
+        sum += tm_delta_e(lab, pr[i].lab);
+    }
+    return sum / n;
+}
+
+static void compare_schedulers(const scene *s, samp_sampler *sp, rend_id *ip, const uint32_t *pixels)
+{
+    static probe pr[PROBES];
+    lm_error err;
+    int n = make_probes(s, ip, pr, &err);
+    printf("schedulers: direct error at %d visible points (mean ΔE against a 4096-ray Embree) against samples taken\n",
+           n);
+    printf("  %-8s %10s %12s %12s %10s\n", "", "tested", "light samp.", "direct vals", "mean ΔE");
+    for (int sched = 0; sched < CACHE_SCHED_COUNT; ++sched) {
+        cache *c;
+        if (cache_create(&(cache_desc){.scene = s, .sampler = sp, .scheduler = (cache_scheduler)sched, .seed = 1}, &c,
+                         &err) != LM_OK || cache_init(c, &err) != LM_OK) {
+            fprintf(stderr, "%s\n", err.msg);
+            return;
+        }
+        uint32_t tested = 0;
+        printf("  %-8s %10u %12s %12s %10.3f  (coarse cache)\n", sched == CACHE_SCHED_HEAP ? "heap" : "random", 0, "",
+               "", probe_error(s, c, pr, n));
+        for (int step = 0; step < 40; ++step) {
+            cache_refine_result res;
+            if (cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = step < 8 ? 250 : 2000}, &res, &err) !=
+                LM_OK)
+                break;
+            tested += res.tested;
+            if (step % 2 == 1 || res.remaining == 0) {
+                cache_stats st;
+                cache_get_stats(c, &st);
+                uint64_t ls = 0;
+                for (uint32_t l = 0; l < st.light_count; ++l) ls += st.lights[l].samples;
+                printf("  %-8s %10u %12llu %12llu %10.3f%s\n", sched == CACHE_SCHED_HEAP ? "heap" : "random", tested,
+                       (unsigned long long)ls, (unsigned long long)st.direct.samples, probe_error(s, c, pr, n),
+                       res.remaining == 0 ? "  (converged)" : "");
+            }
+            if (res.remaining == 0) break;
+        }
+        cache_destroy(c);
+    }
+}
+
 int main(int argc, char **argv)
 {
     char path[1024];
-    if (argc > 1)
+    if (argc > 1 && argv[1][0])
         snprintf(path, sizeof path, "%s", argv[1]);
     else
         snprintf(path, sizeof path, "%s/cornell-box/CornellBox-Original.obj", LUMESH_SCENES);
@@ -61,6 +192,14 @@ int main(int argc, char **argv)
     samp_get_stats(sp, &ss);
     printf("%s: %u triangles, %u visible at 640x480; sampler: direct %s, indirect %s\n  %s\n", path, s->tri_count,
            ids.visible_count, ss.backend_name, ss.indirect_backend_name, ss.choice);
+    if (argc > 4 && strcmp(argv[4], "schedulers") == 0) {
+        compare_schedulers(s, sp, ip, ids.pixels);
+        rend_id_destroy(ip);
+        glctx_destroy(ctx);
+        samp_destroy(sp);
+        scene_destroy(s);
+        return 0;
+    }
     cache *c;
     if (cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) != LM_OK) {
         fprintf(stderr, "%s\n", err.msg);

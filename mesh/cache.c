@@ -435,10 +435,12 @@ void cache_destroy(cache *c)
     free(c->rm_bary);
     free(c->rm_rad);
     free(c->leaf_buf);
-    free(c->q_direct.e);
-    free(c->q_indirect.e);
-    free(c->done_direct);
-    free(c->done_indirect);
+    for (int k = 0; k < 2; ++k) {
+        free(c->q[k].e);
+        free(c->done[k]);
+        free(c->prio[k]);
+        free(c->roots[k]);
+    }
     free(c);
 }
 
@@ -446,7 +448,8 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
 {
     *out = NULL;
     if (!desc || !desc->scene || !desc->sampler) return lm_fail(err, LM_ERR_INVALID_ARG, "cache: needs a scene and a sampler");
-    if (desc->bounces < 0 || desc->bounces > 2 || !(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f))
+    if (desc->bounces < 0 || desc->bounces > 2 || !(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f) ||
+        (unsigned)desc->scheduler >= CACHE_SCHED_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounces must be 1 or 2, the JND and leaf size non-negative");
     cache *c = calloc(1, sizeof *c);
     if (!c) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
@@ -456,6 +459,8 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     if (c->desc.min_leaf_pixels == 0.0f) c->desc.min_leaf_pixels = 16.0f;
     c->s = desc->scene;
     c->sp = desc->sampler;
+    ref_rng_seed(&c->rng, desc->seed, 0x5c4ed, 0);
+    c->cur_root[0] = c->cur_root[1] = MESH_QMESH_NONE;
     c->tm.exposure = c->s->exposure + desc->exposure_offset;
     c->light_count = scene_light_count(c->s);
     lm_result r = mesh_vtable_create(&(mesh_vtable_desc){.scene = c->s}, &c->vt, err);
@@ -628,8 +633,8 @@ void cache_get_stats(cache *c, cache_stats *out)
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
     out->bytes += vs.bytes + c->rm_cap * (6 + 9) * sizeof(float) + c->leaf_cap * sizeof *c->leaf_buf +
-                  (c->q_direct.cap + c->q_indirect.cap) * sizeof(cache_queue_entry) + c->done_direct_cap +
-                  c->done_indirect_cap;
+                  (c->q[0].cap + c->q[1].cap) * sizeof(cache_queue_entry) + c->done_cap[0] + c->done_cap[1] +
+                  (c->prio_cap[0] + c->prio_cap[1]) * sizeof(float);
 }
 
 const mesh_qmesh *cache_direct_mesh(const cache *c) { return c->direct; }

@@ -54,6 +54,12 @@ enum {
     CACHE_LIGHT_LAG = 2 /* a light leaf may be this many levels coarser than the radiance leaf and still interpolate */
 };
 
+typedef enum cache_scheduler {
+    CACHE_SCHED_HEAP = 0,  /* default: the highest-priority leaves first, from a max-heap */
+    CACHE_SCHED_RANDOM,    /* the paper's §4.3.3: keep refining the current triangle until a random pick beats it */
+    CACHE_SCHED_COUNT
+} cache_scheduler;
+
 typedef struct cache_desc {
     const scene *scene;       /* must outlive the cache */
     samp_sampler *sampler;    /* samples G and E_i; owned by the caller, same thread */
@@ -62,6 +68,8 @@ typedef struct cache_desc {
     int bounces;              /* indirect gathers kd·L_dd (1, default) or kd·(L_dd + L_id) (2) */
     float min_leaf_pixels;    /* size criterion: leaves above this many pixels split anyway; 0 = 16 */
     uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
+    cache_scheduler scheduler;
+    uint32_t seed;            /* the random scheduler's picks */
 } cache_desc;
 
 typedef struct cache cache;
@@ -95,6 +103,10 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
  * keeps its values until refined again; its source is rebuilt at the next
  * indirect sample. */
 lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err);
+
+/* Priority of a node of the direct (0) or indirect (1) mesh under the random
+ * scheduler: a leaf's own, an inner node's the maximum of its children's. */
+float cache_node_priority(const cache *c, int mesh, uint32_t node);
 
 /* Values at barycentric point (1−w1−w2, w1, w2) of scene triangle tri,
  * interpolated from the leaves: L_dd (RGB, per unit albedo), E_i (RGB), G_ℓ. */

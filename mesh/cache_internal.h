@@ -5,6 +5,7 @@
 #define LUMESH_CACHE_INTERNAL_H
 
 #include "cache.h"
+#include "ref_shading.h"
 #include "tonemap.h"
 
 /* A point of a scene triangle where a value is wanted: its vertex in the shared
@@ -59,10 +60,20 @@ struct cache {
     mesh_qmesh_tri *leaf_buf;
     size_t leaf_cap;
 
-    /* Scheduler (cache_refine.c) */
-    cache_queue q_direct, q_indirect;
-    uint8_t *done_direct, *done_indirect; /* per node id: tested, nothing found */
-    size_t done_direct_cap, done_indirect_cap;
+    /* Scheduler (cache_refine.c), per radiance mesh: [0] direct, [1] indirect.
+     * Heap: a max-heap of leaves, lazily invalidated, and per-node "done" flags.
+     * Random (the paper's §4.3.3): per-node priorities, a leaf's own (> 0 waiting,
+     * 0 done, < 0 being tested) and an inner node's the maximum of its children's;
+     * the visible roots, the current root, and how many leaves are waiting. */
+    cache_queue q[2];
+    uint8_t *done[2];
+    size_t done_cap[2];
+    float *prio[2];
+    size_t prio_cap[2];
+    uint32_t *roots[2];
+    uint32_t root_count[2], cur_root[2];
+    uint64_t waiting[2];
+    ref_rng rng;
     int queues_seeded;
     int requeue_leaves;        /* a light changed: test every leaf again (cache_refine) */
 };

@@ -60,14 +60,22 @@ typedef struct run {
     uint32_t *pixels;
 } run;
 
+static int start_with(run *u, const scene *s, uint32_t pixels_per_tri, uint32_t node_cap, cache_scheduler sched);
+
 static int start(run *u, const scene *s, uint32_t pixels_per_tri, uint32_t node_cap)
+{
+    return start_with(u, s, pixels_per_tri, node_cap, CACHE_SCHED_HEAP);
+}
+
+static int start_with(run *u, const scene *s, uint32_t pixels_per_tri, uint32_t node_cap, cache_scheduler sched)
 {
     lm_error err;
     memset(u, 0, sizeof *u);
     lm_result r = samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .seed = 5}, &u->sp, &err);
     CHECK_MSG(r == LM_OK, "%s", err.msg);
     if (r != LM_OK) return 0;
-    r = cache_create(&(cache_desc){.scene = s, .sampler = u->sp, .node_cap = node_cap}, &u->c, &err);
+    r = cache_create(&(cache_desc){.scene = s, .sampler = u->sp, .node_cap = node_cap, .scheduler = sched, .seed = 1},
+                     &u->c, &err);
     CHECK_MSG(r == LM_OK, "%s", err.msg);
     u->pixels = malloc(s->tri_count * sizeof *u->pixels);
     /* Only the plane (triangles 0, 1) is seen, 40,000 pixels each. */
@@ -338,11 +346,77 @@ static void test_light_edit(void)
 #undef BLUE
 }
 
+/* Every inner node's priority is the maximum of its children's. */
+static int check_max_propagation(const cache *c, const mesh_qmesh *m, uint32_t node, int *inner)
+{
+    const mesh_qnode *n = mesh_qmesh_node(m, node);
+    if (n->child == MESH_QMESH_NONE) return 1;
+    uint32_t ch = n->child;
+    float mx = cache_node_priority(c, 0, ch);
+    int ok = 1;
+    for (uint32_t k = 0; k < 4; ++k) {
+        mx = fmaxf(mx, cache_node_priority(c, 0, ch + k));
+        ok &= check_max_propagation(c, m, ch + k, inner);
+    }
+    (*inner)++;
+    return ok && cache_node_priority(c, 0, node) == mx;
+}
+
+/* The paper's randomized scheduler: priorities propagate as maxima, and it
+ * converges to the same quality as the heap on the blocker scene. */
+static void test_random_scheduler(void)
+{
+    scene *s = load("cache_random.json", 1);
+    run u;
+    if (!s || !start_with(&u, s, 40000, 0, CACHE_SCHED_RANDOM)) return;
+    cache_refine_result part, tot;
+    lm_error err;
+    CHECK(converge(&u, 2, &part) == LM_OK); /* part way: priorities everywhere */
+    int inner = 0, ok = 1;
+    const mesh_qmesh *m = cache_direct_mesh(u.c);
+    for (uint32_t t = 0; t < 2; ++t) ok &= check_max_propagation(u.c, m, mesh_qmesh_root(m, t), &inner);
+    printf("random scheduler, part way (%u leaves tested): %d inner nodes, priorities %s the maxima of their children\n",
+           part.tested, inner, ok ? "all" : "NOT all");
+    CHECK(inner > 100 && ok);
+    CHECK(converge(&u, 400, &tot) == LM_OK);
+    CHECK(tot.remaining == 0);
+    samp_sampler *ref = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .direct_rays = 4096}, &ref, &err) ==
+          LM_OK);
+    ref_rng g;
+    ref_rng_seed(&g, 4, 0, 0);
+    int n = 0, above = 0;
+    double sum_de = 0.0;
+    for (int i = 0; i < 1000 && ref; ++i) {
+        uint32_t tri;
+        double w1, w2, G;
+        samp_point x = {.n = {0, 1, 0}};
+        random_plane_point(&g, s, &tri, &w1, &w2, x.p);
+        x.tri_plus_one = tri + 1;
+        float Gr, a[3], b[3];
+        CHECK(samp_direct(ref, 0, &x, 1, &Gr, &err) == LM_OK);
+        CHECK(cache_eval_G(u.c, 0, tri, w1, w2, &G, &err) == LM_OK);
+        lab_of((float)(LE * G / M_PI), a);
+        lab_of((float)(LE * Gr / M_PI), b);
+        double de = tm_delta_e(a, b);
+        sum_de += de;
+        above += de > 2.0;
+        n++;
+    }
+    printf("  converged: %u tested, %u kept; mean ΔE %.3f against 4096-ray Embree, %d of %d above the JND\n",
+           part.tested + tot.tested, part.split + tot.split, sum_de / n, above, n);
+    CHECK(above <= n / 50 && sum_de / n <= 0.5);
+    samp_destroy(ref);
+    stop(&u);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     test_lone_light();
     test_blocker();
     test_determinism_and_cap();
     test_light_edit();
+    test_random_scheduler();
     return test_finish("cache_test");
 }
