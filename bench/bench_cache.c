@@ -118,15 +118,18 @@ static void compare_schedulers(const scene *s, samp_sampler *sp, rend_id *ip, co
     printf("schedulers: direct error at %d visible points (mean ΔE against a 4096-ray Embree) against samples taken\n",
            n);
     printf("  %-8s %10s %12s %12s %10s\n", "", "tested", "light samp.", "direct vals", "mean ΔE");
-    for (int sched = 0; sched < CACHE_SCHED_COUNT; ++sched) {
+    /* heap, random, and the single-mesh ablation (heap) */
+    for (int sched = 0; sched < CACHE_SCHED_COUNT + 1; ++sched) {
         cache *c;
-        if (cache_create(&(cache_desc){.scene = s, .sampler = sp, .scheduler = (cache_scheduler)sched, .seed = 1}, &c,
-                         &err) != LM_OK || cache_init(c, &err) != LM_OK) {
+        int single = sched == CACHE_SCHED_COUNT;
+        cache_desc cd = {.scene = s, .sampler = sp, .scheduler = single ? CACHE_SCHED_HEAP : (cache_scheduler)sched,
+                         .seed = 1, .single_mesh = single};
+        if (cache_create(&cd, &c, &err) != LM_OK || cache_init(c, &err) != LM_OK) {
             fprintf(stderr, "%s\n", err.msg);
             return;
         }
         uint32_t tested = 0;
-        printf("  %-8s %10u %12s %12s %10.3f  (coarse cache)\n", sched == CACHE_SCHED_HEAP ? "heap" : "random", 0, "",
+        printf("  %-8s %10u %12s %12s %10.3f  (coarse cache)\n", single ? "single" : sched == CACHE_SCHED_HEAP ? "heap" : "random", 0, "",
                "", probe_error(s, c, pr, n));
         for (int step = 0; step < 40; ++step) {
             cache_refine_result res;
@@ -139,7 +142,8 @@ static void compare_schedulers(const scene *s, samp_sampler *sp, rend_id *ip, co
                 cache_get_stats(c, &st);
                 uint64_t ls = 0;
                 for (uint32_t l = 0; l < st.light_count; ++l) ls += st.lights[l].samples;
-                printf("  %-8s %10u %12llu %12llu %10.3f%s\n", sched == CACHE_SCHED_HEAP ? "heap" : "random", tested,
+                printf("  %-8s %10u %12llu %12llu %10.3f%s\n",
+                       single ? "single" : sched == CACHE_SCHED_HEAP ? "heap" : "random", tested,
                        (unsigned long long)ls, (unsigned long long)st.direct.samples, probe_error(s, c, pr, n),
                        res.remaining == 0 ? "  (converged)" : "");
             }

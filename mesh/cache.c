@@ -183,9 +183,31 @@ static lm_result want_unsampled(const mesh_qmesh *m, const mesh_qnode *n, uint32
     return LM_OK;
 }
 
+/* Single-mesh ablation: V of every light sampled at every site. */
+static lm_result fetch_visibility_single(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err)
+{
+    const uint32_t L = c->light_count;
+    samp_point *pts = calloc(n ? n : 1, sizeof *pts);
+    float *G = calloc(n ? n : 1, sizeof *G);
+    lm_result r = pts && G ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling lights");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) pts[i] = cache_vertex_point(c, sites[i].vid);
+    for (uint32_t l = 0; r == LM_OK && l < L; ++l) {
+        r = samp_direct(c->sp, l, pts, n, G, err);
+        for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+            double g0 = cache_unoccluded(c, l, sites[i].vid);
+            V[(size_t)i * L + l] = g0 > 0.0 ? (float)fmin(1.0, fmax(0.0, G[i] / g0)) : 1.0f;
+        }
+        if (r == LM_OK) c->light_stats[l].samples += n;
+    }
+    free(pts);
+    free(G);
+    return r;
+}
+
 lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err)
 {
     const uint32_t L = c->light_count;
+    if (c->desc.single_mesh) return fetch_visibility_single(c, sites, n, V, err);
     uint8_t *resolved = calloc(n ? n : 1, 1);
     uint32_t *need = NULL, need_n = 0, need_cap = 0;
     lm_result r = resolved ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory fetching visibility");

@@ -70,6 +70,9 @@ typedef struct cache_desc {
     uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
     cache_scheduler scheduler;
     uint32_t seed;            /* the random scheduler's picks */
+    int single_mesh;          /* ablation: no per-light meshes; every new radiance vertex samples
+                                 every light afresh, as one combined shading cache would
+                                 (Tole et al. 2002). Indirect keeps its own mesh. */
 } cache_desc;
 
 typedef struct cache cache;
