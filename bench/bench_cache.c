@@ -6,12 +6,17 @@
  * side, the direct error against samples taken: mean ΔE of Le + kd·L_dd at 2000
  * visible points (random pixels, their primary-ray hits) against
  * (1/π)·Σ L_ℓ·G_ℓ from a 4096-ray Embree estimate there.
- * usage: bench_cache [SCENE (default: CornellBox-Original)] [SECONDS (60)] [embree|gl|auto (auto)] [schedulers] */
+ * With "soak" last: refinement is kept running for SECONDS as an idle viewer would
+ * (sleeping 100 ms whenever nothing is left to test), and the cache's memory is
+ * printed every 10 s: it must plateau.
+ * usage: bench_cache [SCENE (default: CornellBox-Original)] [SECONDS (60)] [embree|gl|auto (auto)] [schedulers|soak] */
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include <math.h>
+#include <time.h>
 
 #include "cache.h"
 #include "gl_context.h"
@@ -209,16 +214,30 @@ int main(int argc, char **argv)
         fprintf(stderr, "%s\n", err.msg);
         return 1;
     }
-    double t0 = lm_now_seconds();
+    int soak = argc > 4 && strcmp(argv[4], "soak") == 0;
+    double t0 = lm_now_seconds(), next_report = 0.0;
     lm_result r = cache_init(c, &err);
     double t_init = lm_now_seconds() - t0;
     cache_refine_result res = {0}, tot = {0};
+    if (soak) printf("soak: %.0f s of idle refinement, memory every 10 s\n  %8s %12s %10s %10s\n", budget, "t (s)",
+                     "cache KiB", "leaves", "tested");
     while (r == LM_OK && lm_now_seconds() - t0 < budget) {
         r = cache_refine(c, &(cache_refine_desc){.pixels = ids.pixels, .budget = 512}, &res, &err);
         tot.tested += res.tested;
         tot.split += res.split;
         tot.undone += res.undone;
-        if (res.remaining == 0) break;
+        if (soak && lm_now_seconds() - t0 >= next_report) {
+            cache_stats st;
+            cache_get_stats(c, &st);
+            printf("  %8.0f %12.1f %10u %10u\n", lm_now_seconds() - t0, st.bytes / 1024.0, st.direct.mesh.leaves,
+                   tot.tested);
+            fflush(stdout);
+            next_report += 10.0;
+        }
+        if (res.remaining == 0) {
+            if (!soak) break;
+            nanosleep(&(struct timespec){.tv_nsec = 100000000}, NULL); /* idle: nothing to test */
+        }
     }
     double t = lm_now_seconds() - t0;
     if (r != LM_OK) printf("refinement stopped: %s\n", err.msg);

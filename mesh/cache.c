@@ -661,6 +661,7 @@ void cache_get_stats(cache *c, cache_stats *out)
 
 const mesh_qmesh *cache_direct_mesh(const cache *c) { return c->direct; }
 const mesh_qmesh *cache_indirect_mesh(const cache *c) { return c->indirect; }
+const mesh_vtable *cache_vtable(const cache *c) { return c->vt; }
 const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light)
 {
     return light < c->light_count ? c->light[light] : NULL;

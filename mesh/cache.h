@@ -137,6 +137,7 @@ void cache_get_stats(cache *c, cache_stats *out);
 const mesh_qmesh *cache_direct_mesh(const cache *c);
 const mesh_qmesh *cache_indirect_mesh(const cache *c);
 const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light);
+const mesh_vtable *cache_vtable(const cache *c);
 
 #ifdef __cplusplus
 }

@@ -192,23 +192,19 @@ static void test_lone_light(void)
     scene_destroy(s);
 }
 
-static void test_blocker(void)
+/* The cache's G of light 0 against a 4096-ray Embree estimate at 1000 random
+ * points of the plane, as the ΔE of the diffuse colour: returns the sum of ΔE,
+ * *n the points, *above those beyond the JND. */
+static double against_embree(const run *u, const scene *s, int *n, int *above)
 {
-    scene *s = load("cache_block.json", 1);
-    run u;
-    if (!s || !start(&u, s, 40000, 0)) return;
-    cache_refine_result tot;
-    lm_error err;
-    CHECK(converge(&u, 400, &tot) == LM_OK);
-    cache_stats st;
-    cache_get_stats(u.c, &st);
     samp_sampler *ref = NULL;
+    lm_error err;
     CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .direct_rays = 4096}, &ref, &err) ==
           LM_OK);
     ref_rng g;
     ref_rng_seed(&g, 4, 0, 0);
-    int n = 0, above = 0;
     double sum_de = 0.0;
+    *n = *above = 0;
     for (int i = 0; i < 1000 && ref; ++i) {
         uint32_t tri;
         double w1, w2, G;
@@ -217,14 +213,29 @@ static void test_blocker(void)
         x.tri_plus_one = tri + 1;
         float Gr, a[3], b[3];
         CHECK(samp_direct(ref, 0, &x, 1, &Gr, &err) == LM_OK);
-        CHECK(cache_eval_G(u.c, 0, tri, w1, w2, &G, &err) == LM_OK);
+        CHECK(cache_eval_G(u->c, 0, tri, w1, w2, &G, &err) == LM_OK);
         lab_of((float)(LE * G / M_PI), a);
         lab_of((float)(LE * Gr / M_PI), b);
         double de = tm_delta_e(a, b);
         sum_de += de;
-        above += de > 2.0;
-        n++;
+        *above += de > 2.0;
+        (*n)++;
     }
+    samp_destroy(ref);
+    return sum_de;
+}
+
+static void test_blocker(void)
+{
+    scene *s = load("cache_block.json", 1);
+    run u;
+    if (!s || !start(&u, s, 40000, 0)) return;
+    cache_refine_result tot;
+    CHECK(converge(&u, 400, &tot) == LM_OK);
+    cache_stats st;
+    cache_get_stats(u.c, &st);
+    int n = 0, above = 0;
+    double sum_de = against_embree(&u, s, &n, &above);
     printf("blocker: %u tested, %u kept, %u undone; light mesh %u leaves, %llu samples, %llu interpolated\n",
            tot.tested, tot.split, tot.undone, st.lights[0].mesh.leaves, (unsigned long long)st.lights[0].samples,
            (unsigned long long)st.lights[0].interpolated);
@@ -235,7 +246,6 @@ static void test_blocker(void)
     /* The light mesh samples penumbra only: far fewer vertices than the radiance mesh. */
     CHECK_MSG(st.lights[0].samples * 2 < st.direct.samples, "light samples %llu vs direct values %llu",
               (unsigned long long)st.lights[0].samples, (unsigned long long)st.direct.samples);
-    samp_destroy(ref);
     stop(&u);
     scene_destroy(s);
 }
@@ -373,7 +383,6 @@ static void test_random_scheduler(void)
     run u;
     if (!s || !start_with(&u, s, 40000, 0, CACHE_SCHED_RANDOM)) return;
     cache_refine_result part, tot;
-    lm_error err;
     CHECK(converge(&u, 2, &part) == LM_OK); /* part way: priorities everywhere */
     int inner = 0, ok = 1;
     const mesh_qmesh *m = cache_direct_mesh(u.c);
@@ -383,33 +392,11 @@ static void test_random_scheduler(void)
     CHECK(inner > 100 && ok);
     CHECK(converge(&u, 400, &tot) == LM_OK);
     CHECK(tot.remaining == 0);
-    samp_sampler *ref = NULL;
-    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .direct_rays = 4096}, &ref, &err) ==
-          LM_OK);
-    ref_rng g;
-    ref_rng_seed(&g, 4, 0, 0);
     int n = 0, above = 0;
-    double sum_de = 0.0;
-    for (int i = 0; i < 1000 && ref; ++i) {
-        uint32_t tri;
-        double w1, w2, G;
-        samp_point x = {.n = {0, 1, 0}};
-        random_plane_point(&g, s, &tri, &w1, &w2, x.p);
-        x.tri_plus_one = tri + 1;
-        float Gr, a[3], b[3];
-        CHECK(samp_direct(ref, 0, &x, 1, &Gr, &err) == LM_OK);
-        CHECK(cache_eval_G(u.c, 0, tri, w1, w2, &G, &err) == LM_OK);
-        lab_of((float)(LE * G / M_PI), a);
-        lab_of((float)(LE * Gr / M_PI), b);
-        double de = tm_delta_e(a, b);
-        sum_de += de;
-        above += de > 2.0;
-        n++;
-    }
+    double sum_de = against_embree(&u, s, &n, &above);
     printf("  converged: %u tested, %u kept; mean ΔE %.3f against 4096-ray Embree, %d of %d above the JND\n",
            part.tested + tot.tested, part.split + tot.split, sum_de / n, above, n);
     CHECK(above <= n / 50 && sum_de / n <= 0.5);
-    samp_destroy(ref);
     stop(&u);
     scene_destroy(s);
 }

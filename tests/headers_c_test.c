@@ -1,6 +1,8 @@
 /* headers_c_test — every public header compiles as plain C11 on its own (this
  * file is C with -Wstrict-prototypes), and the shared result codes are named. */
 #include "analytic.h"
+#include "cache.h"
+#include "cache_worker.h"
 #include "compare.h"
 #include "gl_context.h"
 #include "geomesh.h"

@@ -3,6 +3,7 @@
 # the whole ctest suite on each:
 #   build/release  Release, -Wall -Wextra -Werror
 #   build/asan     Debug, AddressSanitizer + UndefinedBehaviorSanitizer
+#   build/tsan     Debug, ThreadSanitizer: the refinement worker and its display side
 # Third-party scenes are read from ../shared/scenes beside the checkout.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -19,3 +20,8 @@ cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=Debug -DLUMESH_WERROR=ON -DLUMESH_SA
 cmake --build build/asan -j "$jobs"
 ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
   ctest --test-dir build/asan --output-on-failure -j "$jobs"
+
+cmake -S . -B build/tsan -DCMAKE_BUILD_TYPE=Debug -DLUMESH_WERROR=ON -DLUMESH_TSAN=ON
+cmake --build build/tsan -j "$jobs" --target cache_worker_test
+TSAN_OPTIONS="halt_on_error=1 suppressions=$PWD/tests/tsan.supp" \
+  ctest --test-dir build/tsan -R '^cache_worker_test$' --output-on-failure
