@@ -64,6 +64,18 @@ static int has_albedo(const scene *s, uint32_t t, void *user)
     return kd[0] > 0.0f || kd[1] > 0.0f || kd[2] > 0.0f;
 }
 
+static int has_gloss(const scene *s, uint32_t t, void *user)
+{
+    (void)user;
+    const float *ks = s->materials[s->tris[t].material].ks;
+    return s->tris[t].light < 0 && (ks[0] > 0.0f || ks[1] > 0.0f || ks[2] > 0.0f);
+}
+
+mesh_qmesh *cache_kind_mesh(const cache *c, cache_kind kind)
+{
+    return kind == CACHE_KIND_DIRECT ? c->direct : kind == CACHE_KIND_INDIRECT ? c->indirect : c->specular;
+}
+
 samp_point cache_vertex_point(const cache *c, uint32_t vid)
 {
     const mesh_vertex *v = mesh_vtable_vertex(c->vt, vid);
@@ -303,6 +315,32 @@ lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, f
     return LM_OK;
 }
 
+void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3])
+{
+    const scene *s = c->s;
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    /* The exponent of the triangle the vertex was made from (a vertex shared by two
+     * glossy materials takes the first's; shared vertices need equal normals). */
+    float n = s->materials[s->tris[mv->tri].material].n;
+    lm_vec3 x = v3_load(mv->position), nrm = v3_normalize(v3_load(mv->normal));
+    lm_vec3 wo = v3_normalize(v3_sub(v3_load(c->eye), x));
+    double e[3] = {0, 0, 0};
+    for (uint32_t l = 0; l < c->light_count; ++l) {
+        if (V[l] <= 0.0f) continue;
+        double g = V[l] * cache_unoccluded(c, l, vid);
+        if (!(g > 0.0)) continue;
+        const float *at = l < s->area_light_count ? s->area_lights[l].centroid
+                                                  : s->point_lights[l - s->area_light_count].position;
+        lm_vec3 wi = v3_normalize(v3_sub(v3_load(at), x));
+        lm_vec3 mirror = v3_sub(v3_scale(nrm, 2.0f * v3_dot(nrm, wi)), wi);
+        float cosa = v3_dot(mirror, wo);
+        if (cosa <= 0.0f) continue;
+        double lobe = (n + 2.0) / (2.0 * M_PI) * pow(cosa, n);
+        for (int k = 0; k < 3; ++k) e[k] += (double)c->light_le[3 * l + (uint32_t)k] * g * lobe;
+    }
+    for (int k = 0; k < 3; ++k) rgb[k] = e[k] < 3e38 ? (float)e[k] : 3e38f;
+}
+
 lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err)
 {
     if (!c || !value || light >= c->light_count)
@@ -324,7 +362,10 @@ lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_err
     /* What was below the JND may not be now (a shadow no longer masked by another
      * light): every leaf is tested again, without new light samples unless the
      * test splits it. */
-    c->requeue_leaves = 1;
+    for (int k = 0; k < CACHE_KINDS; ++k) c->requeue[k] = 1;
+    /* The specular mesh keeps no G per vertex: sample its roots again (the light
+     * meshes answer without new samples where they are sure). */
+    if (c->specular) return cache_set_camera(c, c->eye, err);
     return LM_OK;
 }
 
@@ -448,6 +489,7 @@ void cache_destroy(cache *c)
         for (uint32_t l = 0; l < c->light_count; ++l) mesh_qmesh_destroy(c->light[l]);
     mesh_qmesh_destroy(c->direct);
     mesh_qmesh_destroy(c->indirect);
+    mesh_qmesh_destroy(c->specular);
     mesh_vtable_destroy(c->vt);
     free(c->light);
     free(c->light_stats);
@@ -457,7 +499,7 @@ void cache_destroy(cache *c)
     free(c->rm_bary);
     free(c->rm_rad);
     free(c->leaf_buf);
-    for (int k = 0; k < 2; ++k) {
+    for (int k = 0; k < CACHE_KINDS; ++k) {
         free(c->q[k].e);
         free(c->done[k]);
         free(c->prio[k]);
@@ -482,7 +524,7 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     c->s = desc->scene;
     c->sp = desc->sampler;
     ref_rng_seed(&c->rng, desc->seed, 0x5c4ed, 0);
-    c->cur_root[0] = c->cur_root[1] = MESH_QMESH_NONE;
+    for (int k = 0; k < CACHE_KINDS; ++k) c->cur_root[k] = MESH_QMESH_NONE;
     c->tm.exposure = c->s->exposure + desc->exposure_offset;
     c->light_count = scene_light_count(c->s);
     lm_result r = mesh_vtable_create(&(mesh_vtable_desc){.scene = c->s}, &c->vt, err);
@@ -509,6 +551,12 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     if (r == LM_OK)
         r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
                               &c->indirect, err);
+    uint32_t glossy = 0;
+    for (uint32_t t = 0; r == LM_OK && t < c->s->tri_count; ++t) glossy += has_gloss(c->s, t, NULL) != 0;
+    if (r == LM_OK && glossy) /* model only what the scene needs: no gloss, no mesh */
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap},
+                              &c->specular, err);
+    if (c->s->camera_count) memcpy(c->eye, c->s->cameras[0].position, sizeof c->eye);
     if (r != LM_OK) {
         cache_destroy(c);
         return r;
@@ -548,6 +596,55 @@ static lm_result root_vertices(const cache *c, const mesh_qmesh *m, uint32_t **o
     return LM_OK;
 }
 
+/* The root corners of the direct or specular mesh, their values from the light
+ * meshes (visible fractions; samples only where those cannot answer). */
+static lm_result sample_roots(cache *c, cache_kind kind, lm_error *err)
+{
+    mesh_qmesh *m = cache_kind_mesh(c, kind);
+    uint32_t *v = NULL, n = 0;
+    lm_result r = root_vertices(c, m, &v, &n, err);
+    float *V = r == LM_OK ? malloc(((size_t)n * c->light_count + 1) * sizeof *V) : NULL;
+    cache_site *sites = r == LM_OK ? malloc((n ? n : 1) * sizeof *sites) : NULL;
+    if (r == LM_OK && (!V || !sites)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, v[i]);
+        double scale = ldexp(1.0, -(int)mv->bary.depth);
+        sites[i] = (cache_site){.vid = v[i], .tri = mv->tri, .w1 = mv->bary.w[1] * scale,
+                                .w2 = mv->bary.w[2] * scale, .depth = 0};
+    }
+    if (r == LM_OK) r = cache_fetch_visibility(c, sites, n, V, err);
+    cache_mesh_stats *st = kind == CACHE_KIND_DIRECT ? &c->direct_stats : &c->specular_stats;
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        float rgb[3];
+        if (kind == CACHE_KIND_DIRECT)
+            r = cache_direct_from_visibility(c, v[i], V + (size_t)i * c->light_count, rgb, err);
+        else
+            cache_specular_from_visibility(c, v[i], V + (size_t)i * c->light_count, rgb);
+        if (r == LM_OK) r = mesh_qmesh_set_value(m, v[i], rgb, err);
+        st->samples++;
+    }
+    free(V);
+    free(sites);
+    free(v);
+    return r;
+}
+
+lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err)
+{
+    if (!c || !eye || !isfinite(eye[0]) || !isfinite(eye[1]) || !isfinite(eye[2]))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_camera: the eye must be a finite point");
+    memcpy(c->eye, eye, sizeof c->eye);
+    if (!c->specular) return LM_OK; /* nothing depends on the view */
+    uint32_t cap = c->desc.node_cap;
+    mesh_qmesh_destroy(c->specular);
+    c->specular = NULL;
+    lm_result r = mesh_qmesh_create(
+        &(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap}, &c->specular, err);
+    if (r == LM_OK && c->initialised) r = sample_roots(c, CACHE_KIND_SPECULAR, err);
+    c->requeue[CACHE_KIND_SPECULAR] = 1;
+    return r;
+}
+
 lm_result cache_init(cache *c, lm_error *err)
 {
     uint32_t *v = NULL, n = 0;
@@ -559,27 +656,8 @@ lm_result cache_init(cache *c, lm_error *err)
         free(v);
         v = NULL;
     }
-    if (r == LM_OK) r = root_vertices(c, c->direct, &v, &n, err);
-    float *V = r == LM_OK ? malloc(((size_t)n * c->light_count + 1) * sizeof *V) : NULL;
-    cache_site *sites = r == LM_OK ? malloc((n ? n : 1) * sizeof *sites) : NULL;
-    if (r == LM_OK && (!V || !sites)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
-        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, v[i]);
-        double scale = ldexp(1.0, -(int)mv->bary.depth);
-        sites[i] = (cache_site){.vid = v[i], .tri = mv->tri, .w1 = mv->bary.w[1] * scale,
-                                .w2 = mv->bary.w[2] * scale, .depth = 0};
-    }
-    if (r == LM_OK) r = cache_fetch_visibility(c, sites, n, V, err);
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
-        float rgb[3];
-        r = cache_direct_from_visibility(c, v[i], V + (size_t)i * c->light_count, rgb, err);
-        if (r == LM_OK) r = mesh_qmesh_set_value(c->direct, v[i], rgb, err);
-        c->direct_stats.samples++;
-    }
-    free(V);
-    free(sites);
-    free(v);
-    v = NULL;
+    if (r == LM_OK) r = sample_roots(c, CACHE_KIND_DIRECT, err);
+    if (r == LM_OK && c->specular) r = sample_roots(c, CACHE_KIND_SPECULAR, err);
     /* Indirect: gathered from the coarse direct mesh just made (§5). */
     if (r == LM_OK) r = cache_update_radiance_source(c, 1, err);
     if (r == LM_OK) r = root_vertices(c, c->indirect, &v, &n, err);
@@ -603,6 +681,13 @@ lm_result cache_eval_direct(const cache *c, uint32_t tri, double w1, double w2, 
 lm_result cache_eval_indirect(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err)
 {
     return mesh_qmesh_interpolate(c->indirect, tri, w1, w2, rgb, err);
+}
+
+lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err)
+{
+    rgb[0] = rgb[1] = rgb[2] = 0.0f;
+    if (!c->specular || mesh_qmesh_root(c->specular, tri) == MESH_QMESH_NONE) return LM_OK;
+    return mesh_qmesh_interpolate(c->specular, tri, w1, w2, rgb, err);
 }
 
 lm_result cache_eval_G(const cache *c, uint32_t light, uint32_t tri, double w1, double w2, double *G, lm_error *err)
@@ -643,9 +728,11 @@ void cache_get_stats(cache *c, cache_stats *out)
     out->light_count = c->light_count;
     out->direct = c->direct_stats;
     out->indirect = c->indirect_stats;
+    out->specular = c->specular_stats;
     mesh_qmesh_get_stats(c->direct, &out->direct.mesh);
     mesh_qmesh_get_stats(c->indirect, &out->indirect.mesh);
-    out->bytes = out->direct.mesh.bytes + out->indirect.mesh.bytes;
+    if (c->specular) mesh_qmesh_get_stats(c->specular, &out->specular.mesh);
+    out->bytes = out->direct.mesh.bytes + out->indirect.mesh.bytes + out->specular.mesh.bytes;
     for (uint32_t l = 0; l < c->light_count; ++l) {
         if (c->light[l]) mesh_qmesh_get_stats(c->light[l], &c->light_stats[l].mesh);
         out->bytes += c->light_stats[l].mesh.bytes;
@@ -655,12 +742,14 @@ void cache_get_stats(cache *c, cache_stats *out)
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
     out->bytes += vs.bytes + c->rm_cap * (6 + 9) * sizeof(float) + c->leaf_cap * sizeof *c->leaf_buf +
-                  (c->q[0].cap + c->q[1].cap) * sizeof(cache_queue_entry) + c->done_cap[0] + c->done_cap[1] +
-                  (c->prio_cap[0] + c->prio_cap[1]) * sizeof(float);
+                  c->vertex_G_cap * c->light_count * sizeof(float);
+    for (int k = 0; k < CACHE_KINDS; ++k)
+        out->bytes += c->q[k].cap * sizeof(cache_queue_entry) + c->done_cap[k] + c->prio_cap[k] * sizeof(float);
 }
 
 const mesh_qmesh *cache_direct_mesh(const cache *c) { return c->direct; }
 const mesh_qmesh *cache_indirect_mesh(const cache *c) { return c->indirect; }
+const mesh_qmesh *cache_specular_mesh(const cache *c) { return c->specular; }
 const mesh_vtable *cache_vtable(const cache *c) { return c->vt; }
 const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light)
 {

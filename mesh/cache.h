@@ -13,7 +13,10 @@
  *   direct     direct diffuse radiance per unit albedo, RGB: L_dd = (1/π)·Σ L_ℓ·G_ℓ
  *              (eq. 4). View-independent: kept across camera moves.
  *   indirect   indirect irradiance E_i, RGB (eq. 7), gathered from kd·L_dd.
- * (The direct specular mesh, over ks > 0 only, comes with the renderer.)
+ *   specular   direct specular radiance per unit ks, RGB, over the triangles whose
+ *              material has ks > 0 only (none: no mesh): eq. 6,
+ *              Σ_ℓ (n+2)/(2π)·cosⁿα·L_ℓ·G_ℓ with α from each light's centre; it
+ *              depends on the eye, so cache_set_camera rebuilds it.
  *
  * A radiance vertex's value fetches V_ℓ from each light mesh (§4.3.4): read by
  * interpolation where the light mesh can do so confidently (the enclosing light
@@ -32,8 +35,8 @@
  *
  * Threads: a cache, its meshes and its sampler belong to one thread (the
  * refinement worker); nothing here is thread safe.
- * Does NOT do: specular radiance, publishing to the display, camera moves,
- * re-gathering indirect light after a light edit.
+ * Does NOT do: publishing to the display (cache_worker.h), re-gathering indirect
+ * light after a light edit, the exact specular integral (eq. 5; the reference does).
  */
 #ifndef LUMESH_CACHE_H
 #define LUMESH_CACHE_H
@@ -100,6 +103,12 @@ typedef struct cache_refine_result {
  * min_leaf_pixels; undoes splits that found nothing. */
 lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
 
+/* The viewpoint of the specular mesh (scene units). A new eye resets that mesh
+ * to its roots and samples them again; the view-independent meshes are kept.
+ * At creation the eye is the scene's first camera. */
+lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err);
+lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err);
+
 /* Changes light `light`'s radiance (area light, W·m⁻²·sr⁻¹) or intensity (point
  * light, W·sr⁻¹): the direct mesh is recomputed from the G_ℓ it keeps per vertex,
  * with no new sample (that is why G_ℓ is stored per light). The indirect mesh
@@ -107,7 +116,7 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
  * indirect sample. */
 lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err);
 
-/* Priority of a node of the direct (0) or indirect (1) mesh under the random
+/* Priority of a node of the direct (0), indirect (1) or specular (2) mesh under the random
  * scheduler: a leaf's own, an inner node's the maximum of its children's. */
 float cache_node_priority(const cache *c, int mesh, uint32_t node);
 
@@ -125,7 +134,7 @@ typedef struct cache_mesh_stats {
 
 typedef struct cache_stats {
     uint32_t light_count;
-    cache_mesh_stats direct, indirect;
+    cache_mesh_stats direct, indirect, specular; /* specular: all zero when there is no specular mesh */
     cache_mesh_stats *lights;   /* light_count entries, owned by the cache */
     uint64_t undone;            /* splits undone */
     size_t bytes;               /* everything: meshes, vertex table, bookkeeping */
@@ -136,6 +145,7 @@ void cache_get_stats(cache *c, cache_stats *out);
 /* The meshes themselves, read-only, for tests and the renderer. */
 const mesh_qmesh *cache_direct_mesh(const cache *c);
 const mesh_qmesh *cache_indirect_mesh(const cache *c);
+const mesh_qmesh *cache_specular_mesh(const cache *c); /* NULL: no glossy material */
 const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light);
 const mesh_vtable *cache_vtable(const cache *c);
 

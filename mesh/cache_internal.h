@@ -8,6 +8,14 @@
 #include "ref_shading.h"
 #include "tonemap.h"
 
+/* The radiance meshes the scheduler refines. */
+typedef enum cache_kind {
+    CACHE_KIND_DIRECT = 0,
+    CACHE_KIND_INDIRECT,
+    CACHE_KIND_SPECULAR,
+    CACHE_KINDS
+} cache_kind;
+
 /* A point of a scene triangle where a value is wanted: its vertex in the shared
  * table, and its barycentric address in the triangle being refined (a vertex on
  * a shared edge is reached from either triangle; the asking one is named). */
@@ -39,8 +47,10 @@ struct cache {
     uint32_t light_count;      /* area lights, then point lights */
     mesh_qmesh **light;        /* per light, NULL when no triangle can see it */
     mesh_qmesh *direct, *indirect;
+    mesh_qmesh *specular;      /* NULL when no material has ks > 0 */
+    float eye[3];              /* the specular mesh's viewpoint, scene units */
     cache_mesh_stats *light_stats;
-    cache_mesh_stats direct_stats, indirect_stats; /* .mesh filled by cache_get_stats */
+    cache_mesh_stats direct_stats, indirect_stats, specular_stats; /* .mesh filled by cache_get_stats */
     uint64_t undone;
     int initialised;
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
@@ -60,22 +70,22 @@ struct cache {
     mesh_qmesh_tri *leaf_buf;
     size_t leaf_cap;
 
-    /* Scheduler (cache_refine.c), per radiance mesh: [0] direct, [1] indirect.
+    /* Scheduler (cache_refine.c), per radiance mesh (cache_kind).
      * Heap: a max-heap of leaves, lazily invalidated, and per-node "done" flags.
      * Random (the paper's §4.3.3): per-node priorities, a leaf's own (> 0 waiting,
      * 0 done, < 0 being tested) and an inner node's the maximum of its children's;
      * the visible roots, the current root, and how many leaves are waiting. */
-    cache_queue q[2];
-    uint8_t *done[2];
-    size_t done_cap[2];
-    float *prio[2];
-    size_t prio_cap[2];
-    uint32_t *roots[2];
-    uint32_t root_count[2], cur_root[2];
-    uint64_t waiting[2];
+    cache_queue q[CACHE_KINDS];
+    uint8_t *done[CACHE_KINDS];
+    size_t done_cap[CACHE_KINDS];
+    float *prio[CACHE_KINDS];
+    size_t prio_cap[CACHE_KINDS];
+    uint32_t *roots[CACHE_KINDS];
+    uint32_t root_count[CACHE_KINDS], cur_root[CACHE_KINDS];
+    uint64_t waiting[CACHE_KINDS];
     ref_rng rng;
     int queues_seeded;
-    int requeue_leaves;        /* a light changed: test every leaf again (cache_refine) */
+    int requeue[CACHE_KINDS];  /* test every leaf of that mesh again (a light or the camera changed) */
 };
 
 /* G_ℓ,unoccluded at vertex vid (analytic; point lights cosθ/r²). */
@@ -89,6 +99,12 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
 /* L_dd (RGB per unit albedo) at vertex vid from visible fractions V[0..light_count);
  * remembers G_ℓ there for cache_set_light. */
 lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err);
+/* L_ds (RGB per unit ks, eq. 6 with each light as a point at its centre) at
+ * vertex vid, seen from c->eye, from visible fractions V[0..light_count). */
+void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3]);
+/* The mesh of a kind (NULL: the scene has none). */
+mesh_qmesh *cache_kind_mesh(const cache *c, cache_kind kind);
+
 /* Samples E_i at the given vertices (batched) from the current radiance source. */
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
 /* Rebuilds the radiance source from the direct mesh when it is stale. */

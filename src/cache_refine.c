@@ -28,7 +28,10 @@
 enum { ROUND_LEAVES = 64 };
 #define INDIRECT_SIZE_FACTOR 16.0f
 
-typedef enum refine_kind { KIND_DIRECT = 0, KIND_INDIRECT } refine_kind;
+typedef cache_kind refine_kind;
+#define KIND_DIRECT CACHE_KIND_DIRECT
+#define KIND_INDIRECT CACHE_KIND_INDIRECT
+#define KIND_SPECULAR CACHE_KIND_SPECULAR
 
 /* ---- heap -------------------------------------------------------------------- */
 
@@ -91,23 +94,25 @@ static lm_result set_done(uint8_t **flags, size_t *cap, uint32_t node, uint8_t v
 
 /* ---- colours ----------------------------------------------------------------- */
 
-/* What the viewer sees at (tri, w1, w2) when the refined quantity has `value`
- * there and the other one is interpolated: Le + kd·(L_dd + E_i/π), as CIELAB. */
 static void seen_lab(const cache *c, refine_kind kind, uint32_t tri, double w1, double w2, const float value[3],
                      float lab[3])
 {
+    /* What the viewer sees at (tri, w1, w2) when the refined quantity has `value`
+     * there and the others are interpolated: Le + kd·(L_dd + E_i/π) + ks·L_ds. */
     const scene_material *m = &c->s->materials[c->s->tris[tri].material];
-    float other[3] = {0, 0, 0}, rgb[3], disp[3];
+    float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, rgb[3], disp[3];
     lm_error ignore;
-    if (kind == KIND_DIRECT)
-        mesh_qmesh_interpolate(c->indirect, tri, w1, w2, other, &ignore);
-    else
-        mesh_qmesh_interpolate(c->direct, tri, w1, w2, other, &ignore);
-    for (int k = 0; k < 3; ++k) {
-        float ldd = kind == KIND_DIRECT ? value[k] : other[k];
-        float ei = kind == KIND_DIRECT ? other[k] : value[k];
-        rgb[k] = m->le[k] + m->kd[k] * (ldd + ei * (float)(1.0 / M_PI));
+    for (int k = 0; k < CACHE_KINDS; ++k) {
+        if (k == (int)kind) {
+            memcpy(term[k], value, sizeof term[k]);
+            continue;
+        }
+        const mesh_qmesh *mk = cache_kind_mesh(c, (cache_kind)k);
+        if (mk && mesh_qmesh_root(mk, tri) != MESH_QMESH_NONE) mesh_qmesh_interpolate(mk, tri, w1, w2, term[k], &ignore);
     }
+    for (int k = 0; k < 3; ++k)
+        rgb[k] = m->le[k] + m->kd[k] * (term[KIND_DIRECT][k] + term[KIND_INDIRECT][k] * (float)(1.0 / M_PI)) +
+                 m->ks[k] * term[KIND_SPECULAR][k];
     tm_to_display(&c->tm, rgb, disp);
     tm_display_to_lab(disp, lab);
 }
@@ -136,7 +141,7 @@ static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind
 
 /* ---- scheduling ---------------------------------------------------------------- */
 
-static const mesh_qmesh *mesh_of(const cache *c, refine_kind kind) { return kind == KIND_DIRECT ? c->direct : c->indirect; }
+static const mesh_qmesh *mesh_of(const cache *c, refine_kind kind) { return cache_kind_mesh(c, kind); }
 
 static lm_result grow_prio(cache *c, int kind, uint32_t node, lm_error *err)
 {
@@ -264,7 +269,7 @@ typedef struct round_leaf {
 static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t max_leaves,
                               cache_refine_result *res, lm_error *err)
 {
-    mesh_qmesh *m = kind == KIND_DIRECT ? c->direct : c->indirect;
+    mesh_qmesh *m = cache_kind_mesh(c, kind);
     round_leaf leaves[ROUND_LEAVES];
     uint32_t nl = 0;
     lm_result r = LM_OK;
@@ -283,7 +288,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &cw1[k], &cw2[k]);
         r = mesh_qmesh_split(m, node, err);
         if (r == LM_ERR_NO_MEMORY || r == LM_ERR_UNSUPPORTED) {
-            res->remaining = (uint32_t)(c->waiting[0] + c->waiting[1]);
+            res->remaining = (uint32_t)(c->waiting[0] + c->waiting[1] + c->waiting[2]);
             return r; /* cap or depth: refinement stops here, the cache stays valid */
         }
         if (r != LM_OK) break;
@@ -320,16 +325,21 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         }
     }
     float *vals = malloc(3 * (size_t)(ns ? ns : 1) * sizeof *vals);
-    float *V = kind == KIND_DIRECT ? malloc(((size_t)ns * c->light_count + 1) * sizeof *V) : NULL;
+    int from_lights = kind != KIND_INDIRECT;
+    float *V = from_lights ? malloc(((size_t)ns * c->light_count + 1) * sizeof *V) : NULL;
     uint32_t *vids = malloc((ns ? ns : 1) * sizeof *vids);
-    if (!vals || !vids || (kind == KIND_DIRECT && !V)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
+    if (!vals || !vids || (from_lights && !V)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
     for (uint32_t i = 0; r == LM_OK && i < ns; ++i) vids[i] = sites[i].vid;
-    if (r == LM_OK && kind == KIND_DIRECT) {
+    if (r == LM_OK && from_lights) {
         r = cache_fetch_visibility(c, sites, ns, V, err);
-        for (uint32_t i = 0; r == LM_OK && i < ns; ++i)
-            r = cache_direct_from_visibility(c, sites[i].vid, V + (size_t)i * c->light_count, vals + 3 * (size_t)i,
-                                             err);
-        if (r == LM_OK) c->direct_stats.samples += ns;
+        for (uint32_t i = 0; r == LM_OK && i < ns; ++i) {
+            const float *Vi = V + (size_t)i * c->light_count;
+            if (kind == KIND_DIRECT)
+                r = cache_direct_from_visibility(c, sites[i].vid, Vi, vals + 3 * (size_t)i, err);
+            else
+                cache_specular_from_visibility(c, sites[i].vid, Vi, vals + 3 * (size_t)i);
+        }
+        if (r == LM_OK) (kind == KIND_DIRECT ? &c->direct_stats : &c->specular_stats)->samples += ns;
     } else if (r == LM_OK) {
         r = cache_sample_indirect(c, vids, ns, vals, err);
     }
@@ -371,41 +381,37 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     return r;
 }
 
-/* Schedules every leaf of both meshes afresh (at the start, and after a light
- * changed): heap, done flags and priorities are rebuilt. */
-static lm_result schedule_all_leaves(cache *c, const uint32_t *pixels, lm_error *err)
+/* Schedules every leaf of one mesh afresh (at the start; after a light changed;
+ * for the specular mesh after the camera moved): heap, done flags and priorities
+ * are rebuilt. */
+static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pixels, lm_error *err)
 {
-    lm_result r = LM_OK;
-    for (int kind = 0; r == LM_OK && kind < 2; ++kind) {
-        mesh_qmesh *m = kind == KIND_DIRECT ? c->direct : c->indirect;
-        c->q[kind].n = 0;
-        if (c->done[kind]) memset(c->done[kind], 0, c->done_cap[kind]);
-        if (c->prio[kind]) memset(c->prio[kind], 0, c->prio_cap[kind] * sizeof *c->prio[kind]);
-        c->waiting[kind] = 0;
-        c->root_count[kind] = 0;
-        c->cur_root[kind] = MESH_QMESH_NONE;
-        free(c->roots[kind]);
-        c->roots[kind] = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *c->roots[kind]);
-        if (!c->roots[kind]) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");
-        for (uint32_t t = 0; t < c->s->tri_count; ++t) {
-            uint32_t root = mesh_qmesh_root(m, t);
-            if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0)) c->roots[kind][c->root_count[kind]++] = root;
-        }
-        size_t count = 0;
-        r = mesh_qmesh_leaf_triangles(m, &c->leaf_buf, &c->leaf_cap, &count, err);
-        uint32_t last = MESH_QMESH_NONE;
-        for (size_t i = 0; r == LM_OK && i < count; ++i) {
-            uint32_t leaf = c->leaf_buf[i].leaf;
-            if (leaf == last) continue; /* a fan emits several triangles per leaf */
-            last = leaf;
-            const mesh_qnode *n = mesh_qmesh_node(m, leaf);
-            float p = pixels && pixels[n->tri] == 0 ? 0.0f : leaf_priority(c, m, (refine_kind)kind, n, pixels);
-            r = sched_add(c, (refine_kind)kind, leaf, p, err);
-        }
+    mesh_qmesh *m = cache_kind_mesh(c, kind);
+    c->q[kind].n = 0;
+    if (c->done[kind]) memset(c->done[kind], 0, c->done_cap[kind]);
+    if (c->prio[kind]) memset(c->prio[kind], 0, c->prio_cap[kind] * sizeof *c->prio[kind]);
+    c->waiting[kind] = 0;
+    c->root_count[kind] = 0;
+    c->cur_root[kind] = MESH_QMESH_NONE;
+    c->requeue[kind] = 0;
+    if (!m) return LM_OK;
+    free(c->roots[kind]);
+    c->roots[kind] = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *c->roots[kind]);
+    if (!c->roots[kind]) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");
+    for (uint32_t t = 0; t < c->s->tri_count; ++t) {
+        uint32_t root = mesh_qmesh_root(m, t);
+        if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0)) c->roots[kind][c->root_count[kind]++] = root;
     }
-    if (r == LM_OK) {
-        c->queues_seeded = 1;
-        c->requeue_leaves = 0;
+    size_t count = 0;
+    lm_result r = mesh_qmesh_leaf_triangles(m, &c->leaf_buf, &c->leaf_cap, &count, err);
+    uint32_t last = MESH_QMESH_NONE;
+    for (size_t i = 0; r == LM_OK && i < count; ++i) {
+        uint32_t leaf = c->leaf_buf[i].leaf;
+        if (leaf == last) continue; /* a fan emits several triangles per leaf */
+        last = leaf;
+        const mesh_qnode *n = mesh_qmesh_node(m, leaf);
+        float p = pixels && pixels[n->tri] == 0 ? 0.0f : leaf_priority(c, m, kind, n, pixels);
+        r = sched_add(c, kind, leaf, p, err);
     }
     return r;
 }
@@ -415,20 +421,26 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
     cache_refine_result res = {0};
     if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
     lm_result r = c->initialised ? LM_OK : cache_init(c, err);
-    if (r == LM_OK && (!c->queues_seeded || c->requeue_leaves)) r = schedule_all_leaves(c, desc->pixels, err);
+    for (int k = 0; r == LM_OK && k < CACHE_KINDS; ++k)
+        if (!c->queues_seeded || c->requeue[k]) r = schedule_leaves(c, (refine_kind)k, desc->pixels, err);
+    c->queues_seeded = 1;
     uint32_t budget = desc->budget ? desc->budget : 256;
-    /* Direct light first; indirect gets a quarter of the leaves (it is smoother
-     * and each of its samples costs more). */
-    uint32_t left[2] = {budget - budget / 4, budget / 4 ? budget / 4 : 1};
-    while (r == LM_OK && (left[0] || left[1])) {
-        int kind = left[0] && c->waiting[0] ? KIND_DIRECT : KIND_INDIRECT;
-        if (!left[kind] || !c->waiting[kind]) break;
+    /* Direct light first; indirect (smoother, dearer samples) and specular get a
+     * fifth of the leaves each; what a missing mesh would get goes to direct. */
+    uint32_t fifth = budget / 5 ? budget / 5 : 1;
+    uint32_t left[CACHE_KINDS] = {0, fifth, c->specular ? fifth : 0};
+    left[KIND_DIRECT] = budget > left[1] + left[2] ? budget - left[1] - left[2] : 1;
+    while (r == LM_OK) {
+        int kind = -1;
+        for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
+            if (left[k] && c->waiting[k]) kind = k;
+        if (kind < 0) break;
         uint32_t before = res.tested;
         r = refine_round(c, (refine_kind)kind, desc->pixels, left[kind], &res, err);
         uint32_t used = res.tested - before;
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
     }
-    res.remaining = (uint32_t)(c->waiting[0] + c->waiting[1]);
+    res.remaining = (uint32_t)(c->waiting[0] + c->waiting[1] + c->waiting[2]);
     if (out) *out = res;
     return r;
 }

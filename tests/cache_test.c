@@ -443,6 +443,99 @@ static void test_single_mesh(void)
     scene_destroy(s);
 }
 
+/* Eq. 6 at plane point p, by hand: Σ L·G(p)·(n+2)/(2π)·cosⁿα, α between the
+ * mirror of the direction to the light's centre and the direction to the eye. */
+static double specular_by_hand(const scene *s, const float p[3], const float eye[3], double n_exp)
+{
+    const float up[3] = {0, 1, 0};
+    const scene_area_light *L = &s->area_lights[0];
+    double G = samp_area_light_unoccluded(s, 0, p, up);
+    lm_dvec3 x = dv3(p[0], p[1], p[2]), wi = dv3_normalize(dv3_sub(dv3_load(L->centroid), x));
+    lm_dvec3 wo = dv3_normalize(dv3_sub(dv3_load(eye), x));
+    lm_dvec3 mirror = dv3(-wi.x, wi.y, -wi.z); /* about the normal (0, 1, 0) */
+    double cosa = dv3_dot(mirror, wo);
+    return cosa > 0.0 ? L->le[0] * G * (n_exp + 2.0) / (2.0 * M_PI) * pow(cosa, n_exp) : 0.0;
+}
+
+/* The specular mesh: none without gloss; over the glossy triangles only; it
+ * converges to eq. 6 within the JND; a camera move resets it alone. */
+static void test_specular(void)
+{
+    scene *matte = load("cache_matte.json", 0);
+    run u;
+    if (!matte || !start(&u, matte, 40000, 0)) return;
+    CHECK_MSG(cache_specular_mesh(u.c) == NULL, "a scene without ks > 0 must have no specular mesh");
+    stop(&u);
+    scene_destroy(matte);
+
+    char obj[1024], json[1024];
+    test_write_file("cache_gloss.obj", "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 4 3\nf 1 3 2\n", obj, sizeof obj);
+    test_write_file("cache_gloss.json",
+                    "{\"meshes\": [{\"file\": \"cache_gloss.obj\", \"material\": \"lacquer\"}],"
+                    " \"materials\": {\"lacquer\": {\"kd\": [0.3, 0.3, 0.3], \"ks\": [0.3, 0.3, 0.3], \"n\": 20}},"
+                    " \"lights\": [{\"type\": \"quad\", \"corner\": [-0.25, 1, -0.25], \"edge1\": [0.5, 0, 0],"
+                    " \"edge2\": [0, 0, 0.5], \"radiance\": [5, 5, 5]}],"
+                    " \"cameras\": [{\"position\": [1.5, 1.2, 0], \"target\": [0, 0, 0]}]}",
+                    json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    CHECK(scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err) == LM_OK);
+    if (!s || !start(&u, s, 40000, 0)) return;
+    CHECK(cache_specular_mesh(u.c) != NULL);
+    cache_refine_result tot;
+    const float eyes[2][3] = {{1.5f, 1.2f, 0.0f}, {-0.8f, 1.5f, 1.0f}};
+    for (int e = 0; e < 2; ++e) {
+        if (e == 1) {
+            cache_stats before, after;
+            cache_get_stats(u.c, &before);
+            CHECK(cache_set_camera(u.c, eyes[1], &err) == LM_OK);
+            cache_get_stats(u.c, &after);
+            printf("camera moved: specular mesh %u -> %u nodes, direct mesh %u -> %u nodes\n", before.specular.mesh.nodes,
+                   after.specular.mesh.nodes, before.direct.mesh.nodes, after.direct.mesh.nodes);
+            CHECK(after.specular.mesh.nodes == after.specular.mesh.roots);
+            CHECK(after.direct.mesh.nodes == before.direct.mesh.nodes);
+        }
+        CHECK(converge(&u, 400, &tot) == LM_OK && tot.remaining == 0);
+        ref_rng g;
+        ref_rng_seed(&g, 12, 0, 0);
+        double worst = 0.0, sum = 0.0;
+        int n = 0, above = 0;
+        for (int i = 0; i < 2000; ++i) {
+            uint32_t tri;
+            double w1, w2;
+            float p[3], ldd[3], lds[3], la[3], lb[3], da[3], db[3];
+            random_plane_point(&g, s, &tri, &w1, &w2, p);
+            CHECK(cache_eval_direct(u.c, tri, w1, w2, ldd, &err) == LM_OK);
+            CHECK(cache_eval_specular(u.c, tri, w1, w2, lds, &err) == LM_OK);
+            const float up[3] = {0, 1, 0};
+            double G = samp_area_light_unoccluded(s, 0, p, up);
+            float want = (float)(0.3 * 5.0 * G / M_PI + 0.3 * specular_by_hand(s, p, eyes[e], 20.0));
+            float got[3] = {0.3f * ldd[0] + 0.3f * lds[0], 0, 0}, ref[3] = {want, 0, 0};
+            got[1] = got[2] = got[0];
+            ref[1] = ref[2] = ref[0];
+            tm_desc tm = {0};
+            tm_to_display(&tm, got, da);
+            tm_to_display(&tm, ref, db);
+            tm_display_to_lab(da, la);
+            tm_display_to_lab(db, lb);
+            double de = tm_delta_e(la, lb);
+            worst = fmax(worst, de);
+            sum += de;
+            above += de > 2.0;
+            n++;
+        }
+        cache_stats st;
+        cache_get_stats(u.c, &st);
+        printf("specular, eye %d: %u leaves in the specular mesh, %llu values; against eq. 6 by hand: mean ΔE %.3f, "
+               "worst %.3f, %d of %d above the JND\n",
+               e, st.specular.mesh.leaves, (unsigned long long)st.specular.samples, sum / n, worst, above, n);
+        CHECK_MSG(above <= n / 100, "%d points beyond the JND", above);
+        CHECK_MSG(sum / n <= 0.3, "mean ΔE %.3f", sum / n);
+    }
+    stop(&u);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     test_lone_light();
@@ -451,5 +544,6 @@ int main(void)
     test_light_edit();
     test_random_scheduler();
     test_single_mesh();
+    test_specular();
     return test_finish("cache_test");
 }
