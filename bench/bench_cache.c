@@ -253,6 +253,19 @@ int main(int argc, char **argv)
         snprintf(name, sizeof name, "light %u", l);
         print_mesh(name, &st.lights[l]);
     }
+    /* A light edit: direct from the kept G (no sample), indirect gathered again. */
+    if (st.light_count) {
+        const float *le = s->area_light_count ? s->area_lights[0].le : s->point_lights[0].intensity;
+        const float half[3] = {0.5f * le[0], 0.5f * le[1], 0.5f * le[2]};
+        uint64_t ind0 = st.indirect.samples;
+        double te = lm_now_seconds();
+        if (cache_set_light(c, 0, half, &err) != LM_OK) fprintf(stderr, "%s\n", err.msg);
+        te = lm_now_seconds() - te;
+        cache_stats after;
+        cache_get_stats(c, &after);
+        printf("  light 0 halved: %.1f ms (direct from the kept G; %llu indirect vertices gathered again)\n", te * 1e3,
+               (unsigned long long)(after.indirect.samples - ind0));
+    }
     samp_get_stats(sp, &ss);
     printf("  sampler time: direct %.2f s for %llu samples, indirect %.2f s for %llu; total cache %.1f KiB\n",
            ss.direct_seconds, (unsigned long long)ss.direct_samples, ss.indirect_seconds,

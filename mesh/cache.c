@@ -315,6 +315,33 @@ lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, f
     return LM_OK;
 }
 
+/* After a light edit: every vertex of the indirect mesh gathered again from the
+ * rebuilt source, in batches (one-bounce indirect is linear in each light, but a
+ * per-light indirect mesh would multiply memory and samples by the number of
+ * lights for every refinement, for the rare edit; docs/cache.md has the numbers). */
+static lm_result regather_indirect(cache *c, lm_error *err)
+{
+    enum { BATCH = 4096 };
+    mesh_vtable_stats vs;
+    mesh_vtable_get_stats(c->vt, &vs);
+    lm_result r = cache_update_radiance_source(c, 1, err);
+    uint32_t *ids = malloc(BATCH * sizeof *ids);
+    float *E = malloc(3 * BATCH * sizeof *E), tmp[3];
+    if (r == LM_OK && (!ids || !E)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory re-gathering indirect light");
+    uint32_t n = 0;
+    for (uint32_t id = 0; r == LM_OK && id <= vs.id_limit; ++id) {
+        if (id < vs.id_limit && mesh_qmesh_get_value(c->indirect, id, tmp) == 1) ids[n++] = id;
+        if (n == BATCH || (id == vs.id_limit && n)) {
+            r = cache_sample_indirect(c, ids, n, E, err);
+            for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, ids[i], E + 3 * (size_t)i, err);
+            n = 0;
+        }
+    }
+    free(ids);
+    free(E);
+    return r;
+}
+
 void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3])
 {
     const scene *s = c->s;
@@ -358,7 +385,8 @@ lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_err
         lm_result r = mesh_qmesh_set_value(c->direct, id, rgb, err);
         if (r != LM_OK) return r;
     }
-    c->rm_stale = 1; /* the indirect source is stale (indirect itself is not re-gathered) */
+    lm_result rg = c->initialised ? regather_indirect(c, err) : LM_OK;
+    if (rg != LM_OK) return rg;
     /* What was below the JND may not be now (a shadow no longer masked by another
      * light): every leaf is tested again, without new light samples unless the
      * test splits it. */

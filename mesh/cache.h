@@ -35,8 +35,8 @@
  *
  * Threads: a cache, its meshes and its sampler belong to one thread (the
  * refinement worker); nothing here is thread safe.
- * Does NOT do: publishing to the display (cache_worker.h), re-gathering indirect
- * light after a light edit, the exact specular integral (eq. 5; the reference does).
+ * Does NOT do: publishing to the display (cache_worker.h), the exact specular
+ * integral (eq. 5; the reference renderer does).
  */
 #ifndef LUMESH_CACHE_H
 #define LUMESH_CACHE_H
@@ -111,9 +111,10 @@ lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2
 
 /* Changes light `light`'s radiance (area light, W·m⁻²·sr⁻¹) or intensity (point
  * light, W·sr⁻¹): the direct mesh is recomputed from the G_ℓ it keeps per vertex,
- * with no new sample (that is why G_ℓ is stored per light). The indirect mesh
- * keeps its values until refined again; its source is rebuilt at the next
- * indirect sample. */
+ * with no new light sample (that is why G_ℓ is stored per light); the indirect
+ * mesh is gathered again at its vertices from the updated source; the specular
+ * mesh is rebuilt from its roots (the light meshes answer without new samples
+ * where they are sure). */
 lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err);
 
 /* Priority of a node of the direct (0), indirect (1) or specular (2) mesh under the random

@@ -317,14 +317,16 @@ static void test_light_edit(void)
         for (int i = 0; i < 2000; ++i) {
             uint32_t tri;
             double w1, w2;
-            float p[3], ra[3], rb[3], la[3], lb[3], da[3], db[3];
+            float p[3], ra[3], rb[3], ia[3], ib[3], la[3], lb[3], da[3], db[3];
             random_plane_point(&g, both, &tri, &w1, &w2, p);
             CHECK(cache_eval_direct(a.c, tri, w1, w2, ra, &err) == LM_OK);
             CHECK(cache_eval_direct(b.c, tri, w1, w2, rb, &err) == LM_OK);
+            CHECK(cache_eval_indirect(a.c, tri, w1, w2, ia, &err) == LM_OK);
+            CHECK(cache_eval_indirect(b.c, tri, w1, w2, ib, &err) == LM_OK);
             tm_desc tm = {0};
-            for (int k = 0; k < 3; ++k) {
-                ra[k] *= KD;
-                rb[k] *= KD;
+            for (int k = 0; k < 3; ++k) { /* what the viewer sees: kd·(L_dd + E_i/π) */
+                ra[k] = KD * (ra[k] + ia[k] / (float)M_PI);
+                rb[k] = KD * (rb[k] + ib[k] / (float)M_PI);
             }
             tm_to_display(&tm, ra, da);
             tm_to_display(&tm, rb, db);
@@ -341,8 +343,10 @@ static void test_light_edit(void)
                pass == 0 ? "at once" : "after refinement resumed", sum / n, worst, above, n,
                pass == 0 ? "" : "");
         if (pass == 0) {
-            printf("  the edit took %.2f ms and no light sample (light samples %llu / %llu before and after)\n",
-                   t_edit * 1e3, (unsigned long long)s0, (unsigned long long)after.lights[0].samples);
+            printf("  the edit took %.2f ms (direct recomputed, %llu indirect vertices gathered again) and no light sample "
+                   "(light samples %llu / %llu before and after)\n",
+                   t_edit * 1e3, (unsigned long long)(after.indirect.samples - before.indirect.samples),
+                   (unsigned long long)s0, (unsigned long long)after.lights[0].samples);
             CHECK_MSG(above <= n / 20, "at once: %d points beyond the JND", above);
             cache_refine_result tr;
             CHECK(converge(&a, 400, &tr) == LM_OK);
