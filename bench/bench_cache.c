@@ -248,6 +248,7 @@ int main(int argc, char **argv)
     printf("  %-12s %9s %12s %9s %9s %10s\n", "mesh", "samples", "interpolated", "nodes", "leaves", "KiB");
     print_mesh("direct", &st.direct);
     print_mesh("indirect", &st.indirect);
+    if (cache_specular_mesh(c)) print_mesh("specular", &st.specular);
     for (uint32_t l = 0; l < st.light_count; ++l) {
         char name[32];
         snprintf(name, sizeof name, "light %u", l);
