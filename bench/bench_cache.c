@@ -122,7 +122,7 @@ static void compare_schedulers(const scene *s, samp_sampler *sp, rend_id *ip, co
     int n = make_probes(s, ip, pr, &err);
     printf("schedulers: direct error at %d visible points (mean ΔE against a 4096-ray Embree) against samples taken\n",
            n);
-    printf("  %-8s %10s %12s %12s %10s\n", "", "tested", "light samp.", "direct vals", "mean ΔE");
+    printf("  %-8s %10s %12s %12s %12s %10s\n", "", "tested", "light samp.", "indir. samp.", "direct vals", "mean ΔE");
     /* heap, random, and the single-mesh ablation (heap) */
     for (int sched = 0; sched < CACHE_SCHED_COUNT + 1; ++sched) {
         cache *c;
@@ -134,8 +134,8 @@ static void compare_schedulers(const scene *s, samp_sampler *sp, rend_id *ip, co
             return;
         }
         uint32_t tested = 0;
-        printf("  %-8s %10u %12s %12s %10.3f  (coarse cache)\n", single ? "single" : sched == CACHE_SCHED_HEAP ? "heap" : "random", 0, "",
-               "", probe_error(s, c, pr, n));
+        printf("  %-8s %10u %12s %12s %12s %10.3f  (coarse cache)\n",
+               single ? "single" : sched == CACHE_SCHED_HEAP ? "heap" : "random", 0, "", "", "", probe_error(s, c, pr, n));
         for (int step = 0; step < 40; ++step) {
             cache_refine_result res;
             if (cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = step < 8 ? 250 : 2000}, &res, &err) !=
@@ -147,9 +147,10 @@ static void compare_schedulers(const scene *s, samp_sampler *sp, rend_id *ip, co
                 cache_get_stats(c, &st);
                 uint64_t ls = 0;
                 for (uint32_t l = 0; l < st.light_count; ++l) ls += st.lights[l].samples;
-                printf("  %-8s %10u %12llu %12llu %10.3f%s\n",
+                printf("  %-8s %10u %12llu %12llu %12llu %10.3f%s\n",
                        single ? "single" : sched == CACHE_SCHED_HEAP ? "heap" : "random", tested,
-                       (unsigned long long)ls, (unsigned long long)st.direct.samples, probe_error(s, c, pr, n),
+                       (unsigned long long)ls, (unsigned long long)st.indirect.samples,
+                       (unsigned long long)st.direct.samples, probe_error(s, c, pr, n),
                        res.remaining == 0 ? "  (converged)" : "");
             }
             if (res.remaining == 0) break;

@@ -73,9 +73,10 @@ typedef struct cache_desc {
     uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
     cache_scheduler scheduler;
     uint32_t seed;            /* the random scheduler's picks */
-    int single_mesh;          /* ablation: no per-light meshes; every new radiance vertex samples
-                                 every light afresh, as one combined shading cache would
-                                 (Tole et al. 2002). Indirect keeps its own mesh. */
+    int single_mesh;          /* ablation: one combined radiance mesh (Tole et al. 2002): no
+                                 per-light meshes (every new vertex samples every light), and
+                                 indirect gathered at every new vertex, split for split with
+                                 direct, judged together by one edge test */
 } cache_desc;
 
 typedef struct cache cache;

@@ -117,6 +117,16 @@ static void seen_lab(const cache *c, refine_kind kind, uint32_t tri, double w1, 
     tm_display_to_lab(disp, lab);
 }
 
+/* The same with L_dd and E_i given (the single-mesh ablation's combined test). */
+static void seen_lab_of(const cache *c, uint32_t tri, const float ldd[3], const float ei[3], float lab[3])
+{
+    const scene_material *m = &c->s->materials[c->s->tris[tri].material];
+    float rgb[3], disp[3];
+    for (int k = 0; k < 3; ++k) rgb[k] = m->le[k] + m->kd[k] * (ldd[k] + ei[k] * (float)(1.0 / M_PI));
+    tm_to_display(&c->tm, rgb, disp);
+    tm_display_to_lab(disp, lab);
+}
+
 static float leaf_pixels(const uint32_t *pixels, const mesh_qnode *n)
 {
     float p = pixels ? (float)pixels[n->tri] : 1e6f;
@@ -262,6 +272,7 @@ float cache_node_priority(const cache *c, int mesh, uint32_t node)
 
 typedef struct round_leaf {
     uint32_t node;
+    uint32_t mirror;            /* single mesh: the indirect node split along with it */
     uint32_t mid[3];            /* vtable ids of the midpoints of edges 01, 12, 20 */
     double mw1[3], mw2[3];      /* their barycentrics */
 } round_leaf;
@@ -303,6 +314,16 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         const mesh_qnode *centre = mesh_qmesh_node(m, n->child + 3); /* (m01, m12, m20) */
         round_leaf *rl = &leaves[nl++];
         rl->node = node;
+        rl->mirror = MESH_QMESH_NONE;
+        if (kind == KIND_DIRECT && c->desc.single_mesh) {
+            /* One combined mesh: the indirect mesh follows the direct one split for
+             * split (same addresses, so the same vertices). */
+            double cx = (cw1[0] + cw1[1] + cw1[2]) / 3.0, cy = (cw2[0] + cw2[1] + cw2[2]) / 3.0;
+            uint32_t mir = cache_find_leaf(c->indirect, n->tri, cx, cy);
+            if (mir != MESH_QMESH_NONE && mesh_qmesh_node(c->indirect, mir)->depth == n->depth &&
+                mesh_qmesh_split(c->indirect, mir, err) == LM_OK)
+                rl->mirror = mir;
+        }
         for (int k = 0; k < 3; ++k) {
             rl->mid[k] = centre->v[k];
             rl->mw1[k] = 0.5 * (cw1[k] + cw1[(k + 1) % 3]);
@@ -340,6 +361,21 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 cache_specular_from_visibility(c, sites[i].vid, Vi, vals + 3 * (size_t)i);
         }
         if (r == LM_OK) (kind == KIND_DIRECT ? &c->direct_stats : &c->specular_stats)->samples += ns;
+        if (r == LM_OK && kind == KIND_DIRECT && c->desc.single_mesh) {
+            /* The combined mesh gathers indirect light at every new vertex. */
+            float *E = malloc(3 * (size_t)(ns ? ns : 1) * sizeof *E);
+            uint32_t *need = malloc((ns ? ns : 1) * sizeof *need), nn = 0;
+            float tmp[3];
+            for (uint32_t i = 0; i < ns && need; ++i)
+                if (mesh_qmesh_vertex_use(c->indirect, vids[i]) && mesh_qmesh_get_value(c->indirect, vids[i], tmp) != 1)
+                    need[nn++] = vids[i];
+            r = E && need ? cache_sample_indirect(c, need, nn, E, err)
+                          : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
+            for (uint32_t i = 0; r == LM_OK && i < nn; ++i)
+                r = mesh_qmesh_set_value(c->indirect, need[i], E + 3 * (size_t)i, err);
+            free(E);
+            free(need);
+        }
     } else if (r == LM_OK) {
         r = cache_sample_indirect(c, vids, ns, vals, err);
     }
@@ -354,14 +390,27 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         uint32_t tri = n->tri, corner[3] = {n->v[0], n->v[1], n->v[2]}, child = n->child;
         float px = leaf_pixels(pixels, n);
         int found = 0;
+        int combined = leaves[i].mirror != MESH_QMESH_NONE;
         for (int k = 0; k < 3 && !found; ++k) {
             float a[3], b[3], fresh[3], interp[3], lf[3], li[3];
             mesh_qmesh_get_value(m, corner[k], a);
             mesh_qmesh_get_value(m, corner[(k + 1) % 3], b);
             mesh_qmesh_get_value(m, leaves[i].mid[k], fresh);
             for (int ch = 0; ch < 3; ++ch) interp[ch] = 0.5f * (a[ch] + b[ch]);
-            seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
-            seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
+            if (combined) {
+                /* One mesh holds everything: fresh direct and indirect against both
+                 * interpolated from the edge's ends. */
+                float ea[3], eb[3], ef[3], ei[3];
+                mesh_qmesh_get_value(c->indirect, corner[k], ea);
+                mesh_qmesh_get_value(c->indirect, corner[(k + 1) % 3], eb);
+                mesh_qmesh_get_value(c->indirect, leaves[i].mid[k], ef);
+                for (int ch = 0; ch < 3; ++ch) ei[ch] = 0.5f * (ea[ch] + eb[ch]);
+                seen_lab_of(c, tri, fresh, ef, lf);
+                seen_lab_of(c, tri, interp, ei, li);
+            } else {
+                seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
+                seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
+            }
             found = tm_delta_e(lf, li) > c->desc.jnd;
         }
         res->tested++;
@@ -373,6 +422,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             }
         } else {
             r = mesh_qmesh_merge(m, leaves[i].node, err);
+            if (r == LM_OK && combined) r = mesh_qmesh_merge(c->indirect, leaves[i].mirror, err);
             if (r == LM_OK) r = sched_done(c, kind, leaves[i].node, err);
             res->undone++;
             c->undone++;
@@ -394,7 +444,7 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
     c->root_count[kind] = 0;
     c->cur_root[kind] = MESH_QMESH_NONE;
     c->requeue[kind] = 0;
-    if (!m) return LM_OK;
+    if (!m || (kind == KIND_INDIRECT && c->desc.single_mesh)) return LM_OK; /* single mesh: it follows direct */
     free(c->roots[kind]);
     c->roots[kind] = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *c->roots[kind]);
     if (!c->roots[kind]) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");

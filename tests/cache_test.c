@@ -435,10 +435,12 @@ static void test_single_mesh(void)
         lab_of(b[0], lb);
         worst = fmax(worst, tm_delta_e(la, lb));
     }
-    printf("single-mesh ablation: %llu light samples (multi-mesh %llu) for %llu / %llu radiance values; worst ΔE "
-           "between the two caches %.3f\n",
-           (unsigned long long)ss.lights[0].samples, (unsigned long long)sm.lights[0].samples,
+    printf("single-mesh ablation: %llu light + %llu indirect samples (multi-mesh %llu + %llu) for %llu / %llu radiance "
+           "values; worst ΔE between the two caches %.3f\n",
+           (unsigned long long)ss.lights[0].samples, (unsigned long long)ss.indirect.samples,
+           (unsigned long long)sm.lights[0].samples, (unsigned long long)sm.indirect.samples,
            (unsigned long long)ss.direct.samples, (unsigned long long)sm.direct.samples, worst);
+    CHECK_MSG(ss.indirect.samples > 2 * sm.indirect.samples, "the combined mesh gathers at every vertex");
     CHECK(ss.lights[0].samples >= ss.direct.samples); /* every radiance value sampled the light */
     CHECK_MSG(sm.lights[0].samples * 2 < ss.lights[0].samples, "multi-mesh should need far fewer light samples");
     CHECK_MSG(worst <= 4.0, "the two caches differ by ΔE %.3f", worst);
