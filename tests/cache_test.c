@@ -542,6 +542,74 @@ static void test_specular(void)
     scene_destroy(s);
 }
 
+/* Closed form for the indirect pipeline: a point light of intensity I at the
+ * centre of a closed sphere of radius R and albedo ρ. At every point
+ * L_dd = I/(πR²) per unit albedo and the one-bounce E_i = ρ·I/R², so the pixel is
+ * ρ·I/(πR²)·(1 + ρ) (the reference renderer's closed form). The icosphere's flat
+ * facets move both by at most a known relative bound (test_write_icosphere). */
+static void test_sphere_indirect(void)
+{
+    const double R = 2.0, rho = 0.5, I = 3.0;
+    char obj[1024], json[1024], text[1024];
+    snprintf(obj, sizeof obj, "%s/cache_sphere.obj", LUMESH_TMP_DIR);
+    double bias = test_write_icosphere(3, R, obj);
+    snprintf(text, sizeof text,
+             "{\"meshes\": [{\"file\": \"cache_sphere.obj\", \"material\": \"grey\"}],"
+             " \"materials\": {\"grey\": {\"kd\": [%g, %g, %g]}},"
+             " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [%g, %g, %g]}],"
+             " \"cameras\": [{\"position\": [0, 0, 0], \"target\": [1, 0, 0]}]}",
+             rho, rho, rho, I, I, I);
+    test_write_file("cache_sphere.json", text, json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    CHECK(scene_load(&(scene_load_desc){.path = json, .crease_angle_deg = 0.01f}, &s, &err) == LM_OK);
+    if (!s) return;
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 1024}, &sp, &err) ==
+          LM_OK);
+    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
+    uint32_t *pixels = malloc(s->tri_count * sizeof *pixels);
+    for (uint32_t t = 0; t < s->tri_count; ++t) pixels[t] = 64;
+    cache_refine_result res = {0};
+    for (int i = 0; i < 50 && c; ++i) {
+        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 4096}, &res, &err) == LM_OK);
+        if (res.remaining == 0) break;
+    }
+    ref_rng g;
+    ref_rng_seed(&g, 8, 0, 0);
+    double ldd_want = I / (M_PI * R * R), ei_want = rho * I / (R * R), worst_ldd = 0.0, worst_ei = 0.0, mean_ei = 0.0;
+    const int N = 2000;
+    for (int i = 0; i < N && c; ++i) {
+        uint32_t tri = (uint32_t)(ref_rng_float(&g) * s->tri_count) % s->tri_count;
+        double u = ref_rng_float(&g), v = ref_rng_float(&g);
+        if (u + v > 1.0) {
+            u = 1.0 - u;
+            v = 1.0 - v;
+        }
+        float ldd[3], ei[3];
+        CHECK(cache_eval_direct(c, tri, u, v, ldd, &err) == LM_OK);
+        CHECK(cache_eval_indirect(c, tri, u, v, ei, &err) == LM_OK);
+        worst_ldd = fmax(worst_ldd, fabs(ldd[0] - ldd_want) / ldd_want);
+        worst_ei = fmax(worst_ei, fabs(ei[0] - ei_want) / ei_want);
+        mean_ei += ei[0] / N;
+    }
+    cache_stats st;
+    if (c) cache_get_stats(c, &st);
+    printf("sphere, point light at the centre (%u facets, facet bias bound %.2e): L_dd worst relative error %.2e, E_i "
+           "worst %.2e, mean E_i %.5f (closed form %.5f); %llu indirect samples\n",
+           s->tri_count, bias, worst_ldd, worst_ei, mean_ei, ei_want,
+           c ? (unsigned long long)st.indirect.samples : 0ull);
+    CHECK(res.remaining == 0);
+    CHECK_MSG(worst_ldd <= bias + 1e-5, "L_dd off by %.3e", worst_ldd);
+    CHECK_MSG(worst_ei <= bias + 0.02, "E_i off by %.3e", worst_ei);
+    CHECK_MSG(fabs(mean_ei - ei_want) / ei_want <= bias + 0.005, "mean E_i %.5f vs %.5f", mean_ei, ei_want);
+    free(pixels);
+    cache_destroy(c);
+    samp_destroy(sp);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     test_lone_light();
@@ -551,5 +619,6 @@ int main(void)
     test_random_scheduler();
     test_single_mesh();
     test_specular();
+    test_sphere_indirect();
     return test_finish("cache_test");
 }

@@ -29,84 +29,11 @@ enum { W = 16, H = 16 };
 #define INTENSITY 3.0
 #define RADIUS 2.0
 
-/* Icosphere of the given subdivision level, faces wound to face the centre. */
-static double write_icosphere(int level, char *path, size_t n)
-{
-    int cap_v = 12 * (1 << (2 * level)) * 4 + 64, cap_f = 20 * (1 << (2 * level));
-    double (*v)[3] = malloc((size_t)cap_v * sizeof *v);
-    int (*f)[3] = malloc((size_t)cap_f * sizeof *f), (*g)[3] = malloc((size_t)cap_f * sizeof *g);
-    const double t = (1.0 + sqrt(5.0)) / 2.0;
-    const double base[12][3] = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
-                                {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
-    const int faces[20][3] = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
-                              {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
-                              {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
-    int nv = 12, nf = 20;
-    for (int i = 0; i < 12; ++i) {
-        double l = sqrt(base[i][0] * base[i][0] + base[i][1] * base[i][1] + base[i][2] * base[i][2]);
-        for (int k = 0; k < 3; ++k) v[i][k] = base[i][k] / l;
-    }
-    memcpy(f, faces, sizeof faces);
-    for (int lv = 0; lv < level; ++lv) {
-        int ng = 0;
-        for (int i = 0; i < nf; ++i) {
-            int m[3];
-            for (int e = 0; e < 3; ++e) {
-                int a = f[i][e], b = f[i][(e + 1) % 3];
-                double p[3], l = 0;
-                for (int k = 0; k < 3; ++k) {
-                    p[k] = v[a][k] + v[b][k];
-                    l += p[k] * p[k];
-                }
-                l = sqrt(l);
-                /* a new vertex per face edge: both faces compute the same sum,
-                 * so the loader's exact welding joins them */
-                if (nv >= cap_v) {
-                    cap_v *= 2;
-                    v = realloc(v, (size_t)cap_v * sizeof *v);
-                }
-                for (int k = 0; k < 3; ++k) v[nv][k] = p[k] / l;
-                int found = nv++;
-                m[e] = found;
-            }
-            int tri[4][3] = {{f[i][0], m[0], m[2]}, {f[i][1], m[1], m[0]}, {f[i][2], m[2], m[1]}, {m[0], m[1], m[2]}};
-            memcpy(g[ng], tri, sizeof tri);
-            ng += 4;
-        }
-        nf = ng;
-        int(*tmp)[3] = f;
-        f = g;
-        g = tmp;
-    }
-    FILE *out = fopen(path, "w");
-    double dmin = 1.0;
-    if (out) {
-        for (int i = 0; i < nv; ++i) fprintf(out, "v %.17g %.17g %.17g\n", RADIUS * v[i][0], RADIUS * v[i][1], RADIUS * v[i][2]);
-        for (int i = 0; i < nf; ++i) {
-            /* outward winding is (0,1,2): write (0,2,1) to face the centre */
-            fprintf(out, "f %d %d %d\n", f[i][0] + 1, f[i][2] + 1, f[i][1] + 1);
-            lm_dvec3 a = dv3(v[f[i][0]][0], v[f[i][0]][1], v[f[i][0]][2]);
-            lm_dvec3 b = dv3(v[f[i][1]][0], v[f[i][1]][1], v[f[i][1]][2]);
-            lm_dvec3 c = dv3(v[f[i][2]][0], v[f[i][2]][1], v[f[i][2]][2]);
-            lm_dvec3 nrm = dv3_normalize(dv3_cross(dv3_sub(b, a), dv3_sub(c, a)));
-            double d = fabs(dv3_dot(nrm, a));
-            if (d < dmin) dmin = d;
-        }
-        fclose(out);
-    }
-    CHECK_MSG(out != NULL, "cannot write %s", path);
-    (void)n;
-    free(v);
-    free(f);
-    free(g);
-    return 1.0 / (dmin * dmin) - 1.0; /* relative bias bound (R/d)² − 1 */
-}
-
 static scene *load_sphere_scene(double *bias)
 {
     char obj[1024], json[1024], text[1024];
     snprintf(obj, sizeof obj, "%s/icosphere.obj", LUMESH_TMP_DIR);
-    *bias = write_icosphere(5, obj, sizeof obj);
+    *bias = test_write_icosphere(5, RADIUS, obj);
     snprintf(text, sizeof text,
              "{\"meshes\": [{\"file\": \"icosphere.obj\", \"material\": \"grey\"}],"
              " \"materials\": {\"grey\": {\"kd\": [%g, %g, %g]}},"

@@ -46,6 +46,12 @@ extern int test_checks;
  * full path into path_out. A failure to write is a failed check. */
 void test_write_file(const char *name, const char *text, char *path_out, size_t n);
 
+/* Writes an OBJ icosphere of radius `radius` about the origin, `level` times
+ * subdivided (20·4^level faces), wound to face the centre. Returns the relative
+ * bound (R/d)² − 1 on how far the irradiance I·cosθ/r² from a point light at the
+ * centre departs from I/R² on its facets (d: the smallest facet-plane distance). */
+double test_write_icosphere(int level, double radius, const char *path);
+
 /* Prints a summary and returns the process exit code. */
 int test_finish(const char *name);
 
