@@ -319,21 +319,32 @@ lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, f
  * rebuilt source, in batches (one-bounce indirect is linear in each light, but a
  * per-light indirect mesh would multiply memory and samples by the number of
  * lights for every refinement, for the rare edit; docs/cache.md has the numbers). */
+static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err);
+static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
+
 static lm_result regather_indirect(cache *c, lm_error *err)
+{
+    c->rm_stale = 1;
+    lm_result r = c->indirect1 ? regather_mesh(c, c->indirect1, 1, err) : LM_OK;
+    c->rm_stale = 1;
+    return r == LM_OK ? regather_mesh(c, c->indirect, 0, err) : r;
+}
+
+static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err)
 {
     enum { BATCH = 4096 };
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
-    lm_result r = cache_update_radiance_source(c, 1, err);
+    lm_result r = cache_update_radiance_source(c, 1, !first_bounce, err);
     uint32_t *ids = malloc(BATCH * sizeof *ids);
     float *E = malloc(3 * BATCH * sizeof *E), tmp[3];
     if (r == LM_OK && (!ids || !E)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory re-gathering indirect light");
     uint32_t n = 0;
     for (uint32_t id = 0; r == LM_OK && id <= vs.id_limit; ++id) {
-        if (id < vs.id_limit && mesh_qmesh_get_value(c->indirect, id, tmp) == 1) ids[n++] = id;
+        if (id < vs.id_limit && mesh_qmesh_get_value(m, id, tmp) == 1) ids[n++] = id;
         if (n == BATCH || (id == vs.id_limit && n)) {
-            r = cache_sample_indirect(c, ids, n, E, err);
-            for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, ids[i], E + 3 * (size_t)i, err);
+            r = gather(c, first_bounce, ids, n, E, err);
+            for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(m, ids[i], E + 3 * (size_t)i, err);
             n = 0;
         }
     }
@@ -436,12 +447,15 @@ static lm_result collect_source(cache *c, uint32_t node, uint32_t cut, size_t *c
     return LM_OK;
 }
 
-lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
+lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err)
 {
     mesh_qmesh_stats st;
     mesh_qmesh_get_stats(c->direct, &st);
     uint64_t changes = st.splits + st.merges;
-    if (!force && !c->rm_stale && c->rmesh.first && changes - c->rm_built_at < CACHE_RMESH_STALE) return LM_OK;
+    with_e1 = with_e1 && c->indirect1;
+    if (!force && !c->rm_stale && c->rmesh.first && c->rm_with_e1 == with_e1 &&
+        changes - c->rm_built_at < CACHE_RMESH_STALE)
+        return LM_OK;
     const scene *s = c->s;
     uint32_t cut = 0; /* deepest level with at most CACHE_RMESH_TRIANGLES nodes in a full tree */
     while (cut < MESH_DEPTH_MAX && ((uint64_t)st.roots << (2 * (cut + 1))) <= CACHE_RMESH_TRIANGLES) cut++;
@@ -480,7 +494,11 @@ lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
             c->rm_bary[6 * (size_t)at + 2 * (size_t)k + 1] = (float)(lt->bary[k].w[2] * scale);
             float L[3], Ei[3] = {0, 0, 0};
             mesh_qmesh_get_value(c->direct, lt->v[k], L);
-            if (c->desc.bounces >= 2 && mesh_qmesh_get_value(c->indirect, lt->v[k], Ei) < 0) Ei[0] = Ei[1] = Ei[2] = 0;
+            lm_error ignore;
+            if (with_e1 && mesh_qmesh_root(c->indirect1, lt->tri) != MESH_QMESH_NONE &&
+                mesh_qmesh_interpolate(c->indirect1, lt->tri, lt->bary[k].w[1] * scale, lt->bary[k].w[2] * scale, Ei,
+                                       &ignore) != LM_OK)
+                Ei[0] = Ei[1] = Ei[2] = 0;
             for (int ch = 0; ch < 3; ++ch)
                 c->rm_rad[9 * (size_t)at + 3 * (size_t)k + (size_t)ch] =
                     kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
@@ -491,13 +509,15 @@ lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
                                     .radiance = c->rm_rad};
     c->rm_built_at = changes;
     c->rm_stale = 0;
+    c->rm_with_e1 = with_e1;
     return LM_OK;
 }
 
-lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+/* E from the source kind asked (first: kd·L_dd; else the displayed indirect's). */
+static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
 {
     if (n == 0) return LM_OK;
-    lm_result r = cache_update_radiance_source(c, 0, err);
+    lm_result r = cache_update_radiance_source(c, 0, !first_bounce, err);
     if (r != LM_OK) return r;
     samp_point *pts = malloc(n * sizeof *pts);
     if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
@@ -506,6 +526,11 @@ lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, floa
     free(pts);
     if (r == LM_OK) c->indirect_stats.samples += n;
     return r;
+}
+
+lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+{
+    return gather(c, 0, vids, n, E, err);
 }
 
 /* ---- create, init, destroy ---------------------------------------------------- */
@@ -518,6 +543,7 @@ void cache_destroy(cache *c)
     mesh_qmesh_destroy(c->direct);
     mesh_qmesh_destroy(c->indirect);
     mesh_qmesh_destroy(c->specular);
+    mesh_qmesh_destroy(c->indirect1);
     mesh_vtable_destroy(c->vt);
     free(c->light);
     free(c->light_stats);
@@ -579,6 +605,9 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     if (r == LM_OK)
         r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
                               &c->indirect, err);
+    if (r == LM_OK && c->desc.bounces >= 2)
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
+                              &c->indirect1, err);
     uint32_t glossy = 0;
     for (uint32_t t = 0; r == LM_OK && t < c->s->tri_count; ++t) glossy += has_gloss(c->s, t, NULL) != 0;
     if (r == LM_OK && glossy) /* model only what the scene needs: no gloss, no mesh */
@@ -686,8 +715,21 @@ lm_result cache_init(cache *c, lm_error *err)
     }
     if (r == LM_OK) r = sample_roots(c, CACHE_KIND_DIRECT, err);
     if (r == LM_OK && c->specular) r = sample_roots(c, CACHE_KIND_SPECULAR, err);
-    /* Indirect: gathered from the coarse direct mesh just made (§5). */
-    if (r == LM_OK) r = cache_update_radiance_source(c, 1, err);
+    /* Indirect: gathered from the coarse direct mesh just made (§5); with two
+     * bounces the first bounce at the coarse vertices first, then the second
+     * from kd·(L_dd + E_1/π). */
+    if (r == LM_OK && c->indirect1) {
+        r = root_vertices(c, c->indirect1, &v, &n, err);
+        float *E1 = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E1) : NULL;
+        if (r == LM_OK && !E1) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
+        if (r == LM_OK) r = gather(c, 1, v, n, E1, err);
+        for (uint32_t i = 0; r == LM_OK && i < n; ++i)
+            r = mesh_qmesh_set_value(c->indirect1, v[i], E1 + 3 * (size_t)i, err);
+        free(E1);
+        free(v);
+        v = NULL;
+    }
+    if (r == LM_OK) r = cache_update_radiance_source(c, 1, 1, err);
     if (r == LM_OK) r = root_vertices(c, c->indirect, &v, &n, err);
     float *E = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E) : NULL;
     if (r == LM_OK && !E) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");

@@ -48,6 +48,8 @@ struct cache {
     mesh_qmesh **light;        /* per light, NULL when no triangle can see it */
     mesh_qmesh *direct, *indirect;
     mesh_qmesh *specular;      /* NULL when no material has ks > 0 */
+    mesh_qmesh *indirect1;     /* bounces = 2: the first bounce E_1 at the coarse vertices (roots only),
+                                  the source of the second; NULL otherwise */
     float eye[3];              /* the specular mesh's viewpoint, scene units */
     cache_mesh_stats *light_stats;
     cache_mesh_stats direct_stats, indirect_stats, specular_stats; /* .mesh filled by cache_get_stats */
@@ -67,6 +69,7 @@ struct cache {
     size_t rm_cap;             /* triangles allocated */
     uint64_t rm_built_at;      /* direct mesh splits+merges when last built */
     int rm_stale;              /* rebuild before the next indirect sample (a light changed) */
+    int rm_with_e1;            /* the source holds kd·(L_dd + E_1/π) (bounces = 2), not kd·L_dd */
     mesh_qmesh_tri *leaf_buf;
     size_t leaf_cap;
 
@@ -105,10 +108,12 @@ void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V
 /* The mesh of a kind (NULL: the scene has none). */
 mesh_qmesh *cache_kind_mesh(const cache *c, cache_kind kind);
 
-/* Samples E_i at the given vertices (batched) from the current radiance source. */
+/* Samples E_i at the given vertices (batched): gathered from kd·L_dd, and with
+ * bounces = 2 from kd·(L_dd + E_1/π), E_1 the first bounce (c->indirect1). */
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
-/* Rebuilds the radiance source from the direct mesh when it is stale. */
-lm_result cache_update_radiance_source(cache *c, int force, lm_error *err);
+/* Rebuilds the radiance source from the direct mesh when it is stale or holds the
+ * other kind (with_e1: kd·(L_dd + E_1/π), else kd·L_dd). */
+lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err);
 
 /* Leaf lookup: the leaf of mesh m holding barycentric (w1, w2) of scene triangle tri. */
 uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2);

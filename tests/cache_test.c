@@ -545,9 +545,10 @@ static void test_specular(void)
 /* Closed form for the indirect pipeline: a point light of intensity I at the
  * centre of a closed sphere of radius R and albedo ρ. At every point
  * L_dd = I/(πR²) per unit albedo and the one-bounce E_i = ρ·I/R², so the pixel is
- * ρ·I/(πR²)·(1 + ρ) (the reference renderer's closed form). The icosphere's flat
+ * ρ·I/(πR²)·(1 + ρ) (the reference renderer's closed form). With two bounces
+ * E_i = ρ·I/R²·(1 + ρ) and the pixel ρ·I/(πR²)·(1 + ρ + ρ²). The icosphere's flat
  * facets move both by at most a known relative bound (test_write_icosphere). */
-static void test_sphere_indirect(void)
+static void test_sphere_indirect(int bounces)
 {
     const double R = 2.0, rho = 0.5, I = 3.0;
     char obj[1024], json[1024], text[1024];
@@ -568,7 +569,7 @@ static void test_sphere_indirect(void)
     cache *c = NULL;
     CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 1024}, &sp, &err) ==
           LM_OK);
-    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
+    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp, .bounces = bounces}, &c, &err) == LM_OK);
     uint32_t *pixels = malloc(s->tri_count * sizeof *pixels);
     for (uint32_t t = 0; t < s->tri_count; ++t) pixels[t] = 64;
     cache_refine_result res = {0};
@@ -578,7 +579,8 @@ static void test_sphere_indirect(void)
     }
     ref_rng g;
     ref_rng_seed(&g, 8, 0, 0);
-    double ldd_want = I / (M_PI * R * R), ei_want = rho * I / (R * R), worst_ldd = 0.0, worst_ei = 0.0, mean_ei = 0.0;
+    double ldd_want = I / (M_PI * R * R), ei_want = rho * I / (R * R) * (bounces == 2 ? 1.0 + rho : 1.0);
+    double worst_ldd = 0.0, worst_ei = 0.0, mean_ei = 0.0;
     const int N = 2000;
     for (int i = 0; i < N && c; ++i) {
         uint32_t tri = (uint32_t)(ref_rng_float(&g) * s->tri_count) % s->tri_count;
@@ -596,9 +598,9 @@ static void test_sphere_indirect(void)
     }
     cache_stats st;
     if (c) cache_get_stats(c, &st);
-    printf("sphere, point light at the centre (%u facets, facet bias bound %.2e): L_dd worst relative error %.2e, E_i "
-           "worst %.2e, mean E_i %.5f (closed form %.5f); %llu indirect samples\n",
-           s->tri_count, bias, worst_ldd, worst_ei, mean_ei, ei_want,
+    printf("sphere, point light at the centre, %d bounce%s (%u facets, facet bias bound %.2e): L_dd worst relative "
+           "error %.2e, E_i worst %.2e, mean E_i %.5f (closed form %.5f); %llu indirect samples\n",
+           bounces, bounces == 2 ? "s" : "", s->tri_count, bias, worst_ldd, worst_ei, mean_ei, ei_want,
            c ? (unsigned long long)st.indirect.samples : 0ull);
     CHECK(res.remaining == 0);
     CHECK_MSG(worst_ldd <= bias + 1e-5, "L_dd off by %.3e", worst_ldd);
@@ -619,6 +621,7 @@ int main(void)
     test_random_scheduler();
     test_single_mesh();
     test_specular();
-    test_sphere_indirect();
+    test_sphere_indirect(1);
+    test_sphere_indirect(2);
     return test_finish("cache_test");
 }
