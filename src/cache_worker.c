@@ -18,9 +18,9 @@ typedef struct light_edit {
 /* Buffers behind one snapshot; owned by whichever side holds the slot. */
 typedef struct snapshot_store {
     cache_snapshot snap;
-    cache_snapshot_vertex *verts[2];
-    uint32_t *tris[2];
-    size_t cap[2];                    /* triangles */
+    cache_snapshot_vertex *verts[3];  /* direct, indirect, specular */
+    uint32_t *tris[3];
+    size_t cap[3];                    /* triangles */
     cache_mesh_stats *lights;
     size_t lights_cap;
 } snapshot_store;
@@ -66,7 +66,7 @@ static lm_result fill_mesh(snapshot_store *st, int which, const cache *c, const 
             if (mesh_qmesh_get_value(m, (*buf)[i].v[k], out->value) < 0) memset(out->value, 0, sizeof out->value);
         }
     }
-    cache_snapshot_mesh *sm = which == 0 ? &st->snap.direct : &st->snap.indirect;
+    cache_snapshot_mesh *sm = which == 0 ? &st->snap.direct : which == 1 ? &st->snap.indirect : &st->snap.specular;
     *sm = (cache_snapshot_mesh){.vertices = st->verts[which], .tri = st->tris[which], .triangle_count = (uint32_t)count};
     return LM_OK;
 }
@@ -76,6 +76,8 @@ static lm_result fill_snapshot(snapshot_store *st, cache *c, uint64_t generation
 {
     lm_result r = fill_mesh(st, 0, c, cache_direct_mesh(c), buf, buf_cap, err);
     if (r == LM_OK) r = fill_mesh(st, 1, c, cache_indirect_mesh(c), buf, buf_cap, err);
+    if (r == LM_OK && cache_specular_mesh(c)) r = fill_mesh(st, 2, c, cache_specular_mesh(c), buf, buf_cap, err);
+    if (!cache_specular_mesh(c)) st->snap.specular = (cache_snapshot_mesh){0};
     if (r != LM_OK) return r;
     cache_get_stats(c, &st->snap.stats);
     if (st->snap.stats.light_count > st->lights_cap) {
@@ -203,7 +205,7 @@ static void *worker_main(void *arg)
 static void store_free(snapshot_store *st)
 {
     if (!st) return;
-    for (int k = 0; k < 2; ++k) {
+    for (int k = 0; k < 3; ++k) {
         free(st->verts[k]);
         free(st->tris[k]);
     }

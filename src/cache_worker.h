@@ -50,7 +50,7 @@ typedef struct cache_worker_desc {
 /* One corner of a published triangle. */
 typedef struct cache_snapshot_vertex {
     float position[3];           /* scene units */
-    float value[3];              /* direct: L_dd per unit albedo; indirect: E_i (W·m⁻²) */
+    float value[3];              /* direct: L_dd per unit albedo; indirect: E_i (W·m⁻²); specular: L_ds per unit ks */
 } cache_snapshot_vertex;
 
 typedef struct cache_snapshot_mesh {
@@ -61,7 +61,7 @@ typedef struct cache_snapshot_mesh {
 
 typedef struct cache_snapshot {
     uint64_t generation;         /* 1, 2, ... per commit */
-    cache_snapshot_mesh direct, indirect;
+    cache_snapshot_mesh direct, indirect, specular; /* specular: empty without glossy materials */
     cache_stats stats;           /* stats.lights points into the snapshot */
     uint64_t tested;             /* leaves tested so far */
     int converged;               /* nothing was left to test when it was made */

@@ -10,6 +10,7 @@
 #include "qmesh.h"
 #include "reference.h"
 #include "rend_camera.h"
+#include "rend_frame.h"
 #include "rend_id.h"
 #include "rt_scene.h"
 #include "samp.h"
