@@ -38,7 +38,12 @@ lumesh_cli_test(info_builtin 0 ARGS info
   OUT "builtin:/cornell-box.json.*triangles   38 .*lights      1 \\(1 area, 0 point\\).*radiance \\(17, 12, 4\\).*facing -Y \\(down\\).*cornell .*512x512")
 
 # Pending engines: arguments and scene are checked, then a plain "not available yet".
-lumesh_cli_test(render_pending 3 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/pending.png ONE_ERR_LINE ERR "not available yet")
+lumesh_cli_test(render_png 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/render.png --width 64 --height 64 --seconds 20
+  --stats ${CMAKE_CURRENT_BINARY_DIR}/render.json
+  OUT "^wrote .*render\\.png: 64x64, [0-9.]+ s, (converged|stopped) after [0-9]+ leaves tested")
+lumesh_cli_test(render_exr_samples 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/render.exr --width 48 --height 36 --samples 500
+  OUT "48x36, .* after 500 leaves tested")
+lumesh_cli_test(render_unknown_camera 2 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/x.png --camera nope ONE_ERR_LINE ERR "no camera named 'nope'")
 
 set(CB ${LUMESH_SCENES}/cornell-box)
 if(EXISTS ${CB}/CornellBox-Original.obj)

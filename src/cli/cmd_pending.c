@@ -1,5 +1,5 @@
-/* cmd_pending.c — the commands whose engines land with later work (ground truth,
- * renderer, viewer). They already parse and check their arguments and their
+/* cmd_pending.c — the commands whose engines land with later work (convergence
+ * runs, the viewer). They already parse and check their arguments and their
  * scene, so scripts get the final usage and bad-input behaviour today, and then
  * say plainly that the engine is not available yet (exit 3). */
 #include <stdio.h>
@@ -27,54 +27,6 @@ static int check_scene(const char *path, int need_light)
     return APP_EXIT_OK;
 }
 
-/* --sampler NAME and --gl NAME, shared by render, converge and view. */
-static int check_sampler_options(const app_command *cmd, const char *sampler, const char *gl)
-{
-    samp_backend b;
-    samp_gl_platform p;
-    if (sampler && !samp_backend_from_name(sampler, &b))
-        return app_usage_error(cmd, "--sampler must be gl, embree or auto, not '%s'", sampler);
-    if (gl && !samp_gl_platform_from_name(gl, &p))
-        return app_usage_error(cmd, "--gl must be egl or osmesa, not '%s'", gl);
-    return APP_EXIT_OK;
-}
-
-static int image_ext_ok(const char *path, int allow_png)
-{
-    char ext[16];
-    lm_path_ext(path, ext, sizeof ext);
-    return strcmp(ext, "exr") == 0 || (allow_png && strcmp(ext, "png") == 0);
-}
-
-int cmd_render(const app_command *cmd, int argc, char **argv)
-{
-    const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl = NULL;
-    double seconds = 0;
-    long samples = 0, width = 0, height = 0;
-    app_opt opts[] = {
-        {"--output", "-o", APP_OPT_STRING, &out},
-        {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e7},
-        {"--samples", NULL, APP_OPT_INT, &samples, 1, 2e9},
-        {"--width", NULL, APP_OPT_INT, &width, 1, 32768},
-        {"--height", NULL, APP_OPT_INT, &height, 1, 32768},
-        {"--camera", NULL, APP_OPT_STRING, &camera},
-        {"--stats", NULL, APP_OPT_STRING, &stats},
-        {"--sampler", NULL, APP_OPT_STRING, &sampler},
-        {"--gl", NULL, APP_OPT_STRING, &gl},
-    };
-    const char *pos[1];
-    int npos, rc = app_parse_options(cmd, argc, argv, opts, 9, pos, 1, &npos);
-    if (rc < 0) return APP_EXIT_OK;
-    if (rc) return rc;
-    if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.png or OUT.exr)");
-    if (!image_ext_ok(out, 1)) return app_usage_error(cmd, "the output must end in .png or .exr");
-    if (opts[1].seen && opts[2].seen) return app_usage_error(cmd, "give --seconds or --samples, not both");
-    if (opts[3].seen != opts[4].seen) return app_usage_error(cmd, "give both --width and --height");
-    if ((rc = check_sampler_options(cmd, sampler, gl)) != APP_EXIT_OK) return rc;
-    if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
-    return not_available(cmd, "the multi-mesh renderer is not built yet");
-}
-
 int cmd_converge(const app_command *cmd, int argc, char **argv)
 {
     const char *ref = NULL, *out = NULL, *sampler = NULL, *gl = NULL;
@@ -92,7 +44,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     if (rc) return rc;
     if (!ref || !out || !opts[1].seen)
         return app_usage_error(cmd, "--reference, --seconds and --out are required");
-    if ((rc = check_sampler_options(cmd, sampler, gl)) != APP_EXIT_OK) return rc;
+    if ((rc = app_check_sampler_options(cmd, sampler, gl)) != APP_EXIT_OK) return rc;
     if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
     return not_available(cmd, "the multi-mesh renderer is not built yet");
 }
@@ -108,7 +60,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     int npos, rc = app_parse_options(cmd, argc, argv, opts, 2, pos, 1, &npos);
     if (rc < 0) return APP_EXIT_OK;
     if (rc) return rc;
-    if ((rc = check_sampler_options(cmd, sampler, gl)) != APP_EXIT_OK) return rc;
+    if ((rc = app_check_sampler_options(cmd, sampler, gl)) != APP_EXIT_OK) return rc;
     if ((rc = check_scene(npos ? pos[0] : NULL, 1)) != APP_EXIT_OK) return rc;
     return not_available(cmd, "the interactive viewer is not built yet");
 }
