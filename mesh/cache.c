@@ -322,11 +322,11 @@ lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, f
 static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err);
 static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
 
+/* Each pass rebuilds its source (regather_mesh forces it), so the second bounce
+ * gathers from the first bounce just gathered again. */
 static lm_result regather_indirect(cache *c, lm_error *err)
 {
-    c->rm_stale = 1;
     lm_result r = c->indirect1 ? regather_mesh(c, c->indirect1, 1, err) : LM_OK;
-    c->rm_stale = 1;
     return r == LM_OK ? regather_mesh(c, c->indirect, 0, err) : r;
 }
 

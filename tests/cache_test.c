@@ -114,6 +114,18 @@ static lm_result converge(run *u, int rounds, cache_refine_result *total)
     return LM_OK;
 }
 
+/* CIE76 ΔE between two linear colours after the display's tone mapping. */
+static double seen_delta_e(const float a[3], const float b[3])
+{
+    tm_desc tm = {0};
+    float da[3], db[3], la[3], lb[3];
+    tm_to_display(&tm, a, da);
+    tm_to_display(&tm, b, db);
+    tm_display_to_lab(da, la);
+    tm_display_to_lab(db, lb);
+    return tm_delta_e(la, lb);
+}
+
 static void lab_of(float radiance, float lab[3])
 {
     tm_desc tm = {0};
@@ -317,22 +329,17 @@ static void test_light_edit(void)
         for (int i = 0; i < 2000; ++i) {
             uint32_t tri;
             double w1, w2;
-            float p[3], ra[3], rb[3], ia[3], ib[3], la[3], lb[3], da[3], db[3];
+            float p[3], ra[3], rb[3], ia[3], ib[3];
             random_plane_point(&g, both, &tri, &w1, &w2, p);
             CHECK(cache_eval_direct(a.c, tri, w1, w2, ra, &err) == LM_OK);
             CHECK(cache_eval_direct(b.c, tri, w1, w2, rb, &err) == LM_OK);
             CHECK(cache_eval_indirect(a.c, tri, w1, w2, ia, &err) == LM_OK);
             CHECK(cache_eval_indirect(b.c, tri, w1, w2, ib, &err) == LM_OK);
-            tm_desc tm = {0};
             for (int k = 0; k < 3; ++k) { /* what the viewer sees: kd·(L_dd + E_i/π) */
                 ra[k] = KD * (ra[k] + ia[k] / (float)M_PI);
                 rb[k] = KD * (rb[k] + ib[k] / (float)M_PI);
             }
-            tm_to_display(&tm, ra, da);
-            tm_to_display(&tm, rb, db);
-            tm_display_to_lab(da, la);
-            tm_display_to_lab(db, lb);
-            double de = tm_delta_e(la, lb);
+            double de = seen_delta_e(ra, rb);
             sum += de;
             worst = fmax(worst, de);
             above += de > 2.0;
@@ -509,22 +516,15 @@ static void test_specular(void)
         for (int i = 0; i < 2000; ++i) {
             uint32_t tri;
             double w1, w2;
-            float p[3], ldd[3], lds[3], la[3], lb[3], da[3], db[3];
+            float p[3], ldd[3], lds[3];
             random_plane_point(&g, s, &tri, &w1, &w2, p);
             CHECK(cache_eval_direct(u.c, tri, w1, w2, ldd, &err) == LM_OK);
             CHECK(cache_eval_specular(u.c, tri, w1, w2, lds, &err) == LM_OK);
             const float up[3] = {0, 1, 0};
             double G = samp_area_light_unoccluded(s, 0, p, up);
             float want = (float)(0.3 * 5.0 * G / M_PI + 0.3 * specular_by_hand(s, p, eyes[e], 20.0));
-            float got[3] = {0.3f * ldd[0] + 0.3f * lds[0], 0, 0}, ref[3] = {want, 0, 0};
-            got[1] = got[2] = got[0];
-            ref[1] = ref[2] = ref[0];
-            tm_desc tm = {0};
-            tm_to_display(&tm, got, da);
-            tm_to_display(&tm, ref, db);
-            tm_display_to_lab(da, la);
-            tm_display_to_lab(db, lb);
-            double de = tm_delta_e(la, lb);
+            float g1 = 0.3f * ldd[0] + 0.3f * lds[0], got[3] = {g1, g1, g1}, ref[3] = {want, want, want};
+            double de = seen_delta_e(got, ref);
             worst = fmax(worst, de);
             sum += de;
             above += de > 2.0;
