@@ -247,6 +247,8 @@ int main(int argc, char **argv)
     printf("coarse cache in %.3f s; refinement %s after %.2f s: %u leaves tested, %u splits kept, %u undone, %u left\n",
            t_init, res.remaining == 0 ? "converged" : "stopped", t, tot.tested, tot.split, tot.undone, res.remaining);
     printf("  %-12s %9s %12s %9s %9s %10s\n", "mesh", "samples", "interpolated", "nodes", "leaves", "KiB");
+    printf("  light leaves falsified %llu (radiance values revised %llu); indirect values gathered again %llu\n",
+           (unsigned long long)st.falsified, (unsigned long long)st.revised, (unsigned long long)st.regathered);
     print_mesh("direct", &st.direct);
     print_mesh("indirect", &st.indirect);
     if (cache_specular_mesh(c)) print_mesh("specular", &st.specular);

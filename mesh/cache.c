@@ -1,5 +1,7 @@
 /* cache.c — the multi-mesh cache's meshes and values (cache.h; paper §4.1–4.2,
- * §4.3.4). The refinement scheduler is src/cache_refine.c. */
+ * §4.3.4): lights, visibility, direct values, creation. Indirect light (source,
+ * gathers, outdated values) is cache_source.c, the specular values
+ * cache_specular.c, the refinement scheduler src/cache_refine.c. */
 #include "cache_internal.h"
 
 #include <math.h>
@@ -14,10 +16,6 @@
  * (hidden): the control-variate samplers return exactly 1 and 0 there, up to float
  * rounding of G/G_unocc. */
 #define CACHE_V_EPS 1e-4f
-/* The direct mesh's leaves feed indirect samples; rebuild that source when the
- * direct mesh has changed by this many splits and merges since the last build
- * (and always before the first indirect samples). */
-#define CACHE_RMESH_STALE 256u
 
 /* ---- lights ----------------------------------------------------------------- */
 
@@ -105,6 +103,17 @@ void cache_node_corner_bary(const mesh_qnode *n, int k, double *w1, double *w2)
     *w2 = b.w[2] * scale;
 }
 
+/* Is (w1, w2) inside the closed triangle (a, b, c) of barycentric space, either winding? */
+static int bary_in_triangle(const double a[2], const double b[2], const double c[2], double w1, double w2)
+{
+    const double eps = 1e-12;
+    double d0 = (b[0] - a[0]) * (w2 - a[1]) - (b[1] - a[1]) * (w1 - a[0]);
+    double d1 = (c[0] - b[0]) * (w2 - b[1]) - (c[1] - b[1]) * (w1 - b[0]);
+    double d2 = (a[0] - c[0]) * (w2 - c[1]) - (a[1] - c[1]) * (w1 - c[0]);
+    int neg = d0 < -eps || d1 < -eps || d2 < -eps, pos = d0 > eps || d1 > eps || d2 > eps;
+    return !(neg && pos);
+}
+
 /* Is (w1, w2) inside the node's triangle (barycentric space of its scene triangle)? */
 static int node_contains(const mesh_qnode *n, double w1, double w2)
 {
@@ -112,12 +121,13 @@ static int node_contains(const mesh_qnode *n, double w1, double w2)
     cache_node_corner_bary(n, 0, &a[0], &a[1]);
     cache_node_corner_bary(n, 1, &b[0], &b[1]);
     cache_node_corner_bary(n, 2, &c[0], &c[1]);
-    const double eps = 1e-12;
-    double d0 = (b[0] - a[0]) * (w2 - a[1]) - (b[1] - a[1]) * (w1 - a[0]);
-    double d1 = (c[0] - b[0]) * (w2 - b[1]) - (c[1] - b[1]) * (w1 - b[0]);
-    double d2 = (a[0] - c[0]) * (w2 - c[1]) - (a[1] - c[1]) * (w1 - c[0]);
-    int neg = d0 < -eps || d1 < -eps || d2 < -eps, pos = d0 > eps || d1 > eps || d2 > eps;
-    return !(neg && pos);
+    return bary_in_triangle(a, b, c, w1, w2);
+}
+
+int cache_region_contains(const cache_region *rg, double w1, double w2)
+{
+    const double a[2] = {rg->w1[0], rg->w2[0]}, b[2] = {rg->w1[1], rg->w2[1]}, c[2] = {rg->w1[2], rg->w2[2]};
+    return bary_in_triangle(a, b, c, w1, w2);
 }
 
 uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2)
@@ -139,16 +149,41 @@ uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2
 
 /* ---- visibility (§4.3.4) ----------------------------------------------------- */
 
+/* 1 (0) when V is uniformly 1 (0) at the leaf's three sampled corners, else -1. */
+static int uniform_V(const mesh_qmesh *m, const mesh_qnode *leaf)
+{
+    float v[3];
+    for (int k = 0; k < 3; ++k)
+        if (mesh_qmesh_get_value(m, leaf->v[k], &v[k]) != 1) return -1;
+    if (v[0] >= 1.0f - CACHE_V_EPS && v[1] >= 1.0f - CACHE_V_EPS && v[2] >= 1.0f - CACHE_V_EPS) return 1;
+    if (v[0] <= CACHE_V_EPS && v[1] <= CACHE_V_EPS && v[2] <= CACHE_V_EPS) return 0;
+    return -1;
+}
+
 /* Interpolated V at (w1, w2) when leaf can answer confidently, else -1. */
 static float confident_V(const mesh_qmesh *m, const mesh_qnode *leaf, uint32_t asking_depth)
 {
     if ((uint32_t)leaf->depth + CACHE_LIGHT_LAG < asking_depth) return -1.0f;
-    float v[3];
-    for (int k = 0; k < 3; ++k)
-        if (mesh_qmesh_get_value(m, leaf->v[k], &v[k]) != 1) return -1.0f;
-    if (v[0] >= 1.0f - CACHE_V_EPS && v[1] >= 1.0f - CACHE_V_EPS && v[2] >= 1.0f - CACHE_V_EPS) return 1.0f;
-    if (v[0] <= CACHE_V_EPS && v[1] <= CACHE_V_EPS && v[2] <= CACHE_V_EPS) return 0.0f;
-    return -1.0f;
+    int u = uniform_V(m, leaf);
+    return u < 0 ? -1.0f : (float)u;
+}
+
+/* Records light leaf n (just split, its corners uniform) as falsified. */
+static lm_result push_falsified(cache *c, uint32_t l, const mesh_qnode *n, lm_error *err)
+{
+    if (c->falsified_n == c->falsified_cap) {
+        size_t nc = c->falsified_cap ? 2 * c->falsified_cap : 64;
+        cache_region *p = realloc(c->falsified, nc * sizeof *p);
+        if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory recording a falsified light leaf");
+        c->falsified = p;
+        c->falsified_cap = nc;
+    }
+    cache_region *rg = &c->falsified[c->falsified_n++];
+    rg->light = l;
+    rg->tri = n->tri;
+    for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &rg->w1[k], &rg->w2[k]);
+    c->falsified_total++;
+    return LM_OK;
 }
 
 /* Samples V of light l at the given vertices of its mesh and stores them. */
@@ -222,7 +257,13 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
     if (c->desc.single_mesh) return fetch_visibility_single(c, sites, n, V, err);
     uint8_t *resolved = calloc(n ? n : 1, 1);
     uint32_t *need = NULL, need_n = 0, need_cap = 0;
-    lm_result r = resolved ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory fetching visibility");
+    /* Leaves split in a round whose corners were uniform (they could have answered
+     * before, at a shallower site): checked once their midpoints are sampled. */
+    uint32_t *split_uniform = malloc((n ? n : 1) * sizeof *split_uniform), split_n = 0;
+    int *split_u = malloc((n ? n : 1) * sizeof *split_u);
+    lm_result r = resolved && split_uniform && split_u
+                      ? LM_OK
+                      : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory fetching visibility");
     for (uint32_t l = 0; r == LM_OK && l < L; ++l) {
         mesh_qmesh *m = c->light[l];
         memset(resolved, 0, n);
@@ -230,6 +271,7 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
          * and cannot answer, and samples their new corners in one batch. */
         for (int round = 0; r == LM_OK && round <= MESH_DEPTH_MAX + 1; ++round) {
             need_n = 0;
+            split_n = 0;
             for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
                 if (resolved[i]) continue;
                 const cache_site *st = &sites[i];
@@ -267,7 +309,12 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
                     r = lm_fail(err, LM_ERR_RUNTIME, "light mesh deeper than its radiance site");
                     break;
                 }
+                int u = uniform_V(m, ln); /* read before the split: the pool may move */
                 r = mesh_qmesh_split(m, leaf, err);
+                if (r == LM_OK && u >= 0 && split_n < n) {
+                    split_uniform[split_n] = leaf;
+                    split_u[split_n++] = u;
+                }
                 if (r == LM_OK) {
                     const mesh_qnode *p = mesh_qmesh_node(m, leaf);
                     for (uint32_t k = 0; r == LM_OK && k < 4; ++k)
@@ -276,10 +323,153 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
             }
             if (r != LM_OK || need_n == 0) break;
             r = sample_light(c, l, need, need_n, err);
+            /* A uniform leaf whose midpoints disagree was wrong wherever it answered. */
+            for (uint32_t j = 0; r == LM_OK && j < split_n; ++j) {
+                const mesh_qnode *p = mesh_qmesh_node(m, split_uniform[j]);
+                if (uniform_V(m, mesh_qmesh_node(m, p->child + 3)) != split_u[j]) r = push_falsified(c, l, p, err);
+            }
         }
     }
+    free(split_uniform);
+    free(split_u);
     free(need);
     free(resolved);
+    return r;
+}
+
+/* ---- falsified light leaves -------------------------------------------------- */
+
+lm_result cache_region_walk(const mesh_qmesh *m, const cache_region *rg, cache_node_fn visit, void *user, lm_error *err)
+{
+    uint32_t root = mesh_qmesh_root(m, rg->tri);
+    if (root == MESH_QMESH_NONE) return LM_OK;
+    const double eps = 1e-12;
+    double lo1 = fmin(rg->w1[0], fmin(rg->w1[1], rg->w1[2])) - eps, hi1 = fmax(rg->w1[0], fmax(rg->w1[1], rg->w1[2])) + eps;
+    double lo2 = fmin(rg->w2[0], fmin(rg->w2[1], rg->w2[2])) - eps, hi2 = fmax(rg->w2[0], fmax(rg->w2[1], rg->w2[2])) + eps;
+    uint32_t stack[4 * (MESH_DEPTH_MAX + 2)];
+    uint32_t top = 0;
+    stack[top++] = root;
+    lm_result r = LM_OK;
+    while (r == LM_OK && top) {
+        uint32_t node = stack[--top];
+        const mesh_qnode *n = mesh_qmesh_node(m, node);
+        double a1 = INFINITY, b1 = -INFINITY, a2 = INFINITY, b2 = -INFINITY;
+        for (int k = 0; k < 3; ++k) {
+            double w1, w2;
+            cache_node_corner_bary(n, k, &w1, &w2);
+            a1 = fmin(a1, w1);
+            b1 = fmax(b1, w1);
+            a2 = fmin(a2, w2);
+            b2 = fmax(b2, w2);
+        }
+        if (b1 < lo1 || a1 > hi1 || b2 < lo2 || a2 > hi2) continue;
+        r = visit(m, node, n, user, err);
+        if (r == LM_OK && n->child != MESH_QMESH_NONE)
+            for (uint32_t k = 0; k < 4; ++k) stack[top++] = n->child + k;
+    }
+    return r;
+}
+
+typedef struct revise_sites {
+    const cache *c;
+    const cache_region *rg;
+    cache_site *s;
+    uint32_t n, cap;
+} revise_sites;
+
+/* The corners of a node that lie in the region and have a value in m: sites to
+ * fetch again, asked at the depth that made them (a vertex of reduced depth k is
+ * the midpoint of an edge of a depth k−1 leaf), so the lag allowed is the same. */
+static lm_result collect_region_sites(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user,
+                                      lm_error *err)
+{
+    (void)node;
+    revise_sites *rs = user;
+    for (int k = 0; k < 3; ++k) {
+        float tmp[3];
+        double w1, w2;
+        if (mesh_qmesh_get_value(m, n->v[k], tmp) != 1) continue;
+        cache_node_corner_bary(n, k, &w1, &w2);
+        if (!cache_region_contains(rs->rg, w1, w2)) continue;
+        if (rs->n == rs->cap) {
+            uint32_t nc = rs->cap ? 2 * rs->cap : 256;
+            cache_site *p = realloc(rs->s, nc * sizeof *p);
+            if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory revising the cache");
+            rs->s = p;
+            rs->cap = nc;
+        }
+        uint32_t d = mesh_vtable_vertex(rs->c->vt, n->v[k])->bary.depth;
+        rs->s[rs->n++] = (cache_site){.vid = n->v[k], .tri = n->tri, .w1 = w1, .w2 = w2, .depth = d ? d - 1 : 0};
+    }
+    return LM_OK;
+}
+
+static int site_by_vid(const void *a, const void *b)
+{
+    uint32_t x = ((const cache_site *)a)->vid, y = ((const cache_site *)b)->vid;
+    return (x > y) - (x < y);
+}
+
+lm_result cache_revise_falsified(cache *c, cache_changed_fn changed, void *user, lm_error *err)
+{
+    lm_result r = LM_OK;
+    revise_sites rs = {.c = c};
+    float *V = NULL;
+    uint32_t *ids = NULL;
+    while (r == LM_OK && c->falsified_n) {
+        /* Take the list: fetching again may record more. */
+        uint32_t nreg = (uint32_t)c->falsified_n;
+        cache_region *regions = malloc(nreg * sizeof *regions);
+        if (!regions) {
+            r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory revising the cache");
+            break;
+        }
+        memcpy(regions, c->falsified, nreg * sizeof *regions);
+        c->falsified_n = 0;
+        for (int kind = CACHE_KIND_DIRECT; r == LM_OK && kind < CACHE_KINDS; ++kind) {
+            mesh_qmesh *m = cache_kind_mesh(c, (cache_kind)kind);
+            if (kind == CACHE_KIND_INDIRECT || !m) continue; /* indirect values do not come from V */
+            rs.n = 0;
+            for (uint32_t i = 0; r == LM_OK && i < nreg; ++i) {
+                rs.rg = &regions[i];
+                r = cache_region_walk(m, &regions[i], collect_region_sites, &rs, err);
+            }
+            if (r != LM_OK || rs.n == 0) continue;
+            qsort(rs.s, rs.n, sizeof *rs.s, site_by_vid);
+            uint32_t ns = 0;
+            for (uint32_t i = 0; i < rs.n; ++i)
+                if (ns == 0 || rs.s[ns - 1].vid != rs.s[i].vid) rs.s[ns++] = rs.s[i];
+            free(V);
+            free(ids);
+            V = malloc(((size_t)ns * c->light_count + 1) * sizeof *V);
+            ids = malloc(ns * sizeof *ids);
+            if (!V || !ids) {
+                r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory revising the cache");
+                break;
+            }
+            r = cache_fetch_visibility(c, rs.s, ns, V, err);
+            uint32_t nchanged = 0;
+            for (uint32_t i = 0; r == LM_OK && i < ns; ++i) {
+                float old[3], rgb[3];
+                mesh_qmesh_get_value(m, rs.s[i].vid, old);
+                const float *Vi = V + (size_t)i * c->light_count;
+                if (kind == CACHE_KIND_DIRECT)
+                    r = cache_direct_from_visibility(c, rs.s[i].vid, Vi, rgb, err);
+                else
+                    cache_specular_from_visibility(c, rs.s[i].vid, Vi, rgb);
+                if (r != LM_OK || (rgb[0] == old[0] && rgb[1] == old[1] && rgb[2] == old[2])) continue;
+                r = mesh_qmesh_set_value(m, rs.s[i].vid, rgb, err);
+                ids[nchanged++] = rs.s[i].vid;
+            }
+            c->revised += nchanged;
+            if (r == LM_OK && nchanged && changed)
+                r = changed(c, (cache_kind)kind, regions, nreg, ids, nchanged, user, err);
+        }
+        free(regions);
+    }
+    free(rs.s);
+    free(V);
+    free(ids);
     return r;
 }
 
@@ -315,70 +505,6 @@ lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, f
     return LM_OK;
 }
 
-/* After a light edit: every vertex of the indirect mesh gathered again from the
- * rebuilt source, in batches (one-bounce indirect is linear in each light, but a
- * per-light indirect mesh would multiply memory and samples by the number of
- * lights for every refinement, for the rare edit; docs/cache.md has the numbers). */
-static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err);
-static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
-
-/* Each pass rebuilds its source (regather_mesh forces it), so the second bounce
- * gathers from the first bounce just gathered again. */
-static lm_result regather_indirect(cache *c, lm_error *err)
-{
-    lm_result r = c->indirect1 ? regather_mesh(c, c->indirect1, 1, err) : LM_OK;
-    return r == LM_OK ? regather_mesh(c, c->indirect, 0, err) : r;
-}
-
-static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err)
-{
-    enum { BATCH = 4096 };
-    mesh_vtable_stats vs;
-    mesh_vtable_get_stats(c->vt, &vs);
-    lm_result r = cache_update_radiance_source(c, 1, !first_bounce, err);
-    uint32_t *ids = malloc(BATCH * sizeof *ids);
-    float *E = malloc(3 * BATCH * sizeof *E), tmp[3];
-    if (r == LM_OK && (!ids || !E)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory re-gathering indirect light");
-    uint32_t n = 0;
-    for (uint32_t id = 0; r == LM_OK && id <= vs.id_limit; ++id) {
-        if (id < vs.id_limit && mesh_qmesh_get_value(m, id, tmp) == 1) ids[n++] = id;
-        if (n == BATCH || (id == vs.id_limit && n)) {
-            r = gather(c, first_bounce, ids, n, E, err);
-            for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(m, ids[i], E + 3 * (size_t)i, err);
-            n = 0;
-        }
-    }
-    free(ids);
-    free(E);
-    return r;
-}
-
-void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3])
-{
-    const scene *s = c->s;
-    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
-    /* The exponent of the triangle the vertex was made from (a vertex shared by two
-     * glossy materials takes the first's; shared vertices need equal normals). */
-    float n = s->materials[s->tris[mv->tri].material].n;
-    lm_vec3 x = v3_load(mv->position), nrm = v3_normalize(v3_load(mv->normal));
-    lm_vec3 wo = v3_normalize(v3_sub(v3_load(c->eye), x));
-    double e[3] = {0, 0, 0};
-    for (uint32_t l = 0; l < c->light_count; ++l) {
-        if (V[l] <= 0.0f) continue;
-        double g = V[l] * cache_unoccluded(c, l, vid);
-        if (!(g > 0.0)) continue;
-        const float *at = l < s->area_light_count ? s->area_lights[l].centroid
-                                                  : s->point_lights[l - s->area_light_count].position;
-        lm_vec3 wi = v3_normalize(v3_sub(v3_load(at), x));
-        lm_vec3 mirror = v3_sub(v3_scale(nrm, 2.0f * v3_dot(nrm, wi)), wi);
-        float cosa = v3_dot(mirror, wo);
-        if (cosa <= 0.0f) continue;
-        double lobe = (n + 2.0) / (2.0 * M_PI) * pow(cosa, n);
-        for (int k = 0; k < 3; ++k) e[k] += (double)c->light_le[3 * l + (uint32_t)k] * g * lobe;
-    }
-    for (int k = 0; k < 3; ++k) rgb[k] = e[k] < 3e38 ? (float)e[k] : 3e38f;
-}
-
 lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err)
 {
     if (!c || !value || light >= c->light_count)
@@ -396,7 +522,7 @@ lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_err
         lm_result r = mesh_qmesh_set_value(c->direct, id, rgb, err);
         if (r != LM_OK) return r;
     }
-    lm_result rg = c->initialised ? regather_indirect(c, err) : LM_OK;
+    lm_result rg = c->initialised ? cache_regather_all(c, err) : LM_OK;
     if (rg != LM_OK) return rg;
     /* What was below the JND may not be now (a shadow no longer masked by another
      * light): every leaf is tested again, without new light samples unless the
@@ -406,131 +532,6 @@ lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_err
      * meshes answer without new samples where they are sure). */
     if (c->specular) return cache_set_camera(c, c->eye, err);
     return LM_OK;
-}
-
-/* ---- indirect source and samples --------------------------------------------- */
-
-/* The indirect source is the direct mesh cut at this many triangles (about):
- * indirect irradiance is smooth, and every indirect sample draws or searches the
- * whole source (the paper gathers from a coarse direct mesh, §5). Measured on the
- * built-in Cornell box: the full leaf set (31,000 triangles) made GL hemicube
- * samples cost 6 ms each. */
-#define CACHE_RMESH_TRIANGLES 8192u
-
-/* Appends the nodes of the tree under `node` cut at depth `cut` (a leaf above
- * the cut is taken whole) to c->leaf_buf as source triangles. */
-static lm_result collect_source(cache *c, uint32_t node, uint32_t cut, size_t *count, lm_error *err)
-{
-    const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
-    if (n->child != MESH_QMESH_NONE && n->depth < cut) {
-        uint32_t child = n->child;
-        for (uint32_t k = 0; k < 4; ++k) {
-            lm_result r = collect_source(c, child + k, cut, count, err);
-            if (r != LM_OK) return r;
-        }
-        return LM_OK;
-    }
-    if (*count == c->leaf_cap) {
-        size_t nc = c->leaf_cap ? 2 * c->leaf_cap : 1024;
-        mesh_qmesh_tri *b = realloc(c->leaf_buf, nc * sizeof *b);
-        if (!b) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-        c->leaf_buf = b;
-        c->leaf_cap = nc;
-    }
-    mesh_qmesh_tri *t = &c->leaf_buf[(*count)++];
-    t->tri = n->tri;
-    t->leaf = node;
-    for (int k = 0; k < 3; ++k) {
-        t->v[k] = n->v[k];
-        t->bary[k] = mesh_qmesh_node_corner(n, k);
-    }
-    return LM_OK;
-}
-
-lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err)
-{
-    mesh_qmesh_stats st;
-    mesh_qmesh_get_stats(c->direct, &st);
-    uint64_t changes = st.splits + st.merges;
-    with_e1 = with_e1 && c->indirect1;
-    if (!force && !c->rm_stale && c->rmesh.first && c->rm_with_e1 == with_e1 &&
-        changes - c->rm_built_at < CACHE_RMESH_STALE)
-        return LM_OK;
-    const scene *s = c->s;
-    uint32_t cut = 0; /* deepest level with at most CACHE_RMESH_TRIANGLES nodes in a full tree */
-    while (cut < MESH_DEPTH_MAX && ((uint64_t)st.roots << (2 * (cut + 1))) <= CACHE_RMESH_TRIANGLES) cut++;
-    size_t count = 0;
-    lm_result r = LM_OK;
-    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
-        uint32_t root = mesh_qmesh_root(c->direct, t);
-        if (root != MESH_QMESH_NONE) r = collect_source(c, root, cut, &count, err);
-    }
-    if (r != LM_OK) return r;
-    if (!c->rm_first) {
-        c->rm_first = calloc((size_t)s->tri_count + 1, sizeof *c->rm_first);
-        if (!c->rm_first) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-    }
-    if (count > c->rm_cap) {
-        float *b = realloc(c->rm_bary, count * 6 * sizeof *b), *rd = b ? realloc(c->rm_rad, count * 9 * sizeof *rd) : NULL;
-        if (b) c->rm_bary = b;
-        if (rd) c->rm_rad = rd;
-        if (!b || !rd) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-        c->rm_cap = count;
-    }
-    /* Counting sort by scene triangle. */
-    memset(c->rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->rm_first);
-    for (size_t i = 0; i < count; ++i) c->rm_first[c->leaf_buf[i].tri + 1]++;
-    for (uint32_t t = 0; t < s->tri_count; ++t) c->rm_first[t + 1] += c->rm_first[t];
-    uint32_t *fill = malloc(((size_t)s->tri_count + 1) * sizeof *fill);
-    if (!fill) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-    memcpy(fill, c->rm_first, ((size_t)s->tri_count + 1) * sizeof *fill);
-    for (size_t i = 0; i < count; ++i) {
-        const mesh_qmesh_tri *lt = &c->leaf_buf[i];
-        uint32_t at = fill[lt->tri]++;
-        const float *kd = s->materials[s->tris[lt->tri].material].kd;
-        for (int k = 0; k < 3; ++k) {
-            double scale = ldexp(1.0, -(int)lt->bary[k].depth);
-            c->rm_bary[6 * (size_t)at + 2 * (size_t)k] = (float)(lt->bary[k].w[1] * scale);
-            c->rm_bary[6 * (size_t)at + 2 * (size_t)k + 1] = (float)(lt->bary[k].w[2] * scale);
-            float L[3], Ei[3] = {0, 0, 0};
-            mesh_qmesh_get_value(c->direct, lt->v[k], L);
-            lm_error ignore;
-            if (with_e1 && mesh_qmesh_root(c->indirect1, lt->tri) != MESH_QMESH_NONE &&
-                mesh_qmesh_interpolate(c->indirect1, lt->tri, lt->bary[k].w[1] * scale, lt->bary[k].w[2] * scale, Ei,
-                                       &ignore) != LM_OK)
-                Ei[0] = Ei[1] = Ei[2] = 0;
-            for (int ch = 0; ch < 3; ++ch)
-                c->rm_rad[9 * (size_t)at + 3 * (size_t)k + (size_t)ch] =
-                    kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
-        }
-    }
-    free(fill);
-    c->rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->rm_first, .bary = c->rm_bary,
-                                    .radiance = c->rm_rad};
-    c->rm_built_at = changes;
-    c->rm_stale = 0;
-    c->rm_with_e1 = with_e1;
-    return LM_OK;
-}
-
-/* E from the source kind asked (first: kd·L_dd; else the displayed indirect's). */
-static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
-{
-    if (n == 0) return LM_OK;
-    lm_result r = cache_update_radiance_source(c, 0, !first_bounce, err);
-    if (r != LM_OK) return r;
-    samp_point *pts = malloc(n * sizeof *pts);
-    if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
-    for (uint32_t i = 0; i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
-    r = samp_indirect(c->sp, &c->rmesh, pts, n, E, err);
-    free(pts);
-    if (r == LM_OK) c->indirect_stats.samples += n;
-    return r;
-}
-
-lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
-{
-    return gather(c, 0, vids, n, E, err);
 }
 
 /* ---- create, init, destroy ---------------------------------------------------- */
@@ -553,6 +554,20 @@ void cache_destroy(cache *c)
     free(c->rm_bary);
     free(c->rm_rad);
     free(c->leaf_buf);
+    free(c->falsified);
+    free(c->rp_first);
+    free(c->rp_bary);
+    free(c->rp_rad);
+    free(c->drift);
+    free(c->outdated);
+    free(c->outdated_list);
+    free(c->src_err);
+    free(c->src_open);
+    free(c->src_heap);
+    free(c->spec_outline);
+    free(c->spec_loop);
+    free(c->spec_light_loop);
+    free(c->spec_loop_sign);
     for (int k = 0; k < CACHE_KINDS; ++k) {
         free(c->q[k].e);
         free(c->done[k]);
@@ -613,6 +628,7 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     if (r == LM_OK && glossy) /* model only what the scene needs: no gloss, no mesh */
         r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap},
                               &c->specular, err);
+    if (r == LM_OK && glossy && !cache_build_outlines(c)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
     if (c->s->camera_count) memcpy(c->eye, c->s->cameras[0].position, sizeof c->eye);
     if (r != LM_OK) {
         cache_destroy(c);
@@ -722,7 +738,7 @@ lm_result cache_init(cache *c, lm_error *err)
         r = root_vertices(c, c->indirect1, &v, &n, err);
         float *E1 = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E1) : NULL;
         if (r == LM_OK && !E1) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
-        if (r == LM_OK) r = gather(c, 1, v, n, E1, err);
+        if (r == LM_OK) r = cache_gather(c, 1, v, n, E1, err);
         for (uint32_t i = 0; r == LM_OK && i < n; ++i)
             r = mesh_qmesh_set_value(c->indirect1, v[i], E1 + 3 * (size_t)i, err);
         free(E1);
@@ -809,10 +825,16 @@ void cache_get_stats(cache *c, cache_stats *out)
     }
     out->lights = c->light_stats;
     out->undone = c->undone;
+    out->falsified = c->falsified_total;
+    out->revised = c->revised;
+    out->regathered = c->regathered;
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
+    out->bytes += c->src_cap * (sizeof(float) + 1 + 2 * sizeof(uint32_t)) + c->falsified_cap * sizeof(cache_region) +
+                  c->rp_cap * (6 + 9) * sizeof(float) + c->drift_cap * (3 * sizeof(float) + 1) +
+                  c->outdated_cap * sizeof(uint32_t);
     out->bytes += vs.bytes + c->rm_cap * (6 + 9) * sizeof(float) + c->leaf_cap * sizeof *c->leaf_buf +
-                  c->vertex_G_cap * c->light_count * sizeof(float);
+                  c->vertex_G_cap * c->light_count * sizeof(float) + c->spec_outline_bytes;
     for (int k = 0; k < CACHE_KINDS; ++k)
         out->bytes += c->q[k].cap * sizeof(cache_queue_entry) + c->done_cap[k] + c->prio_cap[k] * sizeof(float);
 }
@@ -824,4 +846,23 @@ const mesh_vtable *cache_vtable(const cache *c) { return c->vt; }
 const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light)
 {
     return light < c->light_count ? c->light[light] : NULL;
+}
+
+/* ---- the worker's quick start and view changes ------------------------------------ */
+
+void cache_set_sampler(cache *c, samp_sampler *sp) { c->sp = sp; }
+
+lm_result cache_regather_indirect(cache *c, lm_error *err)
+{
+    if (!c->initialised) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_regather_indirect: cache_init first");
+    lm_result r = cache_regather_all(c, err);
+    for (int k = 0; k < CACHE_KINDS; ++k) c->requeue[k] = 1;
+    return r;
+}
+
+lm_result cache_requeue(cache *c, lm_error *err)
+{
+    (void)err;
+    for (int k = 0; k < CACHE_KINDS; ++k) c->requeue[k] = 1;
+    return LM_OK;
 }

@@ -12,18 +12,27 @@
  *              can see the light at all (not behind it, light not below them).
  *   direct     direct diffuse radiance per unit albedo, RGB: L_dd = (1/π)·Σ L_ℓ·G_ℓ
  *              (eq. 4). View-independent: kept across camera moves.
- *   indirect   indirect irradiance E_i, RGB (eq. 7), gathered from kd·L_dd.
+ *   indirect   indirect irradiance E_i, RGB (eq. 7), gathered from kd·L_dd over a
+ *              cut of the direct mesh (at most 8,192 triangles, opened where its
+ *              linear interpolation is worst); the back of a surface sends
+ *              nothing. When a rebuilt source may have moved a gathered value by
+ *              more than the JND (a bound: the changed source triangles' largest
+ *              change × their cosine-weighted solid angle), it is gathered again.
  *   specular   direct specular radiance per unit ks, RGB, over the triangles whose
- *              material has ks > 0 only (none: no mesh): eq. 6,
- *              Σ_ℓ (n+2)/(2π)·cosⁿα·L_ℓ·G_ℓ with α from each light's centre; it
- *              depends on the eye, so cache_set_camera rebuilds it.
+ *              material has ks > 0 only (none: no mesh): eq. 5 with V_ℓ out of
+ *              the integral, Σ_ℓ V_ℓ·L_ℓ·∫_{A_ℓ} (n+2)/(2π)·cosⁿα·cosθ_x·cosθ_y/r² dA
+ *              (the integral exact: samp_polygon_phong; a point light's lobe·G);
+ *              it depends on the eye, so cache_set_camera rebuilds it.
  *
  * A radiance vertex's value fetches V_ℓ from each light mesh (§4.3.4): read by
  * interpolation where the light mesh can do so confidently (the enclosing light
  * leaf has V uniformly 1 or uniformly 0 at its corners and is at most
  * CACHE_LIGHT_LAG levels coarser than the radiance leaf asking), else the light
  * mesh is split down to the asking vertex and sampled. It never goes deeper than
- * the radiance refinement asks.
+ * the radiance refinement asks. A uniform light leaf that is later split (for a
+ * deeper site) and finds a midpoint that disagrees was wrong wherever it had
+ * answered: the radiance values inside it are fetched again from the finer light
+ * mesh and their leaves tested again (cache_stats.falsified, .revised).
  *
  * Usage (worker thread):
  *     cache *c; lm_error err;
@@ -108,6 +117,16 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
  * to its roots and samples them again; the view-independent meshes are kept.
  * At creation the eye is the scene's first camera. */
 lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err);
+
+/* Another sampler from now on (same thread; the caller owns both). The refinement
+ * worker makes the coarse cache with a quick sampler and then switches. */
+void cache_set_sampler(cache *c, samp_sampler *sp);
+/* Gathers every vertex of the indirect mesh(es) again with the current sampler
+ * (after cache_set_sampler: the coarse cache's quick gathers replaced). */
+lm_result cache_regather_indirect(cache *c, lm_error *err);
+/* The pixel counts given to cache_refine changed (a new view): every mesh's
+ * leaves are scheduled again by the new priorities at the next cache_refine. */
+lm_result cache_requeue(cache *c, lm_error *err);
 lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err);
 
 /* Changes light `light`'s radiance (area light, W·m⁻²·sr⁻¹) or intensity (point
@@ -139,6 +158,10 @@ typedef struct cache_stats {
     cache_mesh_stats direct, indirect, specular; /* specular: all zero when there is no specular mesh */
     cache_mesh_stats *lights;   /* light_count entries, owned by the cache */
     uint64_t undone;            /* splits undone */
+    uint64_t falsified;         /* light leaves that had answered as uniform and proved not to be */
+    uint64_t revised;           /* radiance values recomputed inside those (cache_refine) */
+    uint64_t regathered;        /* indirect values gathered again: the source had moved them (counted in
+                                   indirect.samples too) */
     size_t bytes;               /* everything: meshes, vertex table, bookkeeping */
 } cache_stats;
 

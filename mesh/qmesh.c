@@ -241,6 +241,11 @@ const mesh_qnode *mesh_qmesh_node(const mesh_qmesh *m, uint32_t node)
     return &m->nodes[node];
 }
 
+uint32_t mesh_qmesh_node_limit(const mesh_qmesh *m)
+{
+    return m ? m->node_hw : 0;
+}
+
 /* A block of four free nodes (the pool grows by doubling when none is free). */
 static lm_result alloc_block(mesh_qmesh *m, uint32_t *first, lm_error *err)
 {

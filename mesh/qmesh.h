@@ -119,6 +119,9 @@ void mesh_qmesh_destroy(mesh_qmesh *m);
 uint32_t mesh_qmesh_root(const mesh_qmesh *m, uint32_t tri);
 /* A live node, or NULL. Valid until the next split (the pool may move). */
 const mesh_qnode *mesh_qmesh_node(const mesh_qmesh *m, uint32_t node);
+/* One more than the largest node id ever handed out: per-node side arrays of this
+ * many entries cover every live node. */
+uint32_t mesh_qmesh_node_limit(const mesh_qmesh *m);
 /* Corner c's address in the node's scene triangle, at the node's depth. */
 mesh_bary mesh_qmesh_node_corner(const mesh_qnode *n, int c);
 

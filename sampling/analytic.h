@@ -62,8 +62,30 @@
  * Threads: pure functions, no state; call from anywhere.
  * Does NOT do: visibility/occlusion, two-sided or textured emitters, curved lights,
  * non-planar polygons (the side test uses the Newell plane and the value is that
- * of the boundary, without guarantees),
- * specular (Phong-lobe) integrals.
+ * of the boundary, without guarantees).
+ *
+ * samp_polygon_phong: the modified Phong lobe integrated over the same kind of
+ * polygon (eq. 5 of Fournier & Péroche 2005 for a fully visible area light),
+ *     S(x, ωo) = ∫_P (n+2)/(2π)·max(0, cos α)ⁿ·max(0, cosθ_x)·max(0, cosθ_y)/r² dA_y,
+ * α between ωo and the mirror of the direction to y about nx (equivalently
+ * between that direction and r, the mirror of ωo): the specular radiance per
+ * unit ks and unit emitted radiance, L = ks·Le·S — what the reference renderer's
+ * ref_phong_lobe integrates (sampling/ref_shading.c). n = 0 gives G/π.
+ * Method: P (relative to x) is clipped to the lobe's hemisphere (r·u ≥ 0) and
+ * x's horizon (nx·u ≥ 0), both planes through x; on the clipped spherical
+ * polygon the divergence theorem on the sphere turns the integral into edge
+ * integrals (Arvo, "Applications of irradiance tensors to the simulation of
+ * non-Lambertian phenomena", SIGGRAPH '95, his double-axis moment):
+ *     ∫ cosⁿθ·(nx·u) dω = [(nx·r)·Σ_e ∫_e (1 − cosⁿθ) dφ − Σ_e (nx·m_e)·∫_e cosⁿθ ds] / (n + 2),
+ * θ the angle from r, φ the azimuth about r, s the arc length, m_e the outward
+ * normal of edge e's great circle. Arvo's recurrences in n are replaced by
+ * 8-point Gauss–Legendre on each side of the edge's closest point to r, over
+ * the lobe's core (5/√n; the integrands are smooth there even where the edge
+ * passes through r), the azimuth in closed form outside it (analytic.c,
+ * phong_edge), so any real n ≥ 0 costs the same; an edge whose great circle
+ * misses the core costs one atan2. Relative error ≲1e-6 for n from 0 to 10⁴
+ * (tests/cache_test.c, against brute-force quadrature); ~0.2–2.5 µs per call
+ * on a quad light (docs/cache.md).
  */
 #ifndef LUMESH_ANALYTIC_H
 #define LUMESH_ANALYTIC_H
@@ -89,6 +111,14 @@ double samp_point_G(const double p[3], const double x[3], const double nx[3]);
  * O((size/r)²). c == x or area ≤ 0 gives 0.0. */
 double samp_small_area_G(const double c[3], const double nl[3], double area, const double x[3],
                          const double nx[3]);
+
+/* The specular integral S(x, ωo) above for the one-sided polygon P (any n ≥ 3
+ * vertices, the order and side conventions of samp_polygon_G). nx and wo (towards
+ * the viewer) need not be unit length. Specular radiance: L = ks·Le·S.
+ * Bad input, x behind P or in its plane, exponent < 0 or not finite: 0.0.
+ * No allocation; never NaN, Inf or negative. */
+double samp_polygon_phong(const double (*verts)[3], int n, const double x[3], const double nx[3], const double wo[3],
+                          double exponent);
 
 #ifdef __cplusplus
 }

@@ -3,20 +3,33 @@
 
 #include <embree3/rtcore.h>
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
 struct rt_scene {
-    RTCDevice device;
     RTCScene scene;
     float epsilon;
 };
 
-/* Embree reports device errors through a callback; keep the first one. */
+/* One Embree device per process, made by the first rt_scene_create and kept until
+ * the process ends; scenes are built one at a time under device_lock. Why: two
+ * threads creating devices at once (the refinement worker's sampler beside the
+ * main thread's) race inside Embree and TBB — a new device writes its
+ * configuration while TBB workers started for the other device read it, which
+ * ThreadSanitizer reports and which no suppression of ours can name (the frames
+ * are libstdc++'s). One device also means one TBB thread pool. Building a scene
+ * takes milliseconds, so serialising builds costs nothing measurable. */
+static pthread_mutex_t device_lock = PTHREAD_MUTEX_INITIALIZER;
+static RTCDevice shared_device;   /* guarded by device_lock; never released */
+static lm_error build_error;      /* the scene build in progress; guarded by device_lock */
+
+/* Embree reports device errors through a callback; keep the first one of the
+ * build in progress. */
 static void on_embree_error(void *user, enum RTCError code, const char *str)
 {
-    lm_error *e = user;
-    if (e && !e->msg[0]) lm_fail(e, LM_ERR_RUNTIME, "Embree error %d: %s", (int)code, str ? str : "");
+    (void)user;
+    if (!build_error.msg[0]) lm_fail(&build_error, LM_ERR_RUNTIME, "Embree error %d: %s", (int)code, str ? str : "");
 }
 
 lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *err)
@@ -26,18 +39,21 @@ lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *e
     const scene *s = desc->scene;
     rt_scene *rt = calloc(1, sizeof *rt);
     if (!rt) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the ray tracing scene");
-    lm_error embree_err;
-    memset(&embree_err, 0, sizeof embree_err);
-    rt->device = rtcNewDevice(NULL);
-    if (!rt->device) {
-        free(rt);
-        return lm_fail(err, LM_ERR_RUNTIME, "Embree could not create a device (error %d)",
-                       (int)rtcGetDeviceError(NULL));
+    pthread_mutex_lock(&device_lock);
+    if (!shared_device) {
+        shared_device = rtcNewDevice(NULL);
+        if (!shared_device) {
+            pthread_mutex_unlock(&device_lock);
+            free(rt);
+            return lm_fail(err, LM_ERR_RUNTIME, "Embree could not create a device (error %d)",
+                           (int)rtcGetDeviceError(NULL));
+        }
+        rtcSetDeviceErrorFunction(shared_device, on_embree_error, NULL);
     }
-    rtcSetDeviceErrorFunction(rt->device, on_embree_error, &embree_err);
-    rt->scene = rtcNewScene(rt->device);
+    memset(&build_error, 0, sizeof build_error);
+    rt->scene = rtcNewScene(shared_device);
     rtcSetSceneBuildQuality(rt->scene, RTC_BUILD_QUALITY_HIGH);
-    RTCGeometry geom = rtcNewGeometry(rt->device, RTC_GEOMETRY_TYPE_TRIANGLE);
+    RTCGeometry geom = rtcNewGeometry(shared_device, RTC_GEOMETRY_TYPE_TRIANGLE);
     float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                         3 * sizeof(float), s->vertex_count);
     unsigned *ib = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
@@ -51,12 +67,13 @@ lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *e
     rtcAttachGeometryByID(rt->scene, geom, 0);
     rtcReleaseGeometry(geom);
     rtcCommitScene(rt->scene);
-    if (embree_err.msg[0] || !vb || !ib) {
+    lm_error failed = build_error;
+    pthread_mutex_unlock(&device_lock);
+    if (failed.msg[0] || !vb || !ib) {
         rt_scene_destroy(rt);
         return lm_fail(err, LM_ERR_RUNTIME, "%s: building the Embree scene failed: %s", s->source,
-                       embree_err.msg[0] ? embree_err.msg : "no buffer");
+                       failed.msg[0] ? failed.msg : "no buffer");
     }
-    rtcSetDeviceErrorFunction(rt->device, NULL, NULL);
     float extent = 0.0f;
     for (int k = 0; k < 3; ++k) {
         extent = fmaxf(extent, fabsf(s->bounds_min[k]));
@@ -73,7 +90,6 @@ void rt_scene_destroy(rt_scene *rt)
 {
     if (!rt) return;
     if (rt->scene) rtcReleaseScene(rt->scene);
-    if (rt->device) rtcReleaseDevice(rt->device);
     free(rt);
 }
 

@@ -11,7 +11,9 @@
  *     if (rt_intersect(rt, org, dir, 0.0f, INFINITY, &h)) { ... h.tri, h.t, h.u, h.v ... }
  *     rt_scene_destroy(rt);
  *
- * Threads: create and destroy on one thread; rt_intersect / rt_occluded may be
+ * Threads: rt_scene_create may be called from any thread (builds take turns on
+ * the one process-wide Embree device, rt_scene.c); destroy on the thread that
+ * created it; rt_intersect / rt_occluded may be
  * called from any number of threads at once (Embree committed scenes are
  * read-only). The scene model must outlive the rt_scene.
  * Does NOT do: shading, instancing, motion.

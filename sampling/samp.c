@@ -86,6 +86,8 @@ double samp_area_light_unoccluded(const scene *s, uint32_t light, const float p[
     return g;
 }
 
+float samp_origin_epsilon(const samp_sampler *sp) { return rt_scene_epsilon(sp->rt); }
+
 void samp_point_origin(const scene *s, const samp_point *x, float eps, float out[3])
 {
     lm_vec3 p = v3_load(x->p);

@@ -41,8 +41,9 @@
  * Threads: a sampler belongs to the thread that created it (a GL back end's
  * context is current there); calls on it are not thread-safe. The Embree back
  * end spreads each batch over its own worker threads (desc.threads).
- * Does NOT do: specular (Phong-lobe) integrals (eq. 6 is evaluated from G by the
- * cache), visibility of emission itself, textures.
+ * Does NOT do: specular (Phong-lobe) integrals (the cache integrates the lobe over
+ * each light with samp_polygon_phong, analytic.h, and takes V from the light
+ * meshes), visibility of emission itself, textures.
  */
 #ifndef LUMESH_SAMP_H
 #define LUMESH_SAMP_H
@@ -122,7 +123,8 @@ typedef struct samp_point {
  * scene.tri_count + 1 entries; a scene triangle may have none: it sends no light).
  * Inside one scene triangle the sub-triangles tile it without overlap (the Embree
  * back end finds the one containing a hit). Radiance is what leaves the front
- * and the back alike (diffuse surfaces seen from either side). */
+ * (the side of the scene triangle's normal); the back sends nothing — inside a
+ * closed object, or behind a wall, a surface's back is not lit by its front. */
 typedef struct samp_radiance_mesh {
     uint32_t tri_count;
     const uint32_t *first;    /* scene.tri_count + 1 offsets */

@@ -11,7 +11,8 @@
  * fraction only. Without it, G = A/N·Σ w·V.
  * Indirect: k×k stratified cosine-weighted directions, E = π/N·Σ L(hit); L is
  * interpolated in the coarse radiance mesh's sub-triangle that contains the hit's
- * barycentrics. A ray that leaves the scene brings nothing.
+ * barycentrics (found through a grid per scene triangle, built per call). A ray
+ * that leaves the scene, or meets the back of a surface, brings nothing.
  *
  * Random numbers: a point's stream is seeded by (seed, light, the bits of its
  * position and normal), so a value depends on the point alone, not on the batch
@@ -144,45 +145,8 @@ static float direct_one(const embree_impl *e, uint32_t li, const samp_point *x)
 
 /* ---- indirect -------------------------------------------------------------- */
 
-/* RGB radiance of the coarse mesh at barycentrics (w1, w2) of scene triangle t:
- * the sub-triangle that contains the point (or, for a point on no sub-triangle
- * by rounding, the one it is least outside of), linearly interpolated. */
-static void mesh_radiance(const samp_radiance_mesh *m, uint32_t t, float w1, float w2, float out[3])
-{
-    out[0] = out[1] = out[2] = 0.0f;
-    uint32_t best = UINT32_MAX;
-    float best_min = -INFINITY, best_l[3] = {0, 0, 0};
-    for (uint32_t i = m->first[t]; i < m->first[t + 1]; ++i) {
-        const float *b = m->bary + 6 * (size_t)i;
-        /* Barycentrics of (w1, w2) in the 2D triangle (b0, b1, b2). */
-        float ax = b[0], ay = b[1], bx = b[2], by = b[3], cx = b[4], cy = b[5];
-        float det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
-        if (det == 0.0f) continue;
-        float l1 = ((w1 - ax) * (cy - ay) - (cx - ax) * (w2 - ay)) / det;
-        float l2 = ((bx - ax) * (w2 - ay) - (w1 - ax) * (by - ay)) / det;
-        float l0 = 1.0f - l1 - l2;
-        float mn = fminf(l0, fminf(l1, l2));
-        if (mn > best_min) {
-            best_min = mn;
-            best = i;
-            best_l[0] = l0;
-            best_l[1] = l1;
-            best_l[2] = l2;
-            if (mn >= 0.0f) break;
-        }
-    }
-    if (best == UINT32_MAX) return;
-    const float *r = m->radiance + 9 * (size_t)best;
-    for (int c = 0; c < 3; ++c) {
-        float l = fmaxf(best_l[c], 0.0f);
-        for (int k = 0; k < 3; ++k) out[k] += l * r[3 * c + k];
-    }
-    float sum = fmaxf(best_l[0], 0.0f) + fmaxf(best_l[1], 0.0f) + fmaxf(best_l[2], 0.0f);
-    if (sum > 0.0f && sum != 1.0f)
-        for (int k = 0; k < 3; ++k) out[k] /= sum;
-}
-
-static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_point *x, float E[3])
+static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_radiance_index *ix,
+                         const samp_point *x, float E[3])
 {
     float origin[3];
     samp_point_origin(e->s, x, e->eps, origin);
@@ -205,8 +169,10 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
             v3_store(dir, d);
             rt_hit h;
             if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
+            /* The back of a surface sends nothing: the mesh holds what leaves its front. */
+            if (v3_dot(v3_load(e->s->tri_normals + 3 * (size_t)h.tri), d) >= 0.0f) continue;
             float L[3];
-            mesh_radiance(m, h.tri, h.u, h.v, L);
+            samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
             for (int c = 0; c < 3; ++c) sum[c] += L[c];
         }
     for (int c = 0; c < 3; ++c) {
@@ -221,6 +187,7 @@ typedef struct batch {
     const embree_impl *e;
     uint32_t light;                 /* direct */
     const samp_radiance_mesh *mesh; /* indirect when non-NULL */
+    const samp_radiance_index *index;    /* its point location */
     const samp_point *pts;
     uint32_t n;
     float *out;
@@ -236,7 +203,7 @@ static void *batch_worker(void *arg)
         uint32_t end = start + CHUNK < b->n ? start + CHUNK : b->n;
         for (uint32_t i = start; i < end; ++i) {
             if (b->mesh)
-                indirect_one(b->e, b->mesh, &b->pts[i], b->out + 3 * (size_t)i);
+                indirect_one(b->e, b->mesh, b->index, &b->pts[i], b->out + 3 * (size_t)i);
             else
                 b->out[i] = direct_one(b->e, b->light, &b->pts[i]);
         }
@@ -270,8 +237,12 @@ static lm_result embree_indirect(void *impl, const samp_radiance_mesh *mesh, con
                                  float *E, lm_error *err)
 {
     (void)err;
-    batch b = {.e = impl, .mesh = mesh, .pts = pts, .n = n, .out = E};
+    const embree_impl *e = impl;
+    samp_radiance_index ix;
+    samp_radiance_index_build(e->s, mesh, &ix); /* without it (no memory): linear search */
+    batch b = {.e = impl, .mesh = mesh, .index = &ix, .pts = pts, .n = n, .out = E};
     run_batch(impl, &b);
+    samp_radiance_index_free(&ix);
     return LM_OK;
 }
 

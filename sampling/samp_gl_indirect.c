@@ -18,7 +18,8 @@
  * to float precision. For the 160° plane the pixels cut by the cone's rim are
  * integrated over 16×16 sub-quads whose centres lie inside it.
  * The radiance is Gouraud-interpolated over each radiance-mesh triangle and
- * seen from both sides; scene triangles without radiance-mesh triangles are
+ * seen from its front only (a back face is black, as for the Embree back end's
+ * rays); scene triangles without radiance-mesh triangles are
  * drawn black (they still occlude, as the Embree back end's rays see them).
  * Near plane: eps/1000 (samp_gl.c); the hemicube starts eps above the
  * surface (samp_point_origin) and its side faces stop at the horizon, so the

@@ -82,9 +82,34 @@ double samp_area_light_unoccluded(const scene *s, uint32_t light, const float p[
  * back end uses this, so they see the same thing from the same point. */
 void samp_point_origin(const scene *s, const samp_point *x, float eps, float out[3]);
 
+/* The epsilon every back end of sp lifts receivers by (samp_point_origin). */
+float samp_origin_epsilon(const samp_sampler *sp);
+
 /* True when the radiance mesh is well formed for scene s: offsets non-decreasing,
  * first[tri_count] == mesh->tri_count, barycentrics and radiance finite. */
 int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *mesh, lm_error *err);
+
+/* Point location in a radiance mesh. A scene triangle with more than 16
+ * sub-triangles gets a res×res grid over its barycentric square (w1, w2) ∈ [0,1]²,
+ * res = ⌈√count⌉, each cell listing the sub-triangles whose bounding box meets it;
+ * others are searched linearly. Built in time linear in the mesh; valid while the
+ * mesh is unchanged. Pure data: any thread may read a built index. */
+typedef struct samp_radiance_index {
+    uint32_t *res;        /* per scene triangle: grid cells per side, 0 = no grid */
+    uint32_t *base;       /* per scene triangle: its first cell */
+    uint32_t *cell_first; /* per cell, + 1: offsets into items */
+    uint32_t *items;      /* radiance-mesh triangle ids */
+} samp_radiance_index;
+
+/* 0 and an empty index (linear search everywhere) when memory runs out. */
+int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_radiance_index *ix);
+void samp_radiance_index_free(samp_radiance_index *ix);
+/* RGB radiance of mesh m at barycentrics (w1, w2) of scene triangle t: the
+ * sub-triangle that contains the point (or, for a point on none by rounding, the
+ * one it is least outside of), linearly interpolated. Returns that sub-triangle,
+ * UINT32_MAX (and black) when t has none. */
+uint32_t samp_radiance_at(const samp_radiance_mesh *m, const samp_radiance_index *ix, uint32_t t, float w1, float w2,
+                          float out[3]);
 
 #ifdef __cplusplus
 }

@@ -1,12 +1,8 @@
 #version 450 core
-flat in vec3 v_kd, v_ks, v_le;
-layout(location = 0) out vec4 o_kd;
-layout(location = 1) out vec4 o_ks;
-layout(location = 2) out vec4 o_le;
-// Emission leaves the front side only (docs/scene-model.md).
-void main()
-{
-    o_kd = vec4(v_kd, 1.0);
-    o_ks = vec4(v_ks, 1.0);
-    o_le = vec4(gl_FrontFacing ? v_le : vec3(0.0), 1.0);
-}
+// Writes the visible surface's material code; bit 0 says the front side is seen,
+// because emission leaves the front side only (docs/scene-model.md). 0 stays
+// "no surface". One R32UI sample instead of kd, ks, Le as three RGBA32F: the
+// composite reads them from the material table, exactly.
+flat in uint v_code;
+layout(location = 0) out uint o_code;
+void main() { o_code = v_code | (gl_FrontFacing ? 1u : 0u); }

@@ -13,9 +13,13 @@
  * criterion, so small discontinuities are not missed); otherwise it is undone
  * and the leaf is marked done. A leaf of one pixel or less is never split.
  * Priority (§4.3.3): pixels the leaf covers × (1 + the largest ΔE between its
- * corners' colours). Two schedulers pick the leaves (cache_desc.scheduler): a
- * max-heap of leaves, or the paper's randomized rule over node priorities kept
- * as the maximum of the children's (measured against each other in
+ * corners' colours). After each round, values that changed under the
+ * refinement's feet — radiance values inside a light leaf that answered as
+ * uniform and proved not to be, indirect values a rebuilt source moved by more
+ * than the JND — are recomputed (cache.c, cache_source.c) and the leaves around them tested
+ * again. Two schedulers pick the leaves (cache_desc.scheduler): a max-heap of
+ * leaves, or the paper's randomized rule over node priorities kept as the
+ * maximum of the children's (measured against each other in
  * bench/bench_cache.c, docs/cache.md).
  */
 #include <math.h>
@@ -431,6 +435,60 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     return r;
 }
 
+/* ---- revised values: falsified light leaves, outdated indirect values --------- */
+
+typedef struct requeue_ctx {
+    cache *c;
+    cache_kind kind;
+    const uint32_t *pixels;
+    const uint32_t *vids; /* changed, sorted */
+    uint32_t n;
+} requeue_ctx;
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* A leaf with a changed corner is tested again (also one found done before: what
+ * it was compared with has changed). */
+static lm_result requeue_visit(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user, lm_error *err)
+{
+    requeue_ctx *q = user;
+    if (n->child != MESH_QMESH_NONE) return LM_OK;
+    int hit = 0;
+    for (int k = 0; k < 3 && !hit; ++k) hit = bsearch(&n->v[k], q->vids, q->n, sizeof *q->vids, cmp_u32) != NULL;
+    if (!hit || (q->pixels && q->pixels[n->tri] == 0)) return LM_OK;
+    return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, n, q->pixels), err);
+}
+
+/* regions NULL: anywhere in the mesh. The single-mesh ablation schedules the
+ * combined (direct) mesh only. */
+static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
+                                 const uint32_t *vids, uint32_t n, void *user, lm_error *err)
+{
+    if (kind == KIND_INDIRECT && c->desc.single_mesh) kind = KIND_DIRECT;
+    requeue_ctx q = {c, kind, user, vids, n};
+    const mesh_qmesh *m = cache_kind_mesh(c, kind);
+    lm_result r = LM_OK;
+    for (uint32_t i = 0; r == LM_OK && i < region_count; ++i) r = cache_region_walk(m, &regions[i], requeue_visit, &q, err);
+    for (uint32_t t = 0; r == LM_OK && !regions && t < c->s->tri_count; ++t) {
+        if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE) continue;
+        const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
+        r = cache_region_walk(m, &whole, requeue_visit, &q, err);
+    }
+    return r;
+}
+
+/* What changed under the refinement's feet: values inside falsified light leaves
+ * (cache.c) and indirect values the source has moved (cache_source.c); their leaves are tested again. */
+static lm_result revise(cache *c, const uint32_t *pixels, lm_error *err)
+{
+    lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
+    return r == LM_OK ? cache_regather_outdated(c, requeue_changed, (void *)pixels, err) : r;
+}
+
 /* Schedules every leaf of one mesh afresh (at the start; after a light changed;
  * for the specular mesh after the camera moved): heap, done flags and priorities
  * are rebuilt. */
@@ -480,13 +538,29 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
     uint32_t fifth = budget / 5 ? budget / 5 : 1;
     uint32_t left[CACHE_KINDS] = {0, fifth, c->specular ? fifth : 0};
     left[KIND_DIRECT] = budget > left[1] + left[2] ? budget - left[1] - left[2] : 1;
+    /* Changes made outside refinement (coarse cache, a camera move). */
+    if (r == LM_OK) r = revise(c, desc->pixels, err);
+    int settled = 0;
     while (r == LM_OK) {
         int kind = -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
             if (left[k] && c->waiting[k]) kind = k;
-        if (kind < 0) break;
+        if (kind < 0) {
+            /* Nothing left to test (not just out of budget): bring the indirect
+             * source up to date with the direct mesh; indirect values it moves are
+             * gathered again and their leaves tested. */
+            if (settled || c->waiting[0] + c->waiting[1] + c->waiting[2] > 0) break;
+            settled = 1;
+            r = cache_settle_source(c, err);
+            if (r == LM_OK) r = revise(c, desc->pixels, err);
+            continue;
+        }
         uint32_t before = res.tested;
         r = refine_round(c, (refine_kind)kind, desc->pixels, left[kind], &res, err);
+        /* The round's light fetches may have found uniform light leaves that were
+         * not, and its gathers a rebuilt source that moved older indirect values:
+         * recompute those values (cache.c) and test their leaves again. */
+        if (r == LM_OK) r = revise(c, desc->pixels, err);
         uint32_t used = res.tested - before;
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
     }

@@ -15,12 +15,21 @@ typedef struct light_edit {
     float value[3];
 } light_edit;
 
+/* Arrays behind one published mesh. */
+typedef struct mesh_store {
+    cache_snapshot_vertex *verts;
+    uint32_t *tris;
+    cache_snapshot_corner *corners;   /* publish_debug only */
+    size_t cap;                       /* triangles */
+} mesh_store;
+
 /* Buffers behind one snapshot; owned by whichever side holds the slot. */
 typedef struct snapshot_store {
     cache_snapshot snap;
-    cache_snapshot_vertex *verts[3];  /* direct, indirect, specular */
-    uint32_t *tris[3];
-    size_t cap[3];                    /* triangles */
+    mesh_store mesh[3];               /* direct, indirect, specular */
+    mesh_store *light_mesh;           /* publish_debug only: one per light ... */
+    cache_snapshot_mesh *light_snap;  /* ... and what snap.lights points to */
+    uint32_t light_mesh_cap;
     cache_mesh_stats *lights;
     size_t lights_cap;
 } snapshot_store;
@@ -28,7 +37,7 @@ typedef struct snapshot_store {
 struct cache_worker {
     cache_worker_desc desc;           /* immutable after create */
     const scene *s;
-    uint32_t *pixels;                 /* owned copy; read by the worker only */
+    uint32_t *pixels;                 /* owned copy; the worker's (set_pixels hands over a new one) */
     pthread_t thread;
     int started;
 
@@ -39,47 +48,108 @@ struct cache_worker {
     int ready_new;
     light_edit edits[MAX_EDITS];
     uint32_t edit_count;
+    uint32_t *new_pixels;             /* set_pixels: a copy waiting for the worker to take it */
+    samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
 };
 
 /* ---- snapshots (worker side) ---------------------------------------------------- */
 
-static lm_result fill_mesh(snapshot_store *st, int which, const cache *c, const mesh_qmesh *m,
+/* Debug data of the triangles buf[0..count): vertex ids, sampled flags, and which
+ * edges lie on their leaf's boundary. mesh_qmesh_leaf_triangles emits each leaf's
+ * triangles consecutively; an edge inside the leaf (a fan diagonal) is shared,
+ * reversed, by two of them, a boundary edge by none. */
+static void fill_corners(cache_snapshot_corner *out, const mesh_qmesh *m, const mesh_qmesh_tri *buf, size_t count)
+{
+    for (size_t i = 0; i < 3 * count; ++i) {
+        uint32_t id = buf[i / 3].v[i % 3];
+        out[i] = (cache_snapshot_corner){.vertex = id, .flags = CACHE_CORNER_LEAF_EDGE};
+        float scratch[MESH_QMESH_CHANNELS_MAX];
+        if (mesh_qmesh_get_value(m, id, scratch) == 1) out[i].flags |= CACHE_CORNER_SAMPLED;
+    }
+    for (size_t g = 0, e; g < count; g = e) {
+        for (e = g + 1; e < count && buf[e].leaf == buf[g].leaf;) ++e;
+        for (size_t i = g; i < e; ++i)
+            for (size_t j = i + 1; j < e; ++j)
+                for (int a = 0; a < 3; ++a)
+                    for (int b = 0; b < 3; ++b)
+                        if (buf[i].v[a] == buf[j].v[(b + 1) % 3] && buf[i].v[(a + 1) % 3] == buf[j].v[b]) {
+                            out[3 * i + (size_t)a].flags &= ~(uint32_t)CACHE_CORNER_LEAF_EDGE;
+                            out[3 * j + (size_t)b].flags &= ~(uint32_t)CACHE_CORNER_LEAF_EDGE;
+                        }
+    }
+}
+
+/* Publishes mesh m (NULL: empty) into ms and *sm. Without debug it does exactly
+ * what the renderer needs: positions, values, scene triangles. */
+static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, const cache *c, const mesh_qmesh *m,
                            mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
 {
     size_t count = 0;
-    lm_result r = mesh_qmesh_leaf_triangles(m, buf, buf_cap, &count, err);
+    lm_result r = m ? mesh_qmesh_leaf_triangles(m, buf, buf_cap, &count, err) : LM_OK;
     if (r != LM_OK) return r;
-    if (count > st->cap[which]) {
-        cache_snapshot_vertex *v = realloc(st->verts[which], 3 * count * sizeof *v);
-        uint32_t *t = v ? realloc(st->tris[which], count * sizeof *t) : NULL;
-        if (v) st->verts[which] = v;
-        if (t) st->tris[which] = t;
-        if (!v || !t) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
-        st->cap[which] = count;
+    if (count > ms->cap || (debug && count && !ms->corners)) {
+        cache_snapshot_vertex *v = realloc(ms->verts, 3 * count * sizeof *v);
+        if (v) ms->verts = v;
+        uint32_t *t = v ? realloc(ms->tris, count * sizeof *t) : NULL;
+        if (t) ms->tris = t;
+        cache_snapshot_corner *k = t && debug ? realloc(ms->corners, 3 * count * sizeof *k) : NULL;
+        if (k) ms->corners = k;
+        if (!v || !t || (debug && !k)) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        ms->cap = count;
     }
     const mesh_vtable *vt = cache_vtable(c);
+    const int pad = m && mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
     for (size_t i = 0; i < count; ++i) {
-        st->tris[which][i] = (*buf)[i].tri;
+        ms->tris[i] = (*buf)[i].tri;
         for (int k = 0; k < 3; ++k) {
-            cache_snapshot_vertex *out = &st->verts[which][3 * i + (size_t)k];
+            cache_snapshot_vertex *out = &ms->verts[3 * i + (size_t)k];
             memcpy(out->position, mesh_vtable_vertex(vt, (*buf)[i].v[k])->position, sizeof out->position);
+            if (pad) memset(out->value, 0, sizeof out->value);
             if (mesh_qmesh_get_value(m, (*buf)[i].v[k], out->value) < 0) memset(out->value, 0, sizeof out->value);
         }
     }
-    cache_snapshot_mesh *sm = which == 0 ? &st->snap.direct : which == 1 ? &st->snap.indirect : &st->snap.specular;
-    *sm = (cache_snapshot_mesh){.vertices = st->verts[which], .tri = st->tris[which], .triangle_count = (uint32_t)count};
+    if (debug && count) fill_corners(ms->corners, m, *buf, count);
+    *sm = (cache_snapshot_mesh){.vertices = ms->verts, .tri = ms->tris, .corners = debug && count ? ms->corners : NULL,
+                                .triangle_count = (uint32_t)count};
     return LM_OK;
 }
 
-static lm_result fill_snapshot(snapshot_store *st, cache *c, uint64_t generation, uint64_t tested, int converged,
-                               mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
+/* publish_debug: every light's visibility mesh into snap.lights. */
+static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t light_count, mesh_qmesh_tri **buf,
+                                   size_t *buf_cap, lm_error *err)
 {
-    lm_result r = fill_mesh(st, 0, c, cache_direct_mesh(c), buf, buf_cap, err);
-    if (r == LM_OK) r = fill_mesh(st, 1, c, cache_indirect_mesh(c), buf, buf_cap, err);
-    if (r == LM_OK && cache_specular_mesh(c)) r = fill_mesh(st, 2, c, cache_specular_mesh(c), buf, buf_cap, err);
+    if (light_count > st->light_mesh_cap) {
+        mesh_store *m = realloc(st->light_mesh, light_count * sizeof *m);
+        if (m) st->light_mesh = m;
+        cache_snapshot_mesh *sm = m ? realloc(st->light_snap, light_count * sizeof *sm) : NULL;
+        if (sm) st->light_snap = sm;
+        if (!m || !sm) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        memset(st->light_mesh + st->light_mesh_cap, 0, (light_count - st->light_mesh_cap) * sizeof *m);
+        st->light_mesh_cap = light_count;
+    }
+    for (uint32_t l = 0; l < light_count; ++l) {
+        lm_result r =
+            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, c, cache_light_mesh(c, l), buf, buf_cap, err);
+        if (r != LM_OK) return r;
+    }
+    st->snap.lights = st->light_snap;
+    st->snap.light_mesh_count = light_count;
+    return LM_OK;
+}
+
+static lm_result fill_snapshot(snapshot_store *st, cache *c, int debug, uint64_t generation, uint64_t tested,
+                               int converged, mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
+{
+    lm_result r = fill_mesh(&st->mesh[0], &st->snap.direct, debug, c, cache_direct_mesh(c), buf, buf_cap, err);
+    if (r == LM_OK)
+        r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), buf, buf_cap, err);
+    if (r == LM_OK && cache_specular_mesh(c))
+        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, c, cache_specular_mesh(c), buf, buf_cap, err);
     if (!cache_specular_mesh(c)) st->snap.specular = (cache_snapshot_mesh){0};
     if (r != LM_OK) return r;
     cache_get_stats(c, &st->snap.stats);
+    if (debug) r = fill_light_meshes(st, c, st->snap.stats.light_count, buf, buf_cap, err);
+    if (r != LM_OK) return r;
     if (st->snap.stats.light_count > st->lights_cap) {
         cache_mesh_stats *l = realloc(st->lights, st->snap.stats.light_count * sizeof *l);
         if (!l) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
@@ -100,6 +170,7 @@ static lm_result fill_snapshot(snapshot_store *st, cache *c, uint64_t generation
 /* Commits the worker's snapshot: a pointer swap under the lock. */
 static void commit(cache_worker *w)
 {
+    w->back->snap.published_at = lm_now_seconds();
     pthread_mutex_lock(&w->lock);
     snapshot_store *t = w->ready;
     w->ready = w->back;
@@ -119,6 +190,61 @@ static void publish_failure(cache_worker *w, uint64_t generation, const char *ms
 
 /* ---- the worker thread ---------------------------------------------------------- */
 
+/* The first snapshot as early as possible: the coarse cache is made with a quick
+ * Embree sampler (no calibration, few gather rays), published, and only then is
+ * the sampler the client asked for made (AUTO calibrates: hundreds of ms) and the
+ * coarse indirect gathered again with it. The display has its first image
+ * (full geometry, coarse light) while the worker calibrates. */
+static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint64_t *generation, mesh_qmesh_tri **buf,
+                             size_t *buf_cap, lm_error *err)
+{
+    samp_desc sd = w->desc.sampler;
+    sd.scene = w->s;
+    samp_desc quick = {.scene = w->s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = CACHE_WORKER_QUICK_RAYS,
+                       .threads = sd.threads, .seed = sd.seed};
+    if (sd.backend == SAMP_BACKEND_EMBREE) { /* the same direct estimate: light samples are kept */
+        quick.direct_rays = sd.direct_rays;
+        quick.direct_control_variate = sd.direct_control_variate;
+    }
+    /* The sampler (and a GL context, if any) is made here: it belongs to this thread. */
+    samp_sampler *first = NULL;
+    lm_result r = samp_create(w->desc.no_quick_start ? &sd : &quick, &first, err);
+    if (r == LM_OK) {
+        cache_desc cd = w->desc.cache;
+        cd.scene = w->s;
+        cd.sampler = first;
+        r = cache_create(&cd, c, err);
+    }
+    if (r == LM_OK) r = cache_init(*c, err);
+    if (r == LM_OK) r = fill_snapshot(w->back, *c, w->desc.publish_debug, ++*generation, 0, 0, buf, buf_cap, err);
+    if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
+    if (r == LM_OK) commit(w);
+    if (r == LM_OK && !w->desc.no_quick_start) samp_get_stats(first, &w->quick_stats);
+    if (w->desc.no_quick_start) {
+        *sp = first;
+        return r;
+    }
+    if (r == LM_OK) r = samp_create(&sd, sp, err);
+    if (r == LM_OK) cache_set_sampler(*c, *sp);
+    if (r == LM_OK) r = cache_regather_indirect(*c, err);
+    if (*c && r != LM_OK) cache_set_sampler(*c, NULL);
+    samp_destroy(first);
+    return r;
+}
+
+/* Takes the pixels set_pixels left, if any: the priorities follow them. */
+static lm_result take_pixels(cache_worker *w, cache *c, lm_error *err)
+{
+    pthread_mutex_lock(&w->lock);
+    uint32_t *p = w->new_pixels;
+    w->new_pixels = NULL;
+    pthread_mutex_unlock(&w->lock);
+    if (!p) return LM_OK;
+    free(w->pixels);
+    w->pixels = p;
+    return cache_requeue(c, err);
+}
+
 static void *worker_main(void *arg)
 {
     cache_worker *w = arg;
@@ -128,20 +254,8 @@ static void *worker_main(void *arg)
     mesh_qmesh_tri *buf = NULL;
     size_t buf_cap = 0;
     uint64_t generation = 0, tested = 0;
-    samp_desc sd = w->desc.sampler;
-    sd.scene = w->s;
-    /* The sampler (and a GL context, if any) is made here: it belongs to this thread. */
-    lm_result r = samp_create(&sd, &sp, &err);
-    if (r == LM_OK) {
-        cache_desc cd = w->desc.cache;
-        cd.scene = w->s;
-        cd.sampler = sp;
-        r = cache_create(&cd, &c, &err);
-    }
-    if (r == LM_OK) r = cache_init(c, &err);
-    if (r == LM_OK) r = fill_snapshot(w->back, c, ++generation, 0, 0, &buf, &buf_cap, &err);
-    if (r == LM_OK) commit(w);
-    int converged = 0;
+    lm_result r = start_cache(w, &sp, &c, &generation, &buf, &buf_cap, &err);
+    int idle = 0; /* converged or max_tested reached: wait for an edit */
     while (r == LM_OK) {
         light_edit edits[MAX_EDITS];
         uint32_t nedit = 0;
@@ -149,7 +263,11 @@ static void *worker_main(void *arg)
         for (;;) {
             if (w->cancel) break;
             nedit = w->edit_count;
-            if (w->paused || (converged && nedit == 0)) {
+            /* pixels_later: refinement waits for the first set_pixels (the coarse cache does not). */
+            int no_pixels = w->desc.pixels_later && !w->pixels && !w->new_pixels;
+            /* Paused or idle, an edit still wakes the worker: it is applied and
+             * published without a refinement step (a paused viewer shows it). */
+            if (((w->paused || idle) && nedit == 0) || no_pixels) {
                 w->parked = 1;
                 pthread_cond_broadcast(&w->cond);
                 if (w->paused) {
@@ -169,7 +287,7 @@ static void *worker_main(void *arg)
             }
             break;
         }
-        int cancel = w->cancel;
+        int cancel = w->cancel, paused = w->paused;
         if (!cancel && nedit) {
             memcpy(edits, w->edits, nedit * sizeof *edits);
             w->edit_count = 0;
@@ -177,16 +295,23 @@ static void *worker_main(void *arg)
         pthread_mutex_unlock(&w->lock);
         if (cancel) break;
         for (uint32_t i = 0; r == LM_OK && i < nedit; ++i) r = cache_set_light(c, edits[i].light, edits[i].value, &err);
+        if (r == LM_OK) r = take_pixels(w, c, &err);
         if (r != LM_OK) break;
-        if (nedit) converged = 0;
+        if (nedit) idle = 0;
         cache_refine_result res = {0};
         uint32_t budget = w->desc.step_budget ? w->desc.step_budget : 512;
         if (w->desc.max_tested && tested + budget > w->desc.max_tested) budget = (uint32_t)(w->desc.max_tested - tested);
+        if (paused) budget = 0; /* an edit while paused: applied and published, nothing refined */
         if (budget) r = cache_refine(c, &(cache_refine_desc){.pixels = w->pixels, .budget = budget}, &res, &err);
         if (r != LM_OK) break;
         tested += res.tested;
-        converged = res.remaining == 0 || (w->desc.max_tested && tested >= w->desc.max_tested);
-        r = fill_snapshot(w->back, c, ++generation, tested, converged, &buf, &buf_cap, &err);
+        /* After an edit while paused nothing was tested: every leaf is queued again (not converged). */
+        int converged = !paused && res.remaining == 0;
+        idle = converged || (w->desc.max_tested && tested >= w->desc.max_tested);
+        r = fill_snapshot(w->back, c, w->desc.publish_debug, ++generation, tested, converged, &buf, &buf_cap, &err);
+        w->back->snap.finished = idle;
+        if (r == LM_OK) samp_get_stats(sp, &w->back->snap.sampler);
+        w->back->snap.quick_sampler = w->quick_stats;
         if (r == LM_OK) commit(w);
     }
     if (r != LM_OK) publish_failure(w, ++generation, err.msg);
@@ -205,10 +330,14 @@ static void *worker_main(void *arg)
 static void store_free(snapshot_store *st)
 {
     if (!st) return;
-    for (int k = 0; k < 3; ++k) {
-        free(st->verts[k]);
-        free(st->tris[k]);
+    for (uint32_t k = 0; k < 3 + st->light_mesh_cap; ++k) {
+        mesh_store *ms = k < 3 ? &st->mesh[k] : &st->light_mesh[k - 3];
+        free(ms->verts);
+        free(ms->tris);
+        free(ms->corners);
     }
+    free(st->light_mesh);
+    free(st->light_snap);
     free(st->lights);
     free(st);
 }
@@ -229,6 +358,7 @@ void cache_worker_destroy(cache_worker *w)
     store_free(w->ready);
     store_free(w->back);
     free(w->pixels);
+    free(w->new_pixels);
     free(w);
 }
 
@@ -301,7 +431,12 @@ lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float va
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker_set_light: light %u does not exist", light);
     pthread_mutex_lock(&w->lock);
     lm_result r = LM_OK;
-    if (w->edit_count == MAX_EDITS) {
+    uint32_t pending = 0; /* a waiting edit of the same light is replaced (held keys, slow steps) */
+    while (pending < w->edit_count && w->edits[pending].light != light) ++pending;
+    if (pending < w->edit_count) {
+        memcpy(w->edits[pending].value, value, sizeof w->edits[0].value);
+        pthread_cond_broadcast(&w->cond);
+    } else if (w->edit_count == MAX_EDITS) {
         r = lm_fail(err, LM_ERR_RUNTIME, "cache_worker_set_light: %d edits are waiting already", MAX_EDITS);
     } else {
         w->edits[w->edit_count].light = light;
@@ -311,4 +446,17 @@ lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float va
     }
     pthread_mutex_unlock(&w->lock);
     return r;
+}
+
+lm_result cache_worker_set_pixels(cache_worker *w, const uint32_t *pixels, lm_error *err)
+{
+    uint32_t *p = malloc((w->s->tri_count ? w->s->tri_count : 1) * sizeof *p);
+    if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the pixel counts");
+    memcpy(p, pixels, w->s->tri_count * sizeof *p);
+    pthread_mutex_lock(&w->lock);
+    free(w->new_pixels); /* a newer count replaces one the worker has not taken */
+    w->new_pixels = p;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+    return LM_OK;
 }

@@ -49,18 +49,6 @@ static scene *load(void)
     return s;
 }
 
-/* Waits (at most `seconds`) for a snapshot satisfying `converged`. */
-static const cache_snapshot *wait_converged(cache_worker *w, double seconds)
-{
-    double t0 = lm_now_seconds();
-    const cache_snapshot *s = NULL;
-    while (lm_now_seconds() - t0 < seconds) {
-        s = cache_worker_acquire(w);
-        if (s && (s->converged || s->failed)) return s;
-        sleep_ms(5);
-    }
-    return s;
-}
 
 int main(void)
 {
@@ -99,8 +87,8 @@ int main(void)
     CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = pixels, .step_budget = 512,
                                                    .max_tested = budget},
                               &w, &err) == LM_OK);
-    const cache_snapshot *snap = w ? wait_converged(w, 60.0) : NULL;
-    CHECK(snap && snap->converged && !snap->failed);
+    const cache_snapshot *snap = w ? test_wait_finished(w, 60.0) : NULL;
+    CHECK(snap && snap->finished && !snap->failed);
     if (snap) {
         printf("worker: generation %llu, %llu leaves tested; direct samples %llu (synchronous %llu), light samples "
                "%llu (%llu), %u triangles published (%zu)\n",

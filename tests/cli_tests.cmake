@@ -3,7 +3,7 @@ set(RUN_CLI ${CMAKE_CURRENT_SOURCE_DIR}/run_cli.cmake)
 set(LUMESH_EXE $<TARGET_FILE:lumesh_cli>)
 
 function(lumesh_cli_test name exit)
-  cmake_parse_arguments(A "ONE_ERR_LINE" "OUT;ERR" "ARGS" ${ARGN})
+  cmake_parse_arguments(A "ONE_ERR_LINE" "OUT;ERR" "ARGS;FILES" ${ARGN})
   set(defs -DEXPECT_EXIT=${exit})
   if(A_OUT)
     list(APPEND defs "-DEXPECT_OUT=${A_OUT}")
@@ -13,6 +13,10 @@ function(lumesh_cli_test name exit)
   endif()
   if(A_ONE_ERR_LINE)
     list(APPEND defs -DONE_ERR_LINE=1)
+  endif()
+  if(A_FILES)
+    string(REPLACE ";" "|" files "${A_FILES}")
+    list(APPEND defs "-DEXPECT_FILES=${files}")
   endif()
   string(REPLACE ";" "|" cmd "${LUMESH_EXE};${A_ARGS}")
   add_test(NAME cli_${name} COMMAND ${CMAKE_COMMAND} "-DCMD=${cmd}" ${defs} -P ${RUN_CLI})
@@ -43,6 +47,13 @@ lumesh_cli_test(render_png 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/render.p
   OUT "^wrote .*render\\.png: 64x64, [0-9.]+ s, (converged|stopped) after [0-9]+ leaves tested")
 lumesh_cli_test(render_exr_samples 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/render.exr --width 48 --height 36 --samples 500
   OUT "48x36, .* after 500 leaves tested")
+# --debug-meshes DIR: leaves and samples of each mesh (the built-in scene has no glossy material).
+set(DBG ${CMAKE_CURRENT_BINARY_DIR}/debug_meshes)
+lumesh_cli_test(render_debug_meshes 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/debug.png --width 96 --height 96
+  --samples 2000 --debug-meshes ${DBG}
+  OUT "wrote .*light0-leaves\\.png: [0-9]+ of [0-9]+ leaf edges shown.*light0-samples\\.png: [0-9]+ samples shown.*direct-leaves.*direct-samples.*indirect-leaves.*indirect-samples"
+  FILES ${DBG}/light0-leaves.png ${DBG}/light0-samples.png ${DBG}/direct-leaves.png ${DBG}/direct-samples.png
+        ${DBG}/indirect-leaves.png ${DBG}/indirect-samples.png)
 lumesh_cli_test(render_unknown_camera 2 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/x.png --camera nope ONE_ERR_LINE ERR "no camera named 'nope'")
 
 set(CB ${LUMESH_SCENES}/cornell-box)
@@ -82,4 +93,15 @@ endforeach()
 # --sampler and --gl: fixed spellings, checked before the scene is read.
 lumesh_cli_test(render_bad_sampler 1 ARGS render -o x.png --sampler cuda ERR "--sampler must be gl, embree or auto, not 'cuda'")
 lumesh_cli_test(converge_bad_gl 1 ARGS converge --reference r.exr --seconds 1 --out d --gl glx ERR "--gl must be egl or osmesa")
-lumesh_cli_test(view_sampler_ok 3 ARGS view --sampler embree --gl osmesa ONE_ERR_LINE ERR "not available yet")
+lumesh_cli_test(converge_needs_reference 1 ARGS converge --seconds 1 --out d ERR "--reference, --seconds and --out are required")
+lumesh_cli_test(converge_bad_snapshots 1 ARGS converge --reference r.exr --seconds 1 --out d --snapshots 0.5,0.2
+  ERR "--snapshots takes increasing positive seconds")
+lumesh_cli_test(converge_missing_reference 2 ARGS converge --reference ${CMAKE_CURRENT_BINARY_DIR}/no-such.exr --seconds 1
+  --out ${CMAKE_CURRENT_BINARY_DIR}/conv-never ONE_ERR_LINE ERR "no-such\\.exr")
+lumesh_cli_test(render_deterministic_needs_samples 1 ARGS render -o x.exr --deterministic ERR "--deterministic needs --samples")
+lumesh_cli_test(view_width_without_height 1 ARGS view --sampler embree --gl osmesa --width 640
+  ERR "give both --width and --height")
+# A bad script fails before any window opens, naming the file and line.
+file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt "wait 1\nfly 3\n")
+lumesh_cli_test(view_bad_script 2 ARGS view --script ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt ONE_ERR_LINE
+  ERR "view-bad-script\\.txt:2: unknown command 'fly'")

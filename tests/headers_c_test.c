@@ -10,6 +10,7 @@
 #include "qmesh.h"
 #include "reference.h"
 #include "rend_camera.h"
+#include "rend_debug.h"
 #include "rend_frame.h"
 #include "rend_id.h"
 #include "rt_scene.h"
@@ -19,6 +20,9 @@
 #include "util.h"
 #include "vecmath.h"
 #include "vfs.h"
+#include "view_camera.h"
+#include "view_script.h"
+#include "view_tonemap.h"
 #include "vtable.h"
 
 #include <string.h>

@@ -21,82 +21,18 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "analytic.h"
 #include "reference.h"
 #include "scene.h"
 #include "test_util.h"
 #include "vecmath.h"
 
 enum { W = 24, H = 24, SPP = 256, SUB = 8 };
-static const double kd[3] = {0.6, 0.4, 0.2};
-static const double le[3] = {5.0, 7.0, 9.0};
-#define LIGHT_HEIGHT 1.0
-#define LIGHT_HALF 0.5
-#define CAM_HEIGHT 0.8
-#define FOV_Y 100.0
-
-/* The point of the plane y = 0 seen through screen position (sx, sy) in [-1, 1]²,
- * with the pinhole of reference.c: dir = fwd + sx·tx·right + sy·ty·up, where the
- * camera at (0, CAM_HEIGHT, 0) looks down -y with up (0, 0, -1): right = +x and
- * the screen's up = -z. */
-static void footprint_point(double sx, double sy, double x[3])
-{
-    double ty = tan(0.5 * FOV_Y * M_PI / 180.0), tx = ty * (double)W / (double)H;
-    x[0] = CAM_HEIGHT * sx * tx;
-    x[1] = 0.0;
-    x[2] = -CAM_HEIGHT * sy * ty;
-}
-
-/* Mean of G over the footprint of pixel (px, py): SUB×SUB midpoint rule (the
- * screen-to-plane map is linear, so jittered pixel samples are uniform on it). */
-static double pixel_G(int px, int py)
-{
-    static const double light[4][3] = {{-LIGHT_HALF, LIGHT_HEIGHT, -LIGHT_HALF},
-                                       {LIGHT_HALF, LIGHT_HEIGHT, -LIGHT_HALF},
-                                       {LIGHT_HALF, LIGHT_HEIGHT, LIGHT_HALF},
-                                       {-LIGHT_HALF, LIGHT_HEIGHT, LIGHT_HALF}};
-    const double up[3] = {0.0, 1.0, 0.0};
-    double sum = 0.0;
-    for (int j = 0; j < SUB; ++j)
-        for (int i = 0; i < SUB; ++i) {
-            double sx = 2.0 * (px + (i + 0.5) / SUB) / W - 1.0;
-            double sy = 1.0 - 2.0 * (py + (j + 0.5) / SUB) / H;
-            double x[3];
-            footprint_point(sx, sy, x);
-            sum += samp_polygon_G(light, 4, x, up);
-        }
-    return sum / (SUB * SUB);
-}
-
-static scene *load_plane_scene(void)
-{
-    char obj[1024], json[1024], text[2048];
-    test_write_file("plane.obj",
-                    "v -4 0 -4\nv 4 0 -4\nv 4 0 4\nv -4 0 4\n"
-                    "f 1 4 3\nf 1 3 2\n", /* counter-clockwise seen from +y */
-                    obj, sizeof obj);
-    /* edge1 × edge2 = (1,0,0) × (0,0,1) = (0,-1,0): the light faces the plane. */
-    snprintf(text, sizeof text,
-             "{\"meshes\": [{\"file\": \"plane.obj\", \"material\": \"paint\"}],"
-             " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}},"
-             " \"lights\": [{\"type\": \"quad\", \"corner\": [%g, %g, %g], \"edge1\": [%g, 0, 0],"
-             " \"edge2\": [0, 0, %g], \"radiance\": [%g, %g, %g]}],"
-             " \"cameras\": [{\"position\": [0, %g, 0], \"target\": [0, 0, 0], \"up\": [0, 0, -1],"
-             " \"fov_y\": %g, \"width\": %d, \"height\": %d}]}",
-             kd[0], kd[1], kd[2], -LIGHT_HALF, LIGHT_HEIGHT, -LIGHT_HALF, 2 * LIGHT_HALF, 2 * LIGHT_HALF,
-             le[0], le[1], le[2], CAM_HEIGHT, FOV_Y, W, H);
-    test_write_file("plane.json", text, json, sizeof json);
-    scene_load_desc d = {.path = json, .require_light = 1};
-    scene *s = NULL;
-    lm_error err;
-    lm_result r = scene_load(&d, &s, &err);
-    CHECK_MSG(r == LM_OK, "%s", err.msg);
-    return s;
-}
+static const test_plane plane = {.kd = {0.6, 0.4, 0.2}, .le = {5.0, 7.0, 9.0}, .light_half = 0.5,
+                                 .light_height = 1.0, .cam_height = 0.8, .fov_y = 100.0, .width = W, .height = H};
 
 int main(void)
 {
-    scene *s = load_plane_scene();
+    scene *s = test_plane_load(&plane, "plane");
     if (!s) return test_finish("reference_plane_test");
     CHECK(s->tri_count == 4 && s->area_light_count == 1);
 
@@ -120,13 +56,13 @@ int main(void)
     double gmin = INFINITY, gmax = 0.0, sum_dev = 0.0, se2 = 0.0, worst = 0.0;
     for (int py = 0; py < H; ++py)
         for (int px = 0; px < W; ++px) {
-            double g = pixel_G(px, py);
+            double g = test_plane_pixel_G(&plane, px, py, SUB); /* the pixel's box filter, midpoint rule */
             gmin = fmin(gmin, g);
             gmax = fmax(gmax, g);
             double pixel_se = 0.0;
             for (int k = 0; k < 3; ++k) {
                 size_t i = ((size_t)py * W + (size_t)px) * 3 + (size_t)k;
-                double want = kd[k] / M_PI * le[k] * g, dev = fabs(rgb[i] - want);
+                double want = plane.kd[k] / M_PI * plane.le[k] * g, dev = fabs(rgb[i] - want);
                 double tol = 1e-5 * want; /* float accumulation */
                 outside3 += dev > 3.0 * se[i] + tol;
                 outside5 += dev > 5.0 * se[i] + tol;

@@ -1,14 +1,25 @@
 /* rend_frame_test — the renderer's passes end to end against the reference path
- * tracer (model transport, same camera, same pixel centres):
- *   - a plane under a quad light with a blocker: the cache (refined by the worker
- *     with pixel counts from the ID pass) drawn by material, radiance and
- *     composite passes is within mean ΔE 1.5 of the reference (measured 1.08);
- *   - CornellBox-Original (with ../shared/scenes): within mean ΔE 2 (measured 1.69).
- * What remains is mostly silhouettes: the reference box-filters each pixel with
- * jittered samples, the rasterizer samples its centre (no anti-aliasing yet), so
- * edge pixels of the lamp and the boxes differ a lot (the 99th percentile).
- *   - with no snapshot only emission is drawn.
- * Prints the pass timings.
+ * tracer (model transport, same camera, box-filtered pixels), and the renderer's
+ * exact properties:
+ *   - a plane under a quad light with a blocker, and CornellBox-Original (with
+ *     ../shared/scenes): the cache (refined by the worker with pixel counts from
+ *     the ID pass) drawn by material, radiance and composite passes with s×s
+ *     samples per pixel, s = 1..4, against the reference (mean ΔE, the method of
+ *     `lumesh compare`); a table per scene, with the reference's own noise (a
+ *     second reference, another seed) and the draw times. Bounds: s = 1 within
+ *     1.5 / 2.0 (measured 1.08 / 1.69: silhouettes sampled at the pixel centre
+ *     against the reference's box filter dominate), the default s within 1.1 /
+ *     1.45 (measured 0.98 / 1.33);
+ *   - while the worker refines, every new snapshot drawn incrementally (only
+ *     where its meshes changed) gives the same image, bit for bit, as a full
+ *     redraw;
+ *   - the composite averages per-sample values exactly: on a flat-coloured view
+ *     (a plane facing the camera, constant values) every s gives the s = 1 image
+ *     bit for bit;
+ *   - a draw without read-back leaves the same image in the output texture;
+ *   - components: indirect hidden equals a snapshot without indirect triangles;
+ *     rend_frame_set_emission adds the edited Le, hidden emission removes it;
+ *   - with no snapshot only emission is drawn; bad arguments are refused.
  */
 #include <math.h>
 #include <stdio.h>
@@ -24,18 +35,101 @@
 #include "rend_id.h"
 #include "test_util.h"
 
-static double run_scene(const GladGLContext *gl, const scene *s, int w, int h, int spp, const char *label)
+enum { MAX_S = 4 };
+
+static int same_floats(const float *a, const float *b, size_t n)
+{
+    return memcmp(a, b, n * sizeof *a) == 0;
+}
+
+static double mean_delta_e(const scene *s, int w, int h, float *img, float *ref, double *p99)
+{
+    char names[3][32] = {"R", "G", "B"};
+    img_image a = {w, h, 3, img, names}, b = {w, h, 3, ref, names};
+    cmp_result cr;
+    lm_error err;
+    if (cmp_compare(&(cmp_desc){.exposure = s->exposure}, &a, &b, &cr, NULL, &err) != LM_OK) return INFINITY;
+    if (p99) *p99 = cr.delta_e_p99;
+    return cr.delta_e_mean;
+}
+
+static void render_reference(const scene *s, int w, int h, int spp, uint32_t seed, float *out)
 {
     lm_error err;
+    ref_renderer *rr = NULL;
+    CHECK(ref_create(&(ref_desc){.scene = s, .width = w, .height = h, .seed = seed}, &rr, &err) == LM_OK);
+    for (int i = 0; rr && i < spp; ++i) ref_render_pass(rr, NULL, 0.0);
+    if (rr) ref_get_image(rr, out, NULL, NULL);
+    ref_destroy(rr);
+}
+
+/* Refines until converged; every new snapshot on the way is drawn incrementally
+ * by `inc` and in full by `full` (invalidated first), and the images must agree
+ * bit for bit. */
+static void refine_and_compare(const GladGLContext *gl, const scene *s, const uint32_t *pixels, int w, int h)
+{
+    lm_error err;
+    cache_worker *wk = NULL; /* small steps: many snapshots, each changing a little */
+    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = {.backend = SAMP_BACKEND_EMBREE},
+                                                   .pixels = pixels, .step_budget = 32},
+                              &wk, &err) == LM_OK);
+    rend_frame *inc = NULL, *full = NULL;
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = 2}, &inc,
+                            &err) == LM_OK);
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = 2}, &full,
+                            &err) == LM_OK);
+    float *a = malloc((size_t)w * h * 3 * sizeof *a), *b = malloc((size_t)w * h * 3 * sizeof *b);
+    const cache_snapshot *snap = NULL;
+    uint64_t last = 0;
+    int draws = 0, partial = 0, skipped = 0, differ = 0;
+    double t0 = lm_now_seconds();
+    while (wk && inc && full && lm_now_seconds() - t0 < 60.0) {
+        snap = cache_worker_acquire(wk);
+        if (snap && snap->failed) break;
+        if (snap && snap->generation != last) {
+            last = snap->generation;
+            CHECK(rend_frame_draw(inc, &s->cameras[0], snap, a, &err) == LM_OK);
+            rend_frame_times t;
+            rend_frame_get_times(inc, &t);
+            rend_frame_invalidate(full);
+            CHECK(rend_frame_draw(full, &s->cameras[0], snap, b, &err) == LM_OK);
+            draws++;
+            partial += t.radiance_redrawn > 0.0 && t.radiance_redrawn < 1.0;
+            skipped += t.radiance_reused;
+            differ += !same_floats(a, b, (size_t)w * h * 3);
+        }
+        if (snap && (snap->converged || snap->failed)) break;
+        for (volatile int i = 0; i < 200000; ++i) {
+        }
+    }
+    printf("  incremental against full redraws (s = 2): %d snapshots, %d partly redrawn, %d not redrawn, %d differ\n",
+           draws, partial, skipped, differ);
+    CHECK(draws > 1);
+    CHECK_MSG(differ == 0, "%d of %d incremental draws differ from a full redraw", differ, draws);
+    free(a);
+    free(b);
+    rend_frame_destroy(inc);
+    rend_frame_destroy(full);
+    cache_worker_destroy(wk);
+}
+
+/* The scene against the reference for s = 1..MAX_S; returns mean ΔE per s in de[1..MAX_S]. */
+static void run_scene(const GladGLContext *gl, const scene *s, int w, int h, int spp, const char *label,
+                      double de[MAX_S + 1])
+{
+    lm_error err;
+    for (int k = 0; k <= MAX_S; ++k) de[k] = INFINITY;
     rend_id *ip = NULL;
     rend_id_result ids;
     CHECK(rend_id_create(gl, &(rend_id_desc){.scene = s, .width = w, .height = h}, &ip, &err) == LM_OK);
-    if (!ip) return INFINITY;
+    if (!ip) return;
     CHECK(rend_id_render(ip, &s->cameras[0], &ids, &err) == LM_OK);
     cache_worker *wk = NULL;
     CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = {.backend = SAMP_BACKEND_EMBREE},
                                                    .pixels = ids.pixels},
                               &wk, &err) == LM_OK);
+    printf("%s, %dx%d:\n", label, w, h);
+    refine_and_compare(gl, s, ids.pixels, w, h);
     const cache_snapshot *snap = NULL;
     double t0 = lm_now_seconds();
     while (wk && lm_now_seconds() - t0 < 60.0) {
@@ -45,50 +139,176 @@ static double run_scene(const GladGLContext *gl, const scene *s, int w, int h, i
         }
     }
     CHECK(snap && snap->converged && !snap->failed);
-    rend_frame *f = NULL;
-    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = w, .height = h}, &f, &err) == LM_OK);
-    float *img = malloc((size_t)w * h * 3 * sizeof *img), *ref = malloc((size_t)w * h * 3 * sizeof *ref);
-    double de = INFINITY;
-    if (f && snap) {
-        CHECK(rend_frame_draw(f, &s->cameras[0], snap, img, &err) == LM_OK);
-        rend_frame_times tt;
-        rend_frame_get_times(f, &tt);
-        ref_renderer *rr = NULL;
-        CHECK(ref_create(&(ref_desc){.scene = s, .width = w, .height = h, .seed = 4}, &rr, &err) == LM_OK);
-        for (int i = 0; rr && i < spp; ++i) ref_render_pass(rr, NULL, 0.0);
-        if (rr) ref_get_image(rr, ref, NULL, NULL);
-        ref_destroy(rr);
-        char names[3][32] = {"R", "G", "B"};
-        img_image a = {w, h, 3, img, names}, b = {w, h, 3, ref, names};
-        cmp_result cr;
-        CHECK(cmp_compare(&(cmp_desc){.exposure = s->exposure}, &a, &b, &cr, NULL, &err) == LM_OK);
-        de = cr.delta_e_mean;
-        printf("%s, %dx%d: %u direct, %u indirect, %u specular triangles; against the reference (%d spp): mean ΔE "
-               "%.3f, 99%% %.3f, relMSE %.2e; passes: material %.2f ms, radiance %.2f ms, composite %.2f ms, "
-               "read-back %.2f ms\n",
-               label, w, h, snap->direct.triangle_count, snap->indirect.triangle_count, snap->specular.triangle_count,
-               spp, cr.delta_e_mean, cr.delta_e_p99, cr.relmse, tt.material * 1e3, tt.radiance * 1e3,
-               tt.composite * 1e3, tt.readback * 1e3);
-    }
-    /* Without a snapshot: emission only (the lamp), everything else black. */
-    if (f) {
-        CHECK(rend_frame_draw(f, &s->cameras[0], NULL, img, &err) == LM_OK);
-        int lit = 0, other = 0;
-        for (int i = 0; i < w * h; ++i) {
-            if (img[3 * i] > 0.0f)
-                lit++;
-            else
-                other++;
+    size_t n = (size_t)w * h * 3;
+    float *img = malloc(n * sizeof *img), *ref = malloc(n * sizeof *ref), *ref2 = malloc(n * sizeof *ref2);
+    if (snap && snap->converged) {
+        render_reference(s, w, h, spp, 4, ref);
+        render_reference(s, w, h, spp, 5, ref2);
+        printf("  %u direct, %u indirect, %u specular triangles; against the reference (%d spp; another seed: "
+               "mean ΔE %.3f):\n",
+               snap->direct.triangle_count, snap->indirect.triangle_count, snap->specular.triangle_count, spp,
+               mean_delta_e(s, w, h, ref2, ref, NULL));
+        printf("  %2s %9s %8s %13s %13s %13s\n", "s", "mean ΔE", "99%", "material ms", "radiance ms", "composite ms");
+        for (int ss = 1; ss <= MAX_S; ++ss) {
+            rend_frame *f = NULL;
+            CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = ss},
+                                    &f, &err) == LM_OK);
+            if (!f) continue;
+            rend_frame_times tt;
+            /* The first draw compiles llvmpipe's shader variants: time the third. */
+            scene_camera cam = s->cameras[0];
+            for (int i = 0; i < 3; ++i) {
+                cam.position[0] = s->cameras[0].position[0] + (i == 1 ? 1e-4f : 0.0f);
+                CHECK(rend_frame_draw(f, &cam, snap, img, &err) == LM_OK);
+            }
+            rend_frame_get_times(f, &tt);
+            double p99;
+            de[ss] = mean_delta_e(s, w, h, img, ref, &p99);
+            printf("  %2d %9.3f %8.3f %13.2f %13.2f %13.2f\n", ss, de[ss], p99, tt.material * 1e3, tt.radiance * 1e3,
+                   tt.composite * 1e3);
+
+            if (ss == 1) {
+                /* A still camera reuses material and radiance; without read-back the output
+                 * texture holds the same image (GL rows bottom up). */
+                CHECK(rend_frame_draw(f, &cam, snap, NULL, &err) == LM_OK);
+                rend_frame_get_times(f, &tt);
+                CHECK(tt.material_reused && tt.upload_reused && tt.radiance_reused && tt.readback == 0.0);
+                rend_frame_output o;
+                rend_frame_get_output(f, &o);
+                CHECK(o.width == w && o.height == h && o.texture && o.framebuffer);
+                float *tex = malloc((size_t)w * h * 4 * sizeof *tex);
+                gl->GetTextureImage(o.texture, 0, GL_RGBA, GL_FLOAT, (GLsizei)((size_t)w * h * 4 * sizeof *tex), tex);
+                int same = 1;
+                for (int y = 0; y < h; ++y)
+                    for (int x = 0; x < w; ++x)
+                        for (int c = 0; c < 3; ++c)
+                            same &= tex[4 * ((size_t)(h - 1 - y) * w + x) + c] == img[3 * ((size_t)y * w + x) + c];
+                CHECK(same);
+                free(tex);
+                /* Without a snapshot: emission only (the lamp), everything else black. */
+                CHECK(rend_frame_draw(f, &s->cameras[0], NULL, img, &err) == LM_OK);
+                int other = 0;
+                for (int i = 0; i < w * h; ++i) other += !(img[3 * i] > 0.0f);
+                CHECK(other > 0);
+            }
+            rend_frame_destroy(f);
         }
-        CHECK(other > 0);
-        (void)lit;
     }
     free(img);
     free(ref);
-    rend_frame_destroy(f);
+    free(ref2);
     cache_worker_destroy(wk);
     rend_id_destroy(ip);
-    return de;
+}
+
+/* A plane facing the camera, constant values: every sample of every pixel has
+ * the same value, so the box filter must give the s = 1 image exactly. */
+static void flat_case(const GladGLContext *gl)
+{
+    char obj[1024], json[1024];
+    test_write_file("frame_flat.obj", "v -10 -10 0\nv 10 -10 0\nv 10 10 0\nv -10 10 0\nf 1 2 3\nf 1 3 4\n", obj,
+                    sizeof obj);
+    test_write_file("frame_flat.json",
+                    "{\"meshes\": [{\"file\": \"frame_flat.obj\", \"material\": \"m\"}],"
+                    " \"materials\": {\"m\": {\"kd\": [0.6, 0.5, 0.4], \"ks\": [0.2, 0.1, 0.05]}},"
+                    " \"cameras\": [{\"position\": [0, 0, 2], \"target\": [0, 0, 0], \"fov_y\": 60}]}",
+                    json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    CHECK(scene_load(&(scene_load_desc){.path = json}, &s, &err) == LM_OK);
+    if (!s) return;
+    /* The snapshot: the two scene triangles with one value per mesh. */
+    cache_snapshot_vertex v[3][6];
+    uint32_t tri[2] = {0, 1};
+    const float values[3][3] = {{0.3f, 0.7f, 0.9f}, {2.1f, 1.3f, 0.2f}, {0.05f, 0.5f, 1.7f}};
+    for (int m = 0; m < 3; ++m)
+        for (int t = 0; t < 2; ++t)
+            for (int c = 0; c < 3; ++c) {
+                uint32_t vi = s->tris[t].v[c];
+                memcpy(v[m][3 * t + c].position, s->positions + 3 * (size_t)vi, 3 * sizeof(float));
+                memcpy(v[m][3 * t + c].value, values[m], 3 * sizeof(float));
+            }
+    cache_snapshot snap = {.generation = 1,
+                           .direct = {.vertices = v[0], .tri = tri, .triangle_count = 2},
+                           .indirect = {.vertices = v[1], .tri = tri, .triangle_count = 2},
+                           .specular = {.vertices = v[2], .tri = tri, .triangle_count = 2},
+                           .converged = 1};
+    enum { W = 37, H = 23 }; /* odd sizes: no symmetry to hide an off-by-one */
+    float one[W * H * 3], img[W * H * 3];
+    for (int ss = 1; ss <= MAX_S; ++ss) {
+        rend_frame *f = NULL;
+        CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = ss}, &f,
+                                &err) == LM_OK);
+        if (!f) continue;
+        CHECK(rend_frame_draw(f, &s->cameras[0], &snap, ss == 1 ? one : img, &err) == LM_OK);
+        if (ss == 1) {
+            int flat = 1;
+            for (int i = 1; i < W * H; ++i) flat &= memcmp(one, one + 3 * i, 3 * sizeof *one) == 0;
+            const scene_material *m = &s->materials[0];
+            float want[3];
+            for (int k = 0; k < 3; ++k)
+                want[k] = m->kd[k] * (values[0][k] + values[1][k] * 0.31830988618379067f) + m->ks[k] * values[2][k];
+            CHECK_MSG(flat, "the s = 1 image of the flat case is not flat");
+            for (int k = 0; k < 3; ++k) CHECK_NEAR(one[k], want[k], 1e-6 * want[k]);
+            /* Components: indirect hidden gives, bit for bit, the image of a snapshot
+             * without indirect triangles (drawn by a renderer that shows everything). */
+            static float hidden[W * H * 3], without[W * H * 3];
+            CHECK(rend_frame_get_components(f) == REND_FRAME_COMPONENTS_ALL);
+            rend_frame_set_components(f, REND_FRAME_COMPONENTS_ALL & ~REND_FRAME_COMPONENT_INDIRECT);
+            CHECK(rend_frame_draw(f, &s->cameras[0], &snap, hidden, &err) == LM_OK);
+            cache_snapshot no_ind = snap;
+            no_ind.generation = 2;
+            no_ind.indirect.triangle_count = 0;
+            rend_frame *g = NULL;
+            CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = 1},
+                                    &g, &err) == LM_OK);
+            if (g) CHECK(rend_frame_draw(g, &s->cameras[0], &no_ind, without, &err) == LM_OK);
+            CHECK_MSG(same_floats(hidden, without, W * H * 3), "indirect hidden differs from no indirect triangles");
+            CHECK(!same_floats(hidden, one, W * H * 3));
+            /* Emission (a light edit shown on the emitter): Le added where shown, not when hidden. */
+            const float le[3] = {1.0f, 2.0f, 3.0f};
+            rend_frame_set_components(f, REND_FRAME_COMPONENTS_ALL);
+            CHECK(rend_frame_set_emission(f, 0, le, &err) == LM_OK);
+            CHECK(rend_frame_draw(f, &s->cameras[0], &snap, img, &err) == LM_OK);
+            for (int k = 0; k < 3; ++k) CHECK_NEAR(img[k], want[k] + le[k], 1e-5 * (want[k] + le[k]));
+            rend_frame_set_components(f, REND_FRAME_COMPONENTS_ALL & ~REND_FRAME_COMPONENT_EMISSION);
+            CHECK(rend_frame_draw(f, &s->cameras[0], &snap, img, &err) == LM_OK);
+            CHECK(same_floats(img, one, W * H * 3));
+            CHECK(rend_frame_set_emission(f, 1, le, &err) == LM_ERR_INVALID_ARG);
+            CHECK(rend_frame_set_emission(f, 0, (float[3]){-1.0f, 0.0f, 0.0f}, &err) == LM_ERR_INVALID_ARG);
+            rend_frame_destroy(g);
+        } else {
+            CHECK_MSG(same_floats(one, img, W * H * 3), "s = %d differs from s = 1 on a flat view", ss);
+        }
+        rend_frame_destroy(f);
+    }
+    scene_destroy(s);
+}
+
+static void bad_arguments(const GladGLContext *gl, const scene *s)
+{
+    lm_error err;
+    rend_frame *f = NULL;
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = 8, .height = 8, .supersample = -1}, &f,
+                            &err) == LM_ERR_INVALID_ARG && !f);
+    CHECK(rend_frame_create(gl,
+                            &(rend_frame_desc){.scene = s, .width = 8, .height = 8,
+                                               .supersample = REND_FRAME_SUPERSAMPLE_MAX + 1},
+                            &f, &err) == LM_ERR_INVALID_ARG &&
+          !f);
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = 16384, .height = 8, .supersample = 2}, &f,
+                            &err) == LM_ERR_INVALID_ARG &&
+          !f);
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = 8, .height = 8}, &f, &err) == LM_OK);
+    rend_frame_times t;
+    if (f) {
+        CHECK(rend_frame_draw(f, &s->cameras[0], NULL, NULL, &err) == LM_OK);
+        rend_frame_get_times(f, &t);
+        CHECK(t.supersample == REND_FRAME_SUPERSAMPLE_DEFAULT);
+        CHECK(rend_frame_draw(f, NULL, NULL, NULL, &err) == LM_ERR_INVALID_ARG);
+    }
+    rend_frame_destroy(f);
+    rend_frame_destroy(NULL);
 }
 
 int main(void)
@@ -100,6 +320,8 @@ int main(void)
         return getenv("LUMESH_REQUIRE_GL") ? 1 : 77;
     }
     const GladGLContext *gl = glctx_gl(ctx);
+
+    flat_case(gl);
 
     char obj[1024], json[1024];
     test_write_file("frame_plane.obj",
@@ -114,10 +336,14 @@ int main(void)
                     " \"cameras\": [{\"position\": [0, 0.9, 1.4], \"target\": [0, 0, 0], \"fov_y\": 70}]}",
                     json, sizeof json);
     scene *s = NULL;
+    double de[MAX_S + 1];
+    const int def = REND_FRAME_SUPERSAMPLE_DEFAULT;
     CHECK(scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err) == LM_OK);
     if (s) {
-        double de = run_scene(gl, s, 96, 72, 1024, "plane, blocker, quad light");
-        CHECK_MSG(de <= 1.5, "mean ΔE %.3f", de);
+        bad_arguments(gl, s);
+        run_scene(gl, s, 96, 72, 1024, "plane, blocker, quad light", de);
+        CHECK_MSG(de[1] <= 1.5, "s = 1: mean ΔE %.3f", de[1]);
+        CHECK_MSG(de[def] <= 1.1, "s = %d: mean ΔE %.3f", def, de[def]);
         scene_destroy(s);
     }
     char path[1024];
@@ -125,8 +351,9 @@ int main(void)
     s = NULL;
     CHECK(scene_load(&(scene_load_desc){.path = path, .require_light = 1}, &s, &err) == LM_OK);
     if (s) {
-        double de = run_scene(gl, s, 80, 60, 512, "CornellBox-Original");
-        CHECK_MSG(de <= 2.0, "mean ΔE %.3f", de);
+        run_scene(gl, s, 80, 60, 512, "CornellBox-Original", de);
+        CHECK_MSG(de[1] <= 2.0, "s = 1: mean ΔE %.3f", de[1]);
+        CHECK_MSG(de[def] <= 1.45, "s = %d: mean ΔE %.3f", def, de[def]);
         scene_destroy(s);
     }
     glctx_destroy(ctx);

@@ -1,7 +1,12 @@
 # Runs one lumesh command and checks what a script relies on.
 #   -DCMD="lumesh|info|x.obj" ("|" separates arguments: a ";" would not survive add_test)  -DEXPECT_EXIT=2  [-DEXPECT_OUT=regex] [-DEXPECT_ERR=regex]
 #   [-DONE_ERR_LINE=1]: stderr must be exactly one line.
+#   [-DEXPECT_FILES="a.png|b.png"]: removed before the run, must exist (non-empty) after it.
 string(REPLACE "|" ";" CMD "${CMD}")
+string(REPLACE "|" ";" EXPECT_FILES "${EXPECT_FILES}")
+foreach(f IN LISTS EXPECT_FILES)
+  file(REMOVE "${f}")
+endforeach()
 execute_process(COMMAND ${CMD} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
                 TIMEOUT 120)
 set(fail "")
@@ -14,6 +19,15 @@ endif()
 if(DEFINED EXPECT_ERR AND NOT err MATCHES "${EXPECT_ERR}")
   string(APPEND fail "stderr does not match '${EXPECT_ERR}'\n")
 endif()
+foreach(f IN LISTS EXPECT_FILES)
+  set(size 0)
+  if(EXISTS "${f}")
+    file(SIZE "${f}" size)
+  endif()
+  if(size EQUAL 0)
+    string(APPEND fail "${f} was not written\n")
+  endif()
+endforeach()
 if(ONE_ERR_LINE)
   string(REGEX MATCHALL "\n" newlines "${err}")
   list(LENGTH newlines n)

@@ -1,9 +1,14 @@
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
 #include "test_util.h"
 
 #include <math.h>
+#include <time.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "analytic.h"
+#include "cache_worker.h"
+#include "scene.h"
 #include "vecmath.h"
 
 int test_failures = 0;
@@ -95,4 +100,64 @@ double test_write_icosphere(int level, double radius, const char *path)
     free(f);
     free(g);
     return 1.0 / (dmin * dmin) - 1.0; /* relative bias bound (R/d)² − 1 */
+}
+
+struct scene *test_plane_load(const test_plane *p, const char *name)
+{
+    char file[256], obj[1024], json[1024], text[2048];
+    snprintf(file, sizeof file, "%s.obj", name);
+    test_write_file(file,
+                    "v -4 0 -4\nv 4 0 -4\nv 4 0 4\nv -4 0 4\n"
+                    "f 1 4 3\nf 1 3 2\n", /* counter-clockwise seen from +y */
+                    obj, sizeof obj);
+    /* edge1 × edge2 = (1,0,0) × (0,0,1) = (0,-1,0): the light faces the plane. */
+    snprintf(text, sizeof text,
+             "{\"meshes\": [{\"file\": \"%s\", \"material\": \"paint\"}],"
+             " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}},"
+             " \"lights\": [{\"type\": \"quad\", \"corner\": [%g, %g, %g], \"edge1\": [%g, 0, 0],"
+             " \"edge2\": [0, 0, %g], \"radiance\": [%g, %g, %g]}],"
+             " \"cameras\": [{\"position\": [0, %g, 0], \"target\": [0, 0, 0], \"up\": [0, 0, -1],"
+             " \"fov_y\": %g, \"width\": %d, \"height\": %d}]}",
+             file, p->kd[0], p->kd[1], p->kd[2], p->light_x - p->light_half, p->light_height,
+             p->light_z - p->light_half, 2 * p->light_half, 2 * p->light_half, p->le[0], p->le[1], p->le[2],
+             p->cam_height, p->fov_y, p->width, p->height);
+    snprintf(file, sizeof file, "%s.json", name);
+    test_write_file(file, text, json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
+    CHECK_MSG(r == LM_OK, "%s", err.msg);
+    return s;
+}
+
+double test_plane_pixel_G(const test_plane *p, int px, int py, int sub)
+{
+    const double x0 = p->light_x - p->light_half, x1 = p->light_x + p->light_half;
+    const double z0 = p->light_z - p->light_half, z1 = p->light_z + p->light_half, y = p->light_height;
+    const double light[4][3] = {{x0, y, z0}, {x1, y, z0}, {x1, y, z1}, {x0, y, z1}};
+    const double up[3] = {0.0, 1.0, 0.0};
+    const double ty = tan(0.5 * p->fov_y * M_PI / 180.0), tx = ty * (double)p->width / (double)p->height;
+    double sum = 0.0;
+    for (int j = 0; j < sub; ++j)
+        for (int i = 0; i < sub; ++i) {
+            /* Screen position in [-1, 1]², then the plane point the pinhole sees there. */
+            double sx = 2.0 * (px + (i + 0.5) / sub) / p->width - 1.0;
+            double sy = 1.0 - 2.0 * (py + (j + 0.5) / sub) / p->height;
+            double x[3] = {p->cam_height * sx * tx, 0.0, -p->cam_height * sy * ty};
+            sum += samp_polygon_G(light, 4, x, up);
+        }
+    return sum / (sub * sub);
+}
+
+const cache_snapshot *test_wait_finished(cache_worker *w, double seconds)
+{
+    const cache_snapshot *s = NULL;
+    double t0 = lm_now_seconds();
+    while (w && lm_now_seconds() - t0 < seconds) {
+        s = cache_worker_acquire(w);
+        if (s && (s->finished || s->failed)) break;
+        struct timespec t = {0, 2000000};
+        nanosleep(&t, NULL);
+    }
+    return s;
 }

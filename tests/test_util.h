@@ -52,6 +52,32 @@ void test_write_file(const char *name, const char *text, char *path_out, size_t 
  * centre departs from I/R² on its facets (d: the smallest facet-plane distance). */
 double test_write_icosphere(int level, double radius, const char *path);
 
+/* A diffuse plane y = 0 under a parallel, downward-facing square area light, the
+ * camera between them at (0, cam_height, 0) looking straight down with up
+ * (0, 0, -1) (screen right = +x, screen up = -z; the camera is not geometry).
+ * With the model transport every image sample is kd/π · Le · G(x), G by
+ * Lambert's formula: the bounce adds nothing (the light's kd is 0). */
+typedef struct test_plane {
+    double kd[3], le[3];
+    double light_x, light_z;   /* the light's centre */
+    double light_half;         /* half its side */
+    double light_height, cam_height, fov_y;
+    int width, height;
+} test_plane;
+
+/* Writes NAME.obj and NAME.json and loads them; NULL (a failed check) on error. */
+struct scene;
+struct scene *test_plane_load(const test_plane *p, const char *name);
+/* Mean G over the sub×sub grid of centres in pixel (px, py), top row 0, as the
+ * renderer's s×s samples (and a midpoint rule for a box-filtered pixel). */
+double test_plane_pixel_G(const test_plane *p, int px, int py, int sub);
+
+/* Waits up to `seconds` for a snapshot that is finished (or failed); the last one
+ * acquired otherwise (NULL if none). */
+struct cache_worker;
+struct cache_snapshot;
+const struct cache_snapshot *test_wait_finished(struct cache_worker *w, double seconds);
+
 /* Prints a summary and returns the process exit code. */
 int test_finish(const char *name);
 

@@ -7,12 +7,15 @@ packages=(
   libassimp-dev                      # mesh files: OBJ+MTL, PLY, OFF, STL, glTF
   libopenmesh-dev                    # geometric mesh topology
   libopenimageio-dev                 # EXR and PNG images
-  libcjson-dev                       # JSON scene descriptions
+  libcjson-dev                       # JSON scene descriptions and statistics
+  libstb-dev                         # stb_easy_font: text in plots and the viewer's HUD (header only)
   libembree-dev                      # CPU ray tracing: reference renderer, Embree sampler
   python3-glad                       # generates the OpenGL 4.5 loader at build time (glad 2, MX)
   libegl-dev libosmesa6-dev          # headless GL for the GL sampler: EGL, OSMesa
   libegl-mesa0 libgl1-mesa-dri       # Mesa's EGL vendor and llvmpipe (run time; no GPU needed)
   libgl-dev                          # GL headers (osmesa.h includes GL/gl.h); libGL is not linked
+  libglfw3-dev                       # lumesh view: the window and its OpenGL 4.5 context
+  xvfb xauth                         # tests of lumesh view without a display (xvfb-run)
 )
 SUDO=""
 if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi

@@ -4,6 +4,7 @@
 #   build/release  Release, -Wall -Wextra -Werror
 #   build/asan     Debug, AddressSanitizer + UndefinedBehaviorSanitizer
 #   build/tsan     Debug, ThreadSanitizer: the refinement worker and its display side
+#                  (cache_worker_test, and the scripted viewer under Xvfb)
 # Third-party scenes are read from ../shared/scenes beside the checkout.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -22,6 +23,7 @@ ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:ha
   ctest --test-dir build/asan --output-on-failure -j "$jobs"
 
 cmake -S . -B build/tsan -DCMAKE_BUILD_TYPE=Debug -DLUMESH_WERROR=ON -DLUMESH_TSAN=ON
-cmake --build build/tsan -j "$jobs" --target cache_worker_test
+cmake --build build/tsan -j "$jobs" --target cache_worker_test lumesh_cli view_image_check
+# cli_view_xvfb: the scripted viewer (display thread, worker, light edits while paused).
 TSAN_OPTIONS="halt_on_error=1 suppressions=$PWD/tests/tsan.supp" \
-  ctest --test-dir build/tsan -R '^cache_worker_test$' --output-on-failure
+  ctest --test-dir build/tsan -R '^(cache_worker_test|cli_view_xvfb)$' --output-on-failure

@@ -13,10 +13,12 @@
 #include <string.h>
 #include <time.h>
 
+#include "app_stats.h"
 #include "cache_worker.h"
 #include "cli.h"
 #include "gl_context.h"
 #include "image.h"
+#include "rend_debug.h"
 #include "rend_frame.h"
 #include "rend_id.h"
 #include "scene.h"
@@ -37,59 +39,44 @@ static void nap(void)
     nanosleep(&t, NULL);
 }
 
-/* Per-mesh statistics as JSON (docs/cache.md names the fields). */
-static int write_stats(const char *path, const cache_snapshot *snap, const rend_frame_times *tt, double seconds,
-                       lm_error *err)
+static void print_debug_image(const char *path, const rend_debug_counts *n, void *user)
 {
-    char tmp[SCENE_PATH_MAX + 8];
-    snprintf(tmp, sizeof tmp, "%s.tmp", path);
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        lm_fail(err, LM_ERR_IO, "%s: cannot write the statistics", path);
-        return 0;
+    (void)user;
+    if (strstr(path, "-leaves.png"))
+        printf("wrote %s: %u of %u leaf edges shown, %llu pixels, %.0f ms\n", path, n->segments_drawn, n->segments,
+               (unsigned long long)n->wire_pixels, n->seconds * 1e3);
+    else
+        printf("wrote %s: %u samples shown, %u hidden, %.0f ms\n", path, n->points_drawn, n->points_hidden,
+               n->seconds * 1e3);
+}
+
+/* --debug-meshes DIR: each mesh's leaves and samples over the tone-mapped image,
+ * hidden parts left out by the ID image (rend_debug.h). */
+static lm_result write_debug_meshes(const char *dir, const scene *s, const scene_camera *cam, int w, int h,
+                                    rend_id *ip, const float *rgb, const cache_snapshot *snap, lm_error *err)
+{
+    const size_t n = (size_t)w * (size_t)h;
+    uint32_t *ids = malloc(n * sizeof *ids);
+    uint8_t *bg = malloc(3 * n);
+    lm_result r = ids && bg ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
+    if (r == LM_OK) r = rend_id_read_image(ip, ids, err);
+    if (r == LM_OK) {
+        tm_to_rgb8(&(tm_desc){.exposure = s->exposure}, rgb, 3, n, bg);
+        rend_debug_desc d = {.camera = cam, .width = w, .height = h, .ids = ids, .background = bg};
+        r = rend_debug_write_images(
+            &(rend_debug_write_desc){.draw = &d, .snap = snap, .dir = dir, .written = print_debug_image}, err);
     }
-    const cache_stats *st = &snap->stats;
-    fprintf(f, "{\n  \"seconds\": %.6f,\n  \"leaves_tested\": %llu,\n  \"converged\": %s,\n  \"bytes\": %zu,\n", seconds,
-            (unsigned long long)snap->tested, snap->converged ? "true" : "false", st->bytes);
-    fprintf(f, "  \"passes_ms\": {\"material\": %.3f, \"radiance\": %.3f, \"composite\": %.3f, \"readback\": %.3f},\n",
-            tt->material * 1e3, tt->radiance * 1e3, tt->composite * 1e3, tt->readback * 1e3);
-    fprintf(f, "  \"meshes\": [\n");
-    const char *names[3] = {"direct", "indirect", "specular"};
-    const cache_mesh_stats *ms[3] = {&st->direct, &st->indirect, &st->specular};
-    uint32_t total = 3 + st->light_count;
-    for (uint32_t i = 0; i < total; ++i) {
-        const cache_mesh_stats *m = i < 3 ? ms[i] : &st->lights[i - 3];
-        char name[32];
-        if (i < 3)
-            snprintf(name, sizeof name, "%s", names[i]);
-        else
-            snprintf(name, sizeof name, "light %u", i - 3);
-        fprintf(f,
-                "    {\"mesh\": \"%s\", \"samples\": %llu, \"interpolated\": %llu, \"vertices\": %u, \"nodes\": %u, "
-                "\"leaves\": %u, \"splits\": %llu, \"merges\": %llu, \"bytes\": %zu, \"leaves_at_depth\": [",
-                name, (unsigned long long)m->samples, (unsigned long long)m->interpolated, m->mesh.vertices_used,
-                m->mesh.nodes, m->mesh.leaves, (unsigned long long)m->mesh.splits,
-                (unsigned long long)m->mesh.merges, m->mesh.bytes);
-        int last = 0;
-        for (int d = 0; d < MESH_QMESH_DEPTHS; ++d)
-            if (m->mesh.leaves_at_depth[d]) last = d;
-        for (int d = 0; d <= last; ++d) fprintf(f, "%s%u", d ? ", " : "", m->mesh.leaves_at_depth[d]);
-        fprintf(f, "]}%s\n", i + 1 < total ? "," : "");
-    }
-    fprintf(f, "  ]\n}\n");
-    int ok = fclose(f) == 0 && rename(tmp, path) == 0;
-    if (!ok) {
-        remove(tmp);
-        lm_fail(err, LM_ERR_IO, "%s: cannot write the statistics", path);
-    }
-    return ok;
+    free(ids);
+    free(bg);
+    return r;
 }
 
 int cmd_render(const app_command *cmd, int argc, char **argv)
 {
-    const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL;
+    const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *debug_dir = NULL;
     double seconds = 0;
-    long samples = 0, width = 0, height = 0;
+    long samples = 0, width = 0, height = 0, supersample = REND_FRAME_SUPERSAMPLE_DEFAULT;
+    int deterministic = 0;
     app_opt opts[] = {
         {"--output", "-o", APP_OPT_STRING, &out},
         {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e7},
@@ -100,9 +87,12 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         {"--stats", NULL, APP_OPT_STRING, &stats},
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
         {"--gl", NULL, APP_OPT_STRING, &gl_name},
+        {"--debug-meshes", NULL, APP_OPT_STRING, &debug_dir},
+        {"--deterministic", NULL, APP_OPT_FLAG, &deterministic},
+        {"--supersample", NULL, APP_OPT_INT, &supersample, 1, REND_FRAME_SUPERSAMPLE_MAX},
     };
     const char *pos[1];
-    int npos, rc = app_parse_options(cmd, argc, argv, opts, 9, pos, 1, &npos);
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
     if (rc < 0) return APP_EXIT_OK;
     if (rc) return rc;
     if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.png or OUT.exr)");
@@ -110,6 +100,11 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (opts[1].seen && opts[2].seen) return app_usage_error(cmd, "give --seconds or --samples, not both");
     if (opts[3].seen != opts[4].seen) return app_usage_error(cmd, "give both --width and --height");
     if ((rc = app_check_sampler_options(cmd, sampler, gl_name)) != APP_EXIT_OK) return rc;
+    /* Reproducible runs: a stop counted in leaf tests, not seconds, and no timing-based
+     * calibration (auto picks its back ends by measured speed). */
+    if (deterministic && !opts[2].seen) return app_usage_error(cmd, "--deterministic needs --samples N");
+    if (deterministic && sampler && strcmp(sampler, "auto") == 0)
+        return app_usage_error(cmd, "--deterministic cannot use --sampler auto (it calibrates by timing)");
 
     lm_error err = {{0}};
     scene *s = NULL;
@@ -125,6 +120,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     int w = width ? (int)width : cam.width, h = height ? (int)height : cam.height;
     samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
     if (sampler) samp_backend_from_name(sampler, &sd.backend);
+    if (deterministic && !sampler) sd.backend = SAMP_BACKEND_EMBREE;
     samp_gl_platform platform = SAMP_GL_EGL;
     if (gl_name) samp_gl_platform_from_name(gl_name, &platform);
     sd.gl_platform = platform;
@@ -142,7 +138,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (r == LM_OK) r = rend_id_render(ip, &cam, &ids, &err);
     if (r == LM_OK)
         r = cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = ids.pixels,
-                                                     .max_tested = (uint64_t)samples},
+                                                     .max_tested = (uint64_t)samples, .publish_debug = debug_dir != NULL},
                                 &wk, &err);
     const cache_snapshot *snap = NULL;
     double limit = opts[1].seen ? seconds : DEFAULT_SECONDS_LIMIT;
@@ -152,10 +148,13 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
             r = lm_fail(&err, LM_ERR_RUNTIME, "refinement failed: %s", snap->error);
             break;
         }
-        if (snap && (snap->converged || lm_now_seconds() - t0 >= limit)) break;
+        if (snap && (snap->finished || lm_now_seconds() - t0 >= limit)) break;
         nap();
     }
-    if (r == LM_OK) r = rend_frame_create(glctx_gl(ctx), &(rend_frame_desc){.scene = s, .width = w, .height = h}, &frame, &err);
+    if (r == LM_OK)
+        r = rend_frame_create(glctx_gl(ctx),
+                              &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = (int)supersample},
+                              &frame, &err);
     rgb = r == LM_OK ? malloc((size_t)w * (size_t)h * 3 * sizeof *rgb) : NULL;
     if (r == LM_OK && !rgb) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
     if (r == LM_OK) r = rend_frame_draw(frame, &cam, snap, rgb, &err);
@@ -176,7 +175,12 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (r == LM_OK && stats) {
         rend_frame_times tt;
         rend_frame_get_times(frame, &tt);
-        if (!write_stats(stats, snap, &tt, elapsed, &err)) r = LM_ERR_IO;
+        cJSON *j = app_stats_json(&(app_stats_desc){.command = "render", .scene = s->source, .width = w, .height = h,
+                                                   .supersample = (int)supersample, .seconds = elapsed,
+                                                   .first_image_seconds = -1, .snap = snap, .id_seconds = ids.seconds,
+                                                   .frame = &tt, .frames = 1});
+        r = app_write_json(stats, j, &err);
+        cJSON_Delete(j);
     }
     if (r == LM_OK) {
         const cache_stats *st = &snap->stats;
@@ -188,6 +192,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
                (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
                snap->indirect.triangle_count, snap->specular.triangle_count);
     }
+    if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, ip, rgb, snap, &err);
     free(png);
     free(rgb);
     cache_worker_destroy(wk);

@@ -1,0 +1,148 @@
+/* samp_radiance_index.c — point location in a radiance mesh (samp_internal.h):
+ * the Embree back end's gathers and the cache's source comparisons. */
+#include "samp_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { GRID_MIN = 16 };
+
+void samp_radiance_index_free(samp_radiance_index *ix)
+{
+    free(ix->res);
+    free(ix->base);
+    free(ix->cell_first);
+    free(ix->items);
+    memset(ix, 0, sizeof *ix);
+}
+
+static uint32_t grid_cell(float w, uint32_t res)
+{
+    float f = floorf(w * (float)res);
+    return f <= 0.0f ? 0u : f >= (float)(res - 1) ? res - 1 : (uint32_t)f;
+}
+
+/* Grid cells [x0, x1] × [y0, y1] that sub-triangle i's bounding box meets. */
+static void sub_cells(const samp_radiance_mesh *m, uint32_t i, uint32_t res, uint32_t *x0, uint32_t *x1, uint32_t *y0,
+                      uint32_t *y1)
+{
+    const float *b = m->bary + 6 * (size_t)i, eps = 1e-6f;
+    float lo1 = fminf(b[0], fminf(b[2], b[4])) - eps, hi1 = fmaxf(b[0], fmaxf(b[2], b[4])) + eps;
+    float lo2 = fminf(b[1], fminf(b[3], b[5])) - eps, hi2 = fmaxf(b[1], fmaxf(b[3], b[5])) + eps;
+    *x0 = grid_cell(lo1, res);
+    *x1 = grid_cell(hi1, res);
+    *y0 = grid_cell(lo2, res);
+    *y1 = grid_cell(hi2, res);
+}
+
+/* 0 and an empty index (linear search everywhere) when memory runs out. */
+int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_radiance_index *ix)
+{
+    memset(ix, 0, sizeof *ix);
+    uint32_t nt = s->tri_count;
+    ix->res = calloc(nt ? nt : 1, sizeof *ix->res);
+    ix->base = calloc(nt ? nt : 1, sizeof *ix->base);
+    if (!ix->res || !ix->base) return samp_radiance_index_free(ix), 0;
+    size_t cells = 0;
+    for (uint32_t t = 0; t < nt; ++t) {
+        uint32_t count = m->first[t + 1] - m->first[t];
+        if (count <= GRID_MIN) continue;
+        ix->res[t] = (uint32_t)ceil(sqrt((double)count));
+        ix->base[t] = (uint32_t)cells;
+        cells += (size_t)ix->res[t] * ix->res[t];
+    }
+    if (cells == 0) return samp_radiance_index_free(ix), 0;
+    ix->cell_first = calloc(cells + 1, sizeof *ix->cell_first);
+    if (!ix->cell_first) return samp_radiance_index_free(ix), 0;
+    for (int pass = 0; pass < 2; ++pass) {
+        for (uint32_t t = 0; t < nt; ++t) {
+            uint32_t res = ix->res[t];
+            if (!res) continue;
+            for (uint32_t i = m->first[t]; i < m->first[t + 1]; ++i) {
+                uint32_t x0, x1, y0, y1;
+                sub_cells(m, i, res, &x0, &x1, &y0, &y1);
+                for (uint32_t y = y0; y <= y1; ++y)
+                    for (uint32_t x = x0; x <= x1; ++x) {
+                        size_t cell = ix->base[t] + (size_t)y * res + x;
+                        if (pass == 0)
+                            ix->cell_first[cell + 1]++;
+                        else
+                            ix->items[ix->cell_first[cell]++] = i;
+                    }
+            }
+        }
+        if (pass == 0) {
+            for (size_t k = 0; k < cells; ++k) ix->cell_first[k + 1] += ix->cell_first[k];
+            ix->items = malloc((ix->cell_first[cells] ? ix->cell_first[cells] : 1) * sizeof *ix->items);
+            if (!ix->items) return samp_radiance_index_free(ix), 0;
+        }
+    }
+    /* The fill pass moved each start to the next cell's: shift back. */
+    for (size_t k = cells; k > 0; --k) ix->cell_first[k] = ix->cell_first[k - 1];
+    ix->cell_first[0] = 0;
+    return 1;
+}
+
+/* Among sub-triangles [ids or lo..hi), the one containing (w1, w2) or least outside
+ * of it; its barycentrics in l. Returns the best minimum barycentric (−∞: none). */
+static float locate(const samp_radiance_mesh *m, const uint32_t *ids, uint32_t lo, uint32_t hi, float w1, float w2,
+                    uint32_t *best, float l[3])
+{
+    float best_min = -INFINITY;
+    for (uint32_t j = lo; j < hi; ++j) {
+        uint32_t i = ids ? ids[j] : j;
+        const float *b = m->bary + 6 * (size_t)i;
+        /* Barycentrics of (w1, w2) in the 2D triangle (b0, b1, b2). */
+        float ax = b[0], ay = b[1], bx = b[2], by = b[3], cx = b[4], cy = b[5];
+        float det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
+        if (det == 0.0f) continue;
+        float l1 = ((w1 - ax) * (cy - ay) - (cx - ax) * (w2 - ay)) / det;
+        float l2 = ((bx - ax) * (w2 - ay) - (w1 - ax) * (by - ay)) / det;
+        float l0 = 1.0f - l1 - l2;
+        float mn = fminf(l0, fminf(l1, l2));
+        if (mn > best_min) {
+            best_min = mn;
+            *best = i;
+            l[0] = l0;
+            l[1] = l1;
+            l[2] = l2;
+            if (mn >= 0.0f) break;
+        }
+    }
+    return best_min;
+}
+
+/* RGB radiance of the coarse mesh at barycentrics (w1, w2) of scene triangle t:
+ * the sub-triangle that contains the point (or, for a point on no sub-triangle
+ * by rounding, the one it is least outside of), linearly interpolated. */
+uint32_t samp_radiance_at(const samp_radiance_mesh *m, const samp_radiance_index *ix, uint32_t t, float w1, float w2,
+                          float out[3])
+{
+    out[0] = out[1] = out[2] = 0.0f;
+    uint32_t best = UINT32_MAX;
+    float best_l[3] = {0, 0, 0}, best_min = -INFINITY;
+    if (ix->res && ix->res[t]) {
+        uint32_t res = ix->res[t];
+        size_t cell = ix->base[t] + (size_t)grid_cell(w2, res) * res + grid_cell(w1, res);
+        best_min = locate(m, ix->items, ix->cell_first[cell], ix->cell_first[cell + 1], w1, w2, &best, best_l);
+    }
+    if (best_min < 0.0f) { /* no grid, or rounding put the point outside its cell's triangles */
+        uint32_t b2 = UINT32_MAX;
+        float l2[3];
+        if (locate(m, NULL, m->first[t], m->first[t + 1], w1, w2, &b2, l2) > best_min) {
+            best = b2;
+            memcpy(best_l, l2, sizeof best_l);
+        }
+    }
+    if (best == UINT32_MAX) return UINT32_MAX;
+    const float *r = m->radiance + 9 * (size_t)best;
+    for (int c = 0; c < 3; ++c) {
+        float l = fmaxf(best_l[c], 0.0f);
+        for (int k = 0; k < 3; ++k) out[k] += l * r[3 * c + k];
+    }
+    float sum = fmaxf(best_l[0], 0.0f) + fmaxf(best_l[1], 0.0f) + fmaxf(best_l[2], 0.0f);
+    if (sum > 0.0f && sum != 1.0f)
+        for (int k = 0; k < 3; ++k) out[k] /= sum;
+    return best;
+}

@@ -1,0 +1,179 @@
+/* app_stats.c — the statistics JSON (app_stats.h; fields in docs/stats.md). */
+#define _POSIX_C_SOURCE 200809L
+#include "app_stats.h"
+
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "scene.h"
+
+static cJSON *mesh_json(const char *name, const char *kind, int light, const cache_mesh_stats *m)
+{
+    cJSON *o = cJSON_CreateObject();
+    if (!o) return NULL;
+    cJSON_AddStringToObject(o, "mesh", name);
+    cJSON_AddStringToObject(o, "kind", kind);
+    if (light >= 0) cJSON_AddNumberToObject(o, "light", light);
+    cJSON_AddNumberToObject(o, "samples", (double)m->samples);
+    cJSON_AddNumberToObject(o, "interpolated", (double)m->interpolated);
+    cJSON_AddNumberToObject(o, "vertices", m->mesh.vertices_used);
+    cJSON_AddNumberToObject(o, "vertices_sampled", m->mesh.vertices_sampled);
+    cJSON_AddNumberToObject(o, "roots", m->mesh.roots);
+    cJSON_AddNumberToObject(o, "nodes", m->mesh.nodes);
+    cJSON_AddNumberToObject(o, "leaves", m->mesh.leaves);
+    cJSON_AddNumberToObject(o, "splits", (double)m->mesh.splits);
+    cJSON_AddNumberToObject(o, "undone_splits", (double)m->mesh.merges);
+    cJSON_AddNumberToObject(o, "bytes", (double)m->mesh.bytes);
+    int last = -1;
+    for (int d = 0; d < MESH_QMESH_DEPTHS; ++d)
+        if (m->mesh.leaves_at_depth[d]) last = d;
+    cJSON *hist = cJSON_AddArrayToObject(o, "leaves_at_depth");
+    for (int d = 0; hist && d <= last; ++d) cJSON_AddItemToArray(hist, cJSON_CreateNumber(m->mesh.leaves_at_depth[d]));
+    return o;
+}
+
+static cJSON *sampler_side(const char *backend, uint64_t points, double seconds)
+{
+    cJSON *o = cJSON_CreateObject();
+    if (!o) return NULL;
+    cJSON_AddStringToObject(o, "backend", backend ? backend : "none");
+    cJSON_AddNumberToObject(o, "points", (double)points);
+    cJSON_AddNumberToObject(o, "seconds", seconds);
+    cJSON_AddNumberToObject(o, "us_per_point", points ? seconds * 1e6 / (double)points : 0.0);
+    return o;
+}
+
+static cJSON *sampler_json(const samp_stats *st, const samp_stats *quick)
+{
+    cJSON *o = cJSON_CreateObject();
+    if (!o) return NULL;
+    cJSON_AddItemToObject(o, "direct", sampler_side(st->backend_name, st->direct_samples, st->direct_seconds));
+    cJSON_AddItemToObject(o, "indirect",
+                          sampler_side(st->indirect_backend_name, st->indirect_samples, st->indirect_seconds));
+    if (quick->backend_name) {
+        cJSON *q = cJSON_AddObjectToObject(o, "quick_start");
+        if (q) {
+            cJSON_AddItemToObject(q, "direct", sampler_side(quick->backend_name, quick->direct_samples,
+                                                            quick->direct_seconds));
+            cJSON_AddItemToObject(q, "indirect", sampler_side(quick->indirect_backend_name, quick->indirect_samples,
+                                                              quick->indirect_seconds));
+        }
+    }
+    /* Seconds per back end, whichever quantity they served, the quick start's included. */
+    cJSON *by = cJSON_AddObjectToObject(o, "seconds_by_backend");
+    const char *names[4] = {st->backend_name, st->indirect_backend_name, quick->backend_name,
+                            quick->indirect_backend_name};
+    double secs[4] = {st->direct_seconds, st->indirect_seconds, quick->direct_seconds, quick->indirect_seconds};
+    for (int k = 0; by && k < 4; ++k) {
+        if (!names[k]) continue;
+        cJSON *have = cJSON_GetObjectItemCaseSensitive(by, names[k]);
+        if (have)
+            cJSON_SetNumberValue(have, have->valuedouble + secs[k]);
+        else
+            cJSON_AddNumberToObject(by, names[k], secs[k]);
+    }
+    cJSON_AddStringToObject(o, "choice", st->choice);
+    return o;
+}
+
+cJSON *app_stats_json(const app_stats_desc *d)
+{
+    const cache_snapshot *snap = d->snap;
+    const cache_stats *st = &snap->stats;
+    cJSON *j = cJSON_CreateObject();
+    if (!j) return NULL;
+    cJSON_AddStringToObject(j, "lumesh", LUMESH_VERSION_STRING);
+    cJSON_AddStringToObject(j, "command", d->command ? d->command : "");
+    cJSON_AddStringToObject(j, "scene", d->scene ? d->scene : "");
+    cJSON_AddNumberToObject(j, "width", d->width);
+    cJSON_AddNumberToObject(j, "height", d->height);
+    cJSON_AddNumberToObject(j, "supersample", d->supersample > 0 ? d->supersample : 1);
+    cJSON_AddNumberToObject(j, "seconds", d->seconds);
+    if (d->first_image_seconds >= 0)
+        cJSON_AddNumberToObject(j, "first_image_seconds", d->first_image_seconds);
+    else
+        cJSON_AddNullToObject(j, "first_image_seconds");
+    cJSON_AddNumberToObject(j, "leaves_tested", (double)snap->tested);
+    cJSON_AddBoolToObject(j, "converged", snap->converged);
+    cJSON_AddNumberToObject(j, "snapshot", (double)snap->generation);
+    cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);
+    cJSON_AddNumberToObject(j, "bytes", (double)st->bytes);
+    cJSON_AddItemToObject(j, "sampler", sampler_json(&snap->sampler, &snap->quick_sampler));
+
+    cJSON *fr = cJSON_AddObjectToObject(j, "frame");
+    if (fr) {
+        cJSON_AddNumberToObject(fr, "frames", (double)d->frames);
+        cJSON *ms = cJSON_AddObjectToObject(fr, "passes_ms");
+        if (ms) {
+            cJSON_AddNumberToObject(ms, "id", d->id_seconds * 1e3);
+            const rend_frame_times *t = d->frame;
+            cJSON_AddNumberToObject(ms, "material", t ? t->material * 1e3 : 0.0);
+            cJSON_AddNumberToObject(ms, "radiance", t ? t->radiance * 1e3 : 0.0);
+            cJSON_AddNumberToObject(ms, "composite", t ? t->composite * 1e3 : 0.0);
+            cJSON_AddNumberToObject(ms, "readback", t ? t->readback * 1e3 : 0.0);
+        }
+        cJSON *tris = cJSON_AddObjectToObject(fr, "leaf_triangles");
+        if (tris) {
+            cJSON_AddNumberToObject(tris, "direct", snap->direct.triangle_count);
+            cJSON_AddNumberToObject(tris, "indirect", snap->indirect.triangle_count);
+            cJSON_AddNumberToObject(tris, "specular", snap->specular.triangle_count);
+        }
+    }
+
+    cJSON *meshes = cJSON_AddArrayToObject(j, "meshes");
+    for (uint32_t l = 0; meshes && l < st->light_count; ++l) {
+        char name[32];
+        snprintf(name, sizeof name, "light%u", l);
+        cJSON_AddItemToArray(meshes, mesh_json(name, "light", (int)l, &st->lights[l]));
+    }
+    if (meshes) {
+        cJSON_AddItemToArray(meshes, mesh_json("direct", "direct", -1, &st->direct));
+        cJSON_AddItemToArray(meshes, mesh_json("indirect", "indirect", -1, &st->indirect));
+        if (st->specular.mesh.roots) cJSON_AddItemToArray(meshes, mesh_json("specular", "specular", -1, &st->specular));
+    }
+    return j;
+}
+
+lm_result app_write_text(const char *path, const char *text, size_t len, lm_error *err)
+{
+    size_t n = strlen(path) + 8;
+    char *tmp = malloc(n);
+    if (!tmp) return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory", path);
+    snprintf(tmp, n, "%s.tmp", path);
+    FILE *f = fopen(tmp, "wb");
+    int ok = f && fwrite(text, 1, len, f) == len;
+    if (f) ok = (fclose(f) == 0) && ok;
+    ok = ok && rename(tmp, path) == 0;
+    if (!ok) remove(tmp);
+    free(tmp);
+    return ok ? LM_OK : lm_fail(err, LM_ERR_IO, "%s: cannot write the file", path);
+}
+
+lm_result app_write_json(const char *path, const cJSON *j, lm_error *err)
+{
+    char *text = j ? cJSON_Print(j) : NULL;
+    if (!text) return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory formatting the JSON", path);
+    size_t len = strlen(text);
+    /* cJSON_Print ends without a newline; text files end with one. */
+    char *nl = realloc(text, len + 2);
+    if (!nl) {
+        cJSON_free(text);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory formatting the JSON", path);
+    }
+    nl[len] = '\n';
+    nl[len + 1] = 0;
+    lm_result r = app_write_text(path, nl, len + 1, err);
+    free(nl);
+    return r;
+}
+
+lm_result app_make_dir(const char *path, lm_error *err)
+{
+    struct stat st;
+    if (mkdir(path, 0777) == 0) return LM_OK;
+    if (errno == EEXIST && stat(path, &st) == 0 && S_ISDIR(st.st_mode)) return LM_OK;
+    return lm_fail(err, LM_ERR_IO, "%s: cannot create the directory (%s)", path, strerror(errno));
+}

@@ -1,0 +1,640 @@
+/* cmd_converge.c — `lumesh converge`: a scripted convergence run that reports
+ * speed against error.
+ *
+ * The previewer runs as a user would see it: the clock starts when the scene is
+ * loaded; the GL context, the ID pass, the sampler's calibration and the coarse
+ * cache all count. At each snapshot time the latest published snapshot is drawn,
+ * written (EXR, linear, and PNG, tone-mapped) and compared with the reference by
+ * cmp_compare (every metric of `lumesh compare`). The refinement worker keeps
+ * refining on its own thread meanwhile, so measuring costs it nothing but a
+ * share of the machine. Once the cache has converged, later snapshots show the
+ * same image: they are recorded at their times without waiting (state
+ * "converged").
+ *
+ * With --vs-path-tracer the reference renderer's progressive path tracer (same
+ * transport, every core) then runs for the same times, counted the same way
+ * (from its creation, BVH build included), its clock paused while it is measured.
+ *
+ * Output, all through temporary files renamed into place, so an interruption
+ * (Ctrl-C: stops at once and still writes what was measured) leaves no partial
+ * file: DIR/convergence.csv, DIR/convergence.json, DIR/convergence.png, the
+ * snapshot images, and --stats.
+ */
+#define _POSIX_C_SOURCE 200809L
+#include <math.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+#include <unistd.h>
+
+#include "app_stats.h"
+#include "cache_worker.h"
+#include "cli.h"
+#include "compare.h"
+#include "gl_context.h"
+#include "image.h"
+#include "plot.h"
+#include "reference.h"
+#include "rend_frame.h"
+#include "rend_id.h"
+#include "scene.h"
+#include "tonemap.h"
+
+enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64 };
+
+/* Written by the SIGINT handler, read by the measuring loops and the path tracer. */
+static volatile sig_atomic_t interrupted = 0;
+
+static void on_sigint(int sig)
+{
+    (void)sig;
+    if (interrupted) _exit(130); /* a second Ctrl-C: leave at once */
+    interrupted = 1;
+}
+
+typedef enum row_state { ROW_REFINING = 0, ROW_CONVERGED, ROW_NO_SNAPSHOT } row_state;
+static const char *const state_names[] = {"refining", "converged", "no-snapshot"};
+
+/* One measured image. */
+typedef struct conv_row {
+    double target;            /* requested time, seconds */
+    double seconds;           /* when the image was taken (see the file comment) */
+    row_state state;
+    uint64_t tested;          /* lumesh: leaves tested */
+    uint64_t samples[MAX_MESHES]; /* lumesh: light meshes, then direct, indirect, specular */
+    uint32_t spp_min, spp_max;/* path tracer */
+    uint64_t rays;            /* path tracer */
+    cmp_result m;
+    char image[64];           /* file name in DIR (EXR; the PNG beside it) */
+} conv_row;
+
+typedef struct conv_run {
+    const char *method;       /* "lumesh", "lumesh-single-mesh", "path-tracer" */
+    conv_row rows[MAX_SNAPSHOTS];
+    int count;
+} conv_run;
+
+typedef struct conv_ctx {
+    const app_command *cmd;
+    scene *s;
+    int cam, w, h;
+    const char *dir;
+    img_image ref;
+    float exposure;
+    double times[MAX_SNAPSHOTS];
+    int time_count;
+    double seconds;           /* --seconds */
+    int supersample;          /* --supersample: s×s samples a pixel in the measured images */
+    int tty;
+    uint32_t light_count;     /* mesh columns: light_count + 3 */
+    double first_image;       /* seconds from the scene loaded; < 0 until drawn */
+    double converged_at;      /* published time of the first converged snapshot; < 0: never */
+    cache_snapshot final;     /* statistics of the last snapshot measured (lights copied below) */
+    cache_mesh_stats final_lights[MAX_MESHES];
+    rend_frame_times frame_times;
+    double id_seconds;
+    uint64_t frames;
+    int have_final;
+} conv_ctx;
+
+static void nap_ms(int ms)
+{
+    struct timespec t = {ms / 1000, (long)(ms % 1000) * 1000000L};
+    nanosleep(&t, NULL);
+}
+
+/* "0.1,0.2,1" into increasing positive times ≤ limit (limit itself added last). */
+static int parse_times(const char *list, double limit, double *out, int *count)
+{
+    static const double defaults[] = {0.1, 0.2, 0.5, 1, 2, 5, 10, 20, 50, 100, 200, 500, 1000, 2000, 5000, 10000};
+    int n = 0;
+    if (list) {
+        const char *p = list;
+        while (*p) {
+            char *end;
+            double v = strtod(p, &end);
+            if (end == p || !isfinite(v) || v <= 0 || (n && v <= out[n - 1]) || n >= MAX_SNAPSHOTS - 1) return 0;
+            if (v <= limit + 1e-9) out[n++] = v;
+            p = end;
+            if (*p == ',') ++p;
+            else if (*p) return 0;
+        }
+    } else {
+        for (size_t i = 0; i < sizeof defaults / sizeof defaults[0]; ++i)
+            if (defaults[i] < limit - 1e-9) out[n++] = defaults[i];
+    }
+    if (!n || out[n - 1] < limit - 1e-9) out[n++] = limit;
+    *count = n;
+    return 1;
+}
+
+static void progress(const conv_ctx *c, const char *method, double t, const conv_row *last, int final)
+{
+    if (!c->tty) return;
+    char bar[31];
+    double f = t / c->seconds;
+    int filled = (int)((f > 1 ? 1 : f) * 30.0 + 0.5);
+    for (int i = 0; i < 30; ++i) bar[i] = i < filled ? '#' : '.';
+    bar[30] = 0;
+    fprintf(stderr, "\r%-12s [%s] %6.2f/%.2f s", method, bar, t, c->seconds);
+    if (last) fprintf(stderr, "  dE %.3f  relMSE %.3g   ", last->m.delta_e_mean, last->m.relmse);
+    if (final) fputc('\n', stderr);
+    fflush(stderr);
+}
+
+/* Writes the image (EXR and PNG) into DIR and compares it with the reference. */
+static lm_result measure(conv_ctx *c, const char *prefix, const float *rgb, conv_row *row, lm_error *err)
+{
+    size_t n = (size_t)c->w * (size_t)c->h;
+    snprintf(row->image, sizeof row->image, "%s-%09.3fs.exr", prefix, row->target);
+    char path[SCENE_PATH_MAX + 80];
+    snprintf(path, sizeof path, "%s/%s", c->dir, row->image);
+    lm_result r = img_write(&(img_write_desc){.path = path, .width = c->w, .height = c->h, .channels = 3,
+                                              .pixels = rgb},
+                            err);
+    uint8_t *png = r == LM_OK ? malloc(n * 3) : NULL;
+    if (r == LM_OK && !png) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
+    if (r == LM_OK) {
+        tm_to_rgb8(&(tm_desc){.exposure = c->exposure}, rgb, 3, n, png);
+        size_t len = strlen(path);
+        memcpy(path + len - 3, "png", 3);
+        r = img_write(&(img_write_desc){.path = path, .width = c->w, .height = c->h, .channels = 3, .pixels8 = png},
+                      err);
+    }
+    free(png);
+    if (r != LM_OK) return r;
+    img_image a = {.width = c->w, .height = c->h, .channels = 3, .pixels = (float *)rgb};
+    return cmp_compare(&(cmp_desc){.exposure = c->exposure, .name_a = row->image, .name_b = "the reference"}, &a,
+                       &c->ref, &row->m, NULL, err);
+}
+
+static void snapshot_samples(const conv_ctx *c, const cache_snapshot *snap, conv_row *row)
+{
+    const cache_stats *st = &snap->stats;
+    for (uint32_t l = 0; l < c->light_count; ++l) row->samples[l] = st->lights[l].samples;
+    row->samples[c->light_count] = st->direct.samples;
+    row->samples[c->light_count + 1] = st->indirect.samples;
+    row->samples[c->light_count + 2] = st->specular.samples;
+    row->tested = snap->tested;
+}
+
+static void keep_final(conv_ctx *c, const cache_snapshot *snap)
+{
+    c->final = *snap;
+    memcpy(c->final_lights, snap->stats.lights, c->light_count * sizeof *c->final_lights);
+    c->final.stats.lights = c->final_lights;
+    /* The leaf arrays belong to the worker's buffers: only their counts are kept. */
+    c->final.direct = (cache_snapshot_mesh){.triangle_count = snap->direct.triangle_count};
+    c->final.indirect = (cache_snapshot_mesh){.triangle_count = snap->indirect.triangle_count};
+    c->final.specular = (cache_snapshot_mesh){.triangle_count = snap->specular.triangle_count};
+    c->final.lights = NULL;
+    c->final.light_mesh_count = 0;
+    c->have_final = 1;
+}
+
+/* The first image, as a viewer shows it: the renderer at one sample a pixel
+ * (rend_frame_desc.supersample = 1), made while the worker makes the coarse
+ * cache, draws it as soon as the worker publishes it. The ID pass and every
+ * measurement come after, so they cannot delay it. (Compiling the shaders
+ * beforehand on a stand-in triangle measured no faster: the worker and the
+ * compiler then share the 2 cores.) */
+static lm_result first_image(conv_ctx *c, cache_worker *wk, const GladGLContext *gl, double t0, float *rgb,
+                             lm_error *err)
+{
+    rend_frame *preview = NULL;
+    const scene_camera *cam = &c->s->cameras[c->cam];
+    lm_result r = rend_frame_create(gl, &(rend_frame_desc){.scene = c->s, .width = c->w, .height = c->h,
+                                                           .supersample = 1},
+                                    &preview, err);
+    const cache_snapshot *snap = NULL;
+    while (r == LM_OK && !interrupted && !(snap = cache_worker_acquire(wk))) nap_ms(1);
+    if (r == LM_OK && snap && snap->failed) r = lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", snap->error);
+    if (r == LM_OK && snap) {
+        r = rend_frame_draw(preview, cam, snap, NULL, err); /* a viewer shows it from the GPU */
+        c->first_image = lm_now_seconds() - t0;
+        c->frames++;
+    }
+    if (r == LM_OK && snap) {
+        /* Kept as DIR/first-image.png: what the user saw first. */
+        char path[SCENE_PATH_MAX + 32];
+        snprintf(path, sizeof path, "%s/first-image.exr", c->dir);
+        r = rend_frame_draw(preview, cam, snap, rgb, err);
+        if (r == LM_OK)
+            r = img_write(&(img_write_desc){.path = path, .width = c->w, .height = c->h, .channels = 3, .pixels = rgb},
+                          err);
+    }
+    rend_frame_destroy(preview);
+    return r;
+}
+
+/* The previewer: worker, GL context, ID pass, renderer; snapshots at c->times. */
+static lm_result run_lumesh(conv_ctx *c, const samp_desc *sd, samp_gl_platform platform, int single_mesh,
+                            double t0, conv_run *run, lm_error *err)
+{
+    glctx *ctx = NULL;
+    rend_id *ip = NULL;
+    rend_frame *frame = NULL;
+    cache_worker *wk = NULL;
+    rend_id_result ids;
+    float *rgb = malloc((size_t)c->w * (size_t)c->h * 3 * sizeof *rgb);
+    lm_result r = rgb ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
+    const scene_camera *cam = &c->s->cameras[c->cam];
+    /* The worker starts first: it makes the coarse cache while this thread makes the
+     * GL context and the renderer; the ID pass, whose pixel counts the worker needs
+     * only to refine, follows the first image. */
+    if (r == LM_OK)
+        r = cache_worker_create(&(cache_worker_desc){.scene = c->s, .sampler = *sd, .pixels_later = 1,
+                                                     .cache = {.single_mesh = single_mesh}},
+                                &wk, err);
+    if (r == LM_OK) r = glctx_create(&(glctx_desc){.platform = platform}, &ctx, err);
+    if (r == LM_OK) r = first_image(c, wk, glctx_gl(ctx), t0, rgb, err);
+    if (r == LM_OK)
+        r = rend_id_create(glctx_gl(ctx), &(rend_id_desc){.scene = c->s, .width = c->w, .height = c->h}, &ip, err);
+    if (r == LM_OK) r = rend_id_render(ip, cam, &ids, err);
+    if (r == LM_OK) c->id_seconds = ids.seconds;
+    if (r == LM_OK) r = cache_worker_set_pixels(wk, ids.pixels, err);
+    /* The measured images: the offline renderer (s×s samples a pixel, like the
+     * reference's box filter). */
+    if (r == LM_OK)
+        r = rend_frame_create(glctx_gl(ctx), &(rend_frame_desc){.scene = c->s, .width = c->w, .height = c->h,
+                                                                .supersample = c->supersample},
+                              &frame, err);
+    const cache_snapshot *snap = NULL;
+    for (int i = 0; r == LM_OK && i < c->time_count && !interrupted; ++i) {
+        conv_row *row = &run->rows[run->count];
+        memset(row, 0, sizeof *row);
+        row->target = c->times[i];
+        /* Wait for the time, unless the cache has nothing more to do. */
+        for (;;) {
+            snap = cache_worker_acquire(wk);
+            if (interrupted || (snap && (snap->finished || snap->failed))) break;
+            double now = lm_now_seconds() - t0;
+            if (now >= row->target) break;
+            progress(c, run->method, now, run->count ? &run->rows[run->count - 1] : NULL, 0);
+            nap_ms(now + 0.02 < row->target ? 10 : 1);
+        }
+        if (interrupted || r != LM_OK) break;
+        if (snap && snap->failed) {
+            r = lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", snap->error);
+            break;
+        }
+        double now = lm_now_seconds() - t0;
+        if (snap && snap->finished) {
+            row->state = ROW_CONVERGED;
+            if (c->converged_at < 0) c->converged_at = snap->published_at - t0;
+            row->seconds = row->target > now ? row->target : now;
+        } else {
+            row->state = snap ? ROW_REFINING : ROW_NO_SNAPSHOT;
+            row->seconds = now;
+        }
+        if (snap) snapshot_samples(c, snap, row);
+        r = rend_frame_draw(frame, cam, snap, rgb, err);
+        c->frames++;
+        if (r == LM_OK) rend_frame_get_times(frame, &c->frame_times);
+        if (r == LM_OK) r = measure(c, run->method, rgb, row, err);
+        if (r == LM_OK) {
+            run->count++;
+            if (snap) keep_final(c, snap);
+            progress(c, run->method, row->seconds, row, 0);
+        }
+    }
+    progress(c, run->method, run->count ? run->rows[run->count - 1].seconds : 0, NULL, 1);
+    cache_worker_destroy(wk);
+    rend_frame_destroy(frame);
+    rend_id_destroy(ip);
+    glctx_destroy(ctx);
+    free(rgb);
+    return r;
+}
+
+/* The path tracer for the same times, its clock paused while measured. */
+static lm_result run_path_tracer(conv_ctx *c, uint32_t seed, conv_run *run, lm_error *err)
+{
+    double t0 = lm_now_seconds();
+    ref_renderer *pt = NULL;
+    float *rgb = malloc((size_t)c->w * (size_t)c->h * 3 * sizeof *rgb);
+    lm_result r = rgb ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
+    if (r == LM_OK)
+        r = ref_create(&(ref_desc){.scene = c->s, .camera = c->cam, .width = c->w, .height = c->h,
+                                   .transport = REF_TRANSPORT_MODEL, .seed = seed},
+                       &pt, err);
+    double setup = lm_now_seconds() - t0;
+    ref_stats st = {0};
+    for (int i = 0; r == LM_OK && i < c->time_count && !interrupted; ++i) {
+        conv_row *row = &run->rows[run->count];
+        memset(row, 0, sizeof *row);
+        row->target = c->times[i];
+        for (;;) {
+            ref_get_stats(pt, &st);
+            double spent = setup + st.seconds;
+            if (spent >= row->target || interrupted) break;
+            ref_render_pass(pt, &interrupted, lm_now_seconds() + (row->target - spent));
+            progress(c, run->method, setup + st.seconds, run->count ? &run->rows[run->count - 1] : NULL, 0);
+        }
+        if (interrupted) break;
+        ref_get_stats(pt, &st);
+        row->seconds = setup + st.seconds;
+        row->spp_min = st.min_samples;
+        row->spp_max = st.max_samples;
+        row->rays = st.rays;
+        ref_get_image(pt, rgb, NULL, NULL);
+        r = measure(c, run->method, rgb, row, err);
+        if (r == LM_OK) {
+            run->count++;
+            progress(c, run->method, row->seconds, row, 0);
+        }
+    }
+    progress(c, run->method, run->count ? run->rows[run->count - 1].seconds : 0, NULL, 1);
+    ref_destroy(pt);
+    free(rgb);
+    return r;
+}
+
+/* ---- output ------------------------------------------------------------------------ */
+
+static const char *mesh_column(const conv_ctx *c, uint32_t k, char *buf, size_t n)
+{
+    if (k < c->light_count)
+        snprintf(buf, n, "light%u", k);
+    else
+        snprintf(buf, n, "%s", k == c->light_count ? "direct" : k == c->light_count + 1 ? "indirect" : "specular");
+    return buf;
+}
+
+static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm_error *err)
+{
+    size_t cap = 4096 + (size_t)(runs[0].count + (nrun > 1 ? runs[1].count : 0)) * (600 + 24 * MAX_MESHES), len = 0;
+    char *t = malloc(cap), name[32];
+    if (!t) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory writing convergence.csv");
+#define OUT(...) len += (size_t)snprintf(t + len, cap - len, __VA_ARGS__)
+    OUT("method,target_seconds,seconds,state,leaves_tested");
+    for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
+    OUT(",spp_min,spp_max,rays,rmse,relmse,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
+        "image\n");
+    for (int k = 0; k < nrun; ++k)
+        for (int i = 0; i < runs[k].count; ++i) {
+            const conv_row *w = &runs[k].rows[i];
+            int pt = strcmp(runs[k].method, "path-tracer") == 0;
+            OUT("%s,%.3f,%.4f,%s,", runs[k].method, w->target, w->seconds, pt ? "" : state_names[w->state]);
+            if (!pt) OUT("%llu", (unsigned long long)w->tested);
+            for (uint32_t m = 0; m < c->light_count + 3; ++m)
+                if (pt)
+                    OUT(",");
+                else
+                    OUT(",%llu", (unsigned long long)w->samples[m]);
+            if (pt)
+                OUT(",%u,%u,%llu", w->spp_min, w->spp_max, (unsigned long long)w->rays);
+            else
+                OUT(",,,");
+            OUT(",%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,%s\n", w->m.rmse, w->m.relmse, w->m.psnr,
+                w->m.mean_abs_error, w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max,
+                w->image);
+        }
+#undef OUT
+    char path[SCENE_PATH_MAX + 32];
+    snprintf(path, sizeof path, "%s/convergence.csv", c->dir);
+    lm_result r = app_write_text(path, t, len, err);
+    free(t);
+    return r;
+}
+
+static double rounded(double v, double unit) { return isfinite(v) ? round(v / unit) * unit : v; }
+
+static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w)
+{
+    int pt = strcmp(run->method, "path-tracer") == 0;
+    cJSON *o = cJSON_CreateObject(), *m;
+    char name[32];
+    if (!o) return NULL;
+    cJSON_AddNumberToObject(o, "target_seconds", w->target);
+    cJSON_AddNumberToObject(o, "seconds", rounded(w->seconds, 1e-4));
+    if (pt) {
+        cJSON_AddNumberToObject(o, "spp_min", w->spp_min);
+        cJSON_AddNumberToObject(o, "spp_max", w->spp_max);
+        cJSON_AddNumberToObject(o, "rays", (double)w->rays);
+    } else {
+        cJSON_AddStringToObject(o, "state", state_names[w->state]);
+        cJSON_AddNumberToObject(o, "leaves_tested", (double)w->tested);
+        if ((m = cJSON_AddObjectToObject(o, "samples")))
+            for (uint32_t k = 0; k < c->light_count + 3; ++k)
+                cJSON_AddNumberToObject(m, mesh_column(c, k, name, sizeof name), (double)w->samples[k]);
+    }
+    if ((m = cJSON_AddObjectToObject(o, "error"))) {
+        cJSON_AddNumberToObject(m, "rmse", w->m.rmse);
+        cJSON_AddNumberToObject(m, "relmse", w->m.relmse);
+        if (isfinite(w->m.psnr))
+            cJSON_AddNumberToObject(m, "psnr", rounded(w->m.psnr, 1e-4));
+        else
+            cJSON_AddStringToObject(m, "psnr", "inf");
+        cJSON_AddNumberToObject(m, "mean_abs_error", w->m.mean_abs_error);
+        cJSON_AddNumberToObject(m, "max_abs_error", w->m.max_abs_error);
+        cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->m.delta_e_mean, 1e-5));
+        cJSON_AddNumberToObject(m, "delta_e_p99", rounded(w->m.delta_e_p99, 1e-5));
+        cJSON_AddNumberToObject(m, "delta_e_max", rounded(w->m.delta_e_max, 1e-5));
+        cJSON_AddNumberToObject(m, "pixels_compared", (double)w->m.pixels_compared);
+    }
+    cJSON_AddStringToObject(o, "image", w->image);
+    return o;
+}
+
+static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_run *runs, int nrun,
+                            const cJSON *stats, lm_error *err)
+{
+    cJSON *j = cJSON_CreateObject();
+    if (!j) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory writing convergence.json");
+    cJSON_AddStringToObject(j, "scene", c->s->source);
+    cJSON_AddStringToObject(j, "reference", ref_path);
+    cJSON_AddNumberToObject(j, "width", c->w);
+    cJSON_AddNumberToObject(j, "height", c->h);
+    cJSON_AddNumberToObject(j, "exposure", c->exposure);
+    cJSON_AddNumberToObject(j, "seconds", c->seconds);
+    cJSON_AddBoolToObject(j, "interrupted", interrupted != 0);
+    if (c->first_image >= 0)
+        cJSON_AddNumberToObject(j, "first_image_seconds", rounded(c->first_image, 1e-5));
+    else
+        cJSON_AddNullToObject(j, "first_image_seconds");
+    if (c->converged_at >= 0)
+        cJSON_AddNumberToObject(j, "converged_seconds", rounded(c->converged_at, 1e-4));
+    else
+        cJSON_AddNullToObject(j, "converged_seconds");
+    cJSON *methods = cJSON_AddObjectToObject(j, "methods");
+    for (int k = 0; methods && k < nrun; ++k) {
+        cJSON *arr = cJSON_AddArrayToObject(methods, runs[k].method);
+        for (int i = 0; arr && i < runs[k].count; ++i)
+            cJSON_AddItemToArray(arr, row_json(c, &runs[k], &runs[k].rows[i]));
+    }
+    if (stats) cJSON_AddItemToObject(j, "stats", cJSON_Duplicate(stats, 1));
+    char path[SCENE_PATH_MAX + 32];
+    snprintf(path, sizeof path, "%s/convergence.json", c->dir);
+    lm_result r = app_write_json(path, j, err);
+    cJSON_Delete(j);
+    return r;
+}
+
+static lm_result write_plot(const conv_ctx *c, const conv_run *runs, int nrun, lm_error *err)
+{
+    static const uint8_t colours[2][3] = {{214, 39, 40}, {31, 119, 180}};
+    double *buf = malloc((size_t)MAX_SNAPSHOTS * 3 * 2 * sizeof *buf);
+    if (!buf) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory plotting");
+    plot_series rel[2], de[2];
+    char labels[2][64];
+    for (int k = 0; k < nrun; ++k) {
+        double *x = buf + (size_t)k * 3 * MAX_SNAPSHOTS, *y1 = x + MAX_SNAPSHOTS, *y2 = y1 + MAX_SNAPSHOTS;
+        for (int i = 0; i < runs[k].count; ++i) {
+            x[i] = runs[k].rows[i].seconds;
+            y1[i] = runs[k].rows[i].m.relmse;
+            y2[i] = runs[k].rows[i].m.delta_e_mean;
+        }
+        int pt = strcmp(runs[k].method, "path-tracer") == 0;
+        snprintf(labels[k], sizeof labels[k], "%s", pt ? "path tracer (Embree, same transport)" : runs[k].method);
+        rel[k] = (plot_series){.label = labels[k], .x = x, .y = y1, .count = runs[k].count, .dashed = pt};
+        de[k] = rel[k];
+        de[k].y = y2;
+        memcpy(rel[k].rgb, colours[k], 3);
+        memcpy(de[k].rgb, colours[k], 3);
+    }
+    plot_panel panels[2] = {
+        {.title = "relMSE against the reference", .xlabel = "seconds since the scene was loaded",
+         .ylabel = "log-log", .series = rel, .series_count = nrun},
+        {.title = "mean dE (CIE76, tone-mapped)", .xlabel = "seconds since the scene was loaded",
+         .ylabel = "log-log", .series = de, .series_count = nrun,
+         .hlines = {{2.0, "JND (dE 2)"}, {1.0, "dE 1"}}},
+    };
+    char title[SCENE_PATH_MAX + 64];
+    const char *base = strrchr(c->s->source, '/');
+    snprintf(title, sizeof title, "%s, %dx%d: error against time", base ? base + 1 : c->s->source, c->w, c->h);
+    uint8_t *rgb = NULL;
+    int pw, ph;
+    lm_result r = plot_render(&(plot_desc){.title = title, .panels = panels, .panel_count = 2}, &rgb, &pw, &ph, err);
+    free(buf);
+    if (r != LM_OK) return r;
+    char path[SCENE_PATH_MAX + 32];
+    snprintf(path, sizeof path, "%s/convergence.png", c->dir);
+    r = img_write(&(img_write_desc){.path = path, .width = pw, .height = ph, .channels = 3, .pixels8 = rgb}, err);
+    free(rgb);
+    return r;
+}
+
+/* ---- the command ------------------------------------------------------------------- */
+
+int cmd_converge(const app_command *cmd, int argc, char **argv)
+{
+    const char *ref_path = NULL, *dir = NULL, *sampler = NULL, *gl_name = NULL, *list = NULL, *camera = NULL,
+               *stats_path = NULL;
+    double seconds = 0;
+    long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT;
+    long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
+    int vs_pt = 0, single = 0;
+    app_opt opts[] = {
+        {"--reference", NULL, APP_OPT_STRING, &ref_path},
+        {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e5},
+        {"--out", NULL, APP_OPT_STRING, &dir},
+        {"--snapshots", NULL, APP_OPT_STRING, &list},
+        {"--vs-path-tracer", NULL, APP_OPT_FLAG, &vs_pt},
+        {"--single-mesh", NULL, APP_OPT_FLAG, &single},
+        {"--camera", NULL, APP_OPT_STRING, &camera},
+        {"--stats", NULL, APP_OPT_STRING, &stats_path},
+        {"--seed", NULL, APP_OPT_INT, &seed, 0, 4294967295.0},
+        {"--supersample", NULL, APP_OPT_INT, &supersample, 1, REND_FRAME_SUPERSAMPLE_MAX},
+        {"--sampler", NULL, APP_OPT_STRING, &sampler},
+        {"--gl", NULL, APP_OPT_STRING, &gl_name},
+    };
+    const char *pos[1];
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if (!ref_path || !dir || !opts[1].seen)
+        return app_usage_error(cmd, "--reference, --seconds and --out are required");
+    if ((rc = app_check_sampler_options(cmd, sampler, gl_name)) != APP_EXIT_OK) return rc;
+    static conv_ctx c; /* large (rows, statistics): not on the stack */
+    static conv_run runs[2];
+    memset(&c, 0, sizeof c);
+    memset(runs, 0, sizeof runs);
+    c.cmd = cmd;
+    c.dir = dir;
+    c.seconds = seconds;
+    c.supersample = (int)supersample;
+    c.first_image = c.converged_at = -1;
+    if (!parse_times(list, seconds, c.times, &c.time_count))
+        return app_usage_error(cmd, "--snapshots takes increasing positive seconds separated by commas, "
+                                    "e.g. 0.1,0.5,1,5");
+
+    lm_error err = {{0}};
+    lm_result r = img_read(ref_path, &c.ref, &err);
+    if (r != LM_OK) return app_report(r, &err);
+    r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &c.s, &err);
+    double t0 = lm_now_seconds(); /* the clock starts with the scene loaded */
+    if (r != LM_OK) {
+        img_free(&c.ref);
+        return app_report(r, &err);
+    }
+    c.cam = scene_find_camera(c.s, camera);
+    c.w = c.ref.width;
+    c.h = c.ref.height;
+    c.exposure = c.s->exposure;
+    c.light_count = scene_light_count(c.s);
+    if (c.cam < 0)
+        r = lm_fail(&err, LM_ERR_BAD_INPUT, "%s: no camera named '%s'", c.s->source, camera);
+    else if (c.light_count + 3 > MAX_MESHES)
+        r = lm_fail(&err, LM_ERR_UNSUPPORTED, "%s: converge reports at most %d lights", c.s->source, MAX_MESHES - 3);
+    if (r == LM_OK) r = app_make_dir(dir, &err);
+    samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
+    if (sampler) samp_backend_from_name(sampler, &sd.backend);
+    samp_gl_platform platform = SAMP_GL_EGL;
+    if (gl_name) samp_gl_platform_from_name(gl_name, &platform);
+    sd.gl_platform = platform;
+    c.tty = isatty(STDERR_FILENO);
+
+    struct sigaction sa, old;
+    memset(&sa, 0, sizeof sa);
+    sa.sa_handler = on_sigint;
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, &old);
+    int nrun = 0;
+    if (r == LM_OK) {
+        runs[nrun].method = single ? "lumesh-single-mesh" : "lumesh";
+        r = run_lumesh(&c, &sd, platform, single, t0, &runs[nrun], &err);
+        nrun++;
+    }
+    if (r == LM_OK && vs_pt && !interrupted) {
+        runs[nrun].method = "path-tracer";
+        r = run_path_tracer(&c, (uint32_t)seed, &runs[nrun], &err);
+        nrun++;
+    }
+    /* Whatever was measured is written, also after Ctrl-C. */
+    cJSON *stats = NULL;
+    if (c.have_final)
+        stats = app_stats_json(&(app_stats_desc){.command = "converge", .scene = c.s->source, .width = c.w,
+                                                 .height = c.h, .supersample = c.supersample,
+                                                 .seconds = c.final.published_at - t0,
+                                                 .first_image_seconds = c.first_image, .snap = &c.final,
+                                                 .id_seconds = c.id_seconds, .frame = &c.frame_times,
+                                                 .frames = c.frames});
+    if (r == LM_OK && runs[0].count) r = write_csv(&c, runs, nrun, &err);
+    if (r == LM_OK && runs[0].count) r = write_json(&c, ref_path, runs, nrun, stats, &err);
+    if (r == LM_OK && runs[0].count) r = write_plot(&c, runs, nrun, &err);
+    if (r == LM_OK && stats_path && stats) r = app_write_json(stats_path, stats, &err);
+    cJSON_Delete(stats);
+    sigaction(SIGINT, &old, NULL);
+    if (r == LM_OK) {
+        printf("%s: first image %.3f s; ", c.s->source, c.first_image);
+        if (c.converged_at >= 0)
+            printf("converged at %.2f s\n", c.converged_at);
+        else
+            printf("not converged in %.2f s\n", seconds);
+        for (int k = 0; k < nrun; ++k) {
+            for (int i = 0; i < runs[k].count; ++i) {
+                const conv_row *w = &runs[k].rows[i];
+                printf("  %-18s %8.3f s  relMSE %-10.4g dE mean %-8.4f p99 %-8.4f PSNR %.2f dB\n", runs[k].method,
+                       w->seconds, w->m.relmse, w->m.delta_e_mean, w->m.delta_e_p99, w->m.psnr);
+            }
+        }
+        printf("wrote %s/convergence.csv, convergence.json, convergence.png%s\n", dir,
+               interrupted ? " (interrupted: what was measured)" : "");
+    }
+    img_free(&c.ref);
+    scene_destroy(c.s);
+    return r == LM_OK ? APP_EXIT_OK : app_report(r, &err);
+}

@@ -1,0 +1,108 @@
+/* cmd_view.c — `lumesh view`: the interactive window (view_app.h) on a scene,
+ * scriptable for tests (--script, view_script.h) and with --stats like render.
+ * Prints one line per screenshot with the frames so far and the snapshot's
+ * direct-diffuse and light-mesh sample counts, so a script can check refinement
+ * kept going across a camera move (the view-independent caches are kept) and
+ * that a light edit took no light sample. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "app_stats.h"
+#include "cli.h"
+#include "samp.h"
+#include "scene.h"
+#include "view_app.h"
+#include "view_script.h"
+
+typedef struct view_cli {
+    const scene *s;
+    const char *stats;
+    double t_loaded;
+} view_cli;
+
+static void print_screenshot(const char *path, const view_app_report *rep, void *user)
+{
+    (void)user;
+    const cache_snapshot *snap = rep->snap;
+    unsigned long long light_samples = 0;
+    for (uint32_t l = 0; snap && l < snap->stats.light_count; ++l) light_samples += snap->stats.lights[l].samples;
+    printf("screenshot %s: %dx%d, frame %llu, %.2f s, direct samples %llu, light samples %llu, indirect samples %llu, "
+           "generation %llu\n",
+           path, rep->width, rep->height, (unsigned long long)rep->frames, rep->seconds,
+           snap ? (unsigned long long)snap->stats.direct.samples : 0ull, light_samples,
+           snap ? (unsigned long long)snap->stats.indirect.samples : 0ull,
+           snap ? (unsigned long long)snap->generation : 0ull);
+    fflush(stdout);
+}
+
+static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
+{
+    view_cli *c = user;
+    printf("view: %llu frames in %.2f s (%.1f fps) at %dx%d, %llu ID passes; %s\n", (unsigned long long)rep->frames,
+           rep->seconds, rep->frames / (rep->seconds > 0 ? rep->seconds : 1), rep->width, rep->height,
+           (unsigned long long)rep->id_passes, rep->renderer);
+    if (!c->stats) return LM_OK;
+    if (!rep->snap) return lm_fail(err, LM_ERR_RUNTIME, "%s: no snapshot was drawn, no statistics to write", c->stats);
+    cJSON *j = app_stats_json(&(app_stats_desc){.command = "view", .scene = c->s->source, .width = rep->width,
+                                               .height = rep->height, .supersample = 1,
+                                               .seconds = lm_now_seconds() - c->t_loaded,
+                                               .first_image_seconds = rep->first_image_seconds, .snap = rep->snap,
+                                               .id_seconds = rep->id_seconds, .frame = rep->frame,
+                                               .frames = rep->frames});
+    if (!j) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the statistics");
+    lm_result r = app_write_json(c->stats, j, err);
+    cJSON_Delete(j);
+    return r;
+}
+
+int cmd_view(const app_command *cmd, int argc, char **argv)
+{
+    const char *sampler = NULL, *gl_name = NULL, *script = NULL, *stats = NULL, *camera = NULL;
+    long width = 0, height = 0;
+    double max_fps = VIEW_APP_DEFAULT_FPS;
+    app_opt opts[] = {
+        {"--sampler", NULL, APP_OPT_STRING, &sampler},
+        {"--gl", NULL, APP_OPT_STRING, &gl_name},
+        {"--script", NULL, APP_OPT_STRING, &script},
+        {"--stats", NULL, APP_OPT_STRING, &stats},
+        {"--camera", NULL, APP_OPT_STRING, &camera},
+        {"--width", NULL, APP_OPT_INT, &width, 1, 16384},
+        {"--height", NULL, APP_OPT_INT, &height, 1, 16384},
+        {"--max-fps", NULL, APP_OPT_DOUBLE, &max_fps, 0, 1000},
+    };
+    const char *pos[1];
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
+    if (rc < 0) return APP_EXIT_OK;
+    if (rc) return rc;
+    if (opts[5].seen != opts[6].seen) return app_usage_error(cmd, "give both --width and --height");
+    if ((rc = app_check_sampler_options(cmd, sampler, gl_name)) != APP_EXIT_OK) return rc;
+
+    lm_error err = {{0}};
+    view_cmd *cmds = NULL;
+    size_t ncmds = 0;
+    lm_result r = script ? view_script_load(script, &cmds, &ncmds, &err) : LM_OK;
+    if (r == LM_OK && script && ncmds == 0) r = lm_fail(&err, LM_ERR_BAD_INPUT, "%s: the script has no commands", script);
+    if (r != LM_OK) return app_report(r, &err);
+    scene *s = NULL;
+    double t_loaded = lm_now_seconds();
+    r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &s, &err);
+    int ci = r == LM_OK ? scene_find_camera(s, camera) : 0;
+    if (r == LM_OK && ci < 0) r = lm_fail(&err, LM_ERR_BAD_INPUT, "%s: no camera named '%s'", s->source, camera);
+    if (r == LM_OK) {
+        /* As render: the 2% tolerance, the sampler chosen by --sampler (auto by default). */
+        samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
+        if (sampler) samp_backend_from_name(sampler, &sd.backend);
+        sd.gl_platform = SAMP_GL_EGL;
+        if (gl_name) samp_gl_platform_from_name(gl_name, &sd.gl_platform);
+        view_cli c = {.s = s, .stats = stats, .t_loaded = t_loaded};
+        r = view_app_run(&(view_app_desc){.scene = s, .camera = ci, .width = (int)width, .height = (int)height,
+                                          .sampler = sd, .script = script ? cmds : NULL, .script_count = ncmds,
+                                          .max_fps = max_fps > 0 ? max_fps : -1, .user = &c,
+                                          .screenshot = print_screenshot, .finished = finished},
+                         &err);
+    }
+    free(cmds);
+    scene_destroy(s);
+    return r == LM_OK ? APP_EXIT_OK : app_report(r, &err);
+}

@@ -1,0 +1,369 @@
+/* view_app.c — `lumesh view`'s display loop (view_app.h). */
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
+#include "view_app.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "image.h"
+#include "rend_id.h"
+#include "tonemap.h"
+#include "view_camera.h"
+#include "view_glfw.h"
+#include "view_tonemap.h"
+
+enum { TITLE_PERIOD_MS = 500 };
+static const float k_orbit_deg_per_unit = 0.3f; /* degrees per screen unit of drag */
+static const float k_zoom_per_step = 0.9f;      /* distance factor per wheel step */
+static const float k_exposure_step = 0.5f;      /* stops per + / - */
+
+/* Everything the loop owns; all of it display thread only (the worker's state is
+ * behind cache_worker's API). */
+typedef struct view_state {
+    const view_app_desc *d;
+    view_window *win;
+    const GladGLContext *gl;
+    cache_worker *wk;
+    view_tm *tm;
+    rend_id *ip;
+    rend_frame *frame;
+    int fb_w, fb_h;                 /* size of ip and frame; 0 = not made */
+    scene_camera cam;
+    int camera_moved;               /* the ID pass must run again */
+    int paused;
+    float exposure;                 /* stops */
+    uint32_t light_count, light;    /* the scene's lights; the one the keys edit */
+    float *light_scale;             /* per light: power relative to the scene's */
+    int emission_dirty;             /* the renderer's emitters differ from light_scale */
+    unsigned components;            /* REND_FRAME_COMPONENT_* shown */
+    int help;                       /* the help overlay is on */
+    const cache_snapshot *snap;     /* the last acquired, valid until the next acquire */
+    uint64_t frames, id_passes, screenshots;
+    double t_open, first_image, id_seconds;
+    rend_frame_times times;
+    int drawn;                      /* a frame with the current sizes exists */
+    /* The script: the command running and when it started. */
+    size_t si;
+    int cmd_started;
+    double cmd_t0;
+    uint64_t cmd_frames0, cmd_generation0;
+    int quit;
+    char shot[VIEW_SCRIPT_PATH_MAX];/* screenshot to take after this frame's draw; "" = none */
+} view_state;
+
+static void nap(double seconds)
+{
+    if (seconds <= 0) return;
+    struct timespec t = {(time_t)seconds, (long)((seconds - floor(seconds)) * 1e9)};
+    nanosleep(&t, NULL);
+}
+
+static void report_of(const view_state *v, view_app_report *r)
+{
+    *r = (view_app_report){.camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
+                           .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
+                           .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
+                           .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win)};
+}
+
+/* Light l's power to scale × the scene's: the worker recomputes the direct mesh
+ * from its stored G (no light sample), the renderer shows the emitter's new Le. */
+static lm_result set_light_scale(view_state *v, uint32_t l, float scale, lm_error *err)
+{
+    const scene *s = v->d->scene;
+    if (l >= v->light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", l, v->light_count);
+    const float *base = l < s->area_light_count ? s->area_lights[l].le
+                                                : s->point_lights[l - s->area_light_count].intensity;
+    float value[3] = {base[0] * scale, base[1] * scale, base[2] * scale};
+    lm_result r = cache_worker_set_light(v->wk, l, value, err);
+    if (r != LM_OK) return r;
+    v->light_scale[l] = scale;
+    v->emission_dirty = 1;
+    return LM_OK;
+}
+
+/* The emitters' Le as light_scale says, after an edit or a new renderer. */
+static lm_result apply_emission(view_state *v, lm_error *err)
+{
+    const scene *s = v->d->scene;
+    lm_result r = LM_OK;
+    for (uint32_t l = 0; r == LM_OK && l < s->area_light_count; ++l) {
+        const float *le = s->area_lights[l].le, k = v->light_scale[l];
+        r = rend_frame_set_emission(v->frame, s->area_lights[l].material, (float[3]){le[0] * k, le[1] * k, le[2] * k},
+                                    err);
+    }
+    v->emission_dirty = 0;
+    return r;
+}
+
+static lm_result apply_action(view_state *v, view_action a, lm_error *err)
+{
+    switch (a) {
+    case VIEW_ACTION_QUIT: v->quit = 1; break;
+    case VIEW_ACTION_PAUSE:
+        /* cache_worker_pause waits for the worker to finish its step (one step:
+         * step_budget leaves); a key press may take that long, frames do not. */
+        if (v->paused) cache_worker_resume(v->wk);
+        else cache_worker_pause(v->wk);
+        v->paused = !v->paused;
+        break;
+    case VIEW_ACTION_EXPOSURE_UP: v->exposure += k_exposure_step; break;
+    case VIEW_ACTION_EXPOSURE_DOWN: v->exposure -= k_exposure_step; break;
+    case VIEW_ACTION_SCREENSHOT:
+        snprintf(v->shot, sizeof v->shot, "lumesh-view-%llu.png", (unsigned long long)++v->screenshots);
+        break;
+    case VIEW_ACTION_FRAME_ALL:
+        view_camera_frame_all(&v->cam, v->d->scene->bounds_min, v->d->scene->bounds_max,
+                              v->fb_h > 0 ? (float)v->fb_w / (float)v->fb_h : 16.0f / 9.0f);
+        v->camera_moved = 1;
+        break;
+    case VIEW_ACTION_LIGHT_NEXT:
+        if (v->light_count) v->light = (v->light + 1) % v->light_count;
+        break;
+    case VIEW_ACTION_LIGHT_UP:
+    case VIEW_ACTION_LIGHT_DOWN:
+        if (v->light_count)
+            return set_light_scale(v, v->light, v->light_scale[v->light] * (a == VIEW_ACTION_LIGHT_UP ? 2.0f : 0.5f),
+                                   err);
+        break;
+    case VIEW_ACTION_TOGGLE_DIRECT: v->components ^= REND_FRAME_COMPONENT_DIRECT_DIFFUSE; break;
+    case VIEW_ACTION_TOGGLE_SPECULAR: v->components ^= REND_FRAME_COMPONENT_DIRECT_SPECULAR; break;
+    case VIEW_ACTION_TOGGLE_INDIRECT: v->components ^= REND_FRAME_COMPONENT_INDIRECT; break;
+    case VIEW_ACTION_TOGGLE_EMISSION: v->components ^= REND_FRAME_COMPONENT_EMISSION; break;
+    case VIEW_ACTION_HELP: v->help = !v->help; break;
+    default: break;
+    }
+    return LM_OK;
+}
+
+/* Runs the script's commands due now: instantaneous ones all at once, up to one
+ * that waits (wait, frames) or a screenshot (taken after this frame's draw). */
+static lm_result run_script(view_state *v, lm_error *err)
+{
+    const view_app_desc *d = v->d;
+    if (!d->script) return LM_OK;
+    while (!v->quit && !v->shot[0]) {
+        if (v->si >= d->script_count) {
+            v->quit = 1; /* the script ran out: done */
+            return LM_OK;
+        }
+        const view_cmd *c = &d->script[v->si];
+        if (!v->cmd_started) {
+            v->cmd_started = 1;
+            v->cmd_t0 = lm_now_seconds();
+            v->cmd_frames0 = v->frames;
+            v->cmd_generation0 = v->snap ? v->snap->generation : 0;
+        }
+        lm_result r = LM_OK;
+        switch (c->kind) {
+        case VIEW_CMD_WAIT:
+            if (lm_now_seconds() - v->cmd_t0 < c->a) return LM_OK;
+            break;
+        case VIEW_CMD_FRAMES:
+            if (v->frames - v->cmd_frames0 < (uint64_t)c->a) return LM_OK;
+            break;
+        case VIEW_CMD_NEXT_SNAPSHOT:
+            /* Drawn already: v->snap is the one of the last frame. */
+            if ((!v->snap || v->snap->generation == v->cmd_generation0) && lm_now_seconds() - v->cmd_t0 < c->a)
+                return LM_OK;
+            break;
+        case VIEW_CMD_LIGHT: r = set_light_scale(v, (uint32_t)c->a, (float)c->b, err); break;
+        case VIEW_CMD_ORBIT:
+            view_camera_orbit(&v->cam, (float)c->a, (float)c->b);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_ZOOM:
+            view_camera_zoom(&v->cam, (float)c->a);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_SCREENSHOT: snprintf(v->shot, sizeof v->shot, "%s", c->path); break;
+        case VIEW_CMD_KEY: r = apply_action(v, c->action, err); break;
+        case VIEW_CMD_QUIT: v->quit = 1; break;
+        default: break;
+        }
+        if (r != LM_OK) {
+            char why[sizeof err->msg];
+            snprintf(why, sizeof why, "%s", err->msg);
+            return lm_fail(err, r, "script line %d: %s", c->line, why);
+        }
+        v->si++;
+        v->cmd_started = 0;
+    }
+    return LM_OK;
+}
+
+/* The ID pass and the renderer at the framebuffer's size (made again on resize). */
+static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
+{
+    if (v->frame && w == v->fb_w && h == v->fb_h) return LM_OK;
+    rend_frame_destroy(v->frame);
+    rend_id_destroy(v->ip);
+    v->frame = NULL;
+    v->ip = NULL;
+    v->fb_w = v->fb_h = 0;
+    v->drawn = 0;
+    lm_result r = rend_id_create(v->gl, &(rend_id_desc){.scene = v->d->scene, .width = w, .height = h}, &v->ip, err);
+    if (r == LM_OK)
+        r = rend_frame_create(v->gl, &(rend_frame_desc){.scene = v->d->scene, .width = w, .height = h, .supersample = 1},
+                              &v->frame, err);
+    if (r != LM_OK) return r;
+    v->fb_w = w;
+    v->fb_h = h;
+    v->cam.width = w;
+    v->cam.height = h;
+    v->camera_moved = 1; /* new pixel counts for the new size */
+    v->emission_dirty = 1; /* a new renderer has the scene's Le */
+    return LM_OK;
+}
+
+static lm_result take_screenshot(view_state *v, lm_error *err)
+{
+    rend_frame_output o;
+    rend_frame_get_output(v->frame, &o);
+    uint8_t *rgb = malloc((size_t)o.width * (size_t)o.height * 3);
+    if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
+    lm_result r = view_tm_read(v->tm, o.texture, o.width, o.height, &(tm_desc){.exposure = v->exposure}, rgb, err);
+    if (r == LM_OK)
+        r = img_write(&(img_write_desc){.path = v->shot, .width = o.width, .height = o.height, .channels = 3,
+                                        .pixels8 = rgb},
+                      err);
+    free(rgb);
+    if (r == LM_OK && v->d->screenshot) {
+        view_app_report rep;
+        report_of(v, &rep);
+        v->d->screenshot(v->shot, &rep, v->d->user);
+    }
+    v->shot[0] = '\0';
+    return r;
+}
+
+static void update_title(view_state *v)
+{
+    const cache_snapshot *s = v->snap;
+    char title[256];
+    double fps = v->frames / fmax(1e-9, lm_now_seconds() - v->t_open);
+    char light[64] = "";
+    if (v->light_count)
+        snprintf(light, sizeof light, ", light %u/%u ×%.3g", v->light + 1, v->light_count, v->light_scale[v->light]);
+    snprintf(title, sizeof title,
+             "lumesh view — %.0f fps, exposure %+.1f%s, terms %c%c%c%c — %s%llu direct, %llu indirect samples%s", fps,
+             v->exposure, light, v->components & REND_FRAME_COMPONENT_DIRECT_DIFFUSE ? 'D' : '-',
+             v->components & REND_FRAME_COMPONENT_DIRECT_SPECULAR ? 'S' : '-',
+             v->components & REND_FRAME_COMPONENT_INDIRECT ? 'I' : '-',
+             v->components & REND_FRAME_COMPONENT_EMISSION ? 'E' : '-', v->paused ? "paused, " : "",
+             s ? (unsigned long long)s->stats.direct.samples : 0ull,
+             s ? (unsigned long long)s->stats.indirect.samples : 0ull, s && s->converged ? ", converged" : "");
+    view_window_set_title(v->win, title);
+}
+
+/* One frame: input, script, ID pass after a move, the latest snapshot, draw, present. */
+static lm_result frame(view_state *v, lm_error *err)
+{
+    view_input in;
+    view_window_poll(v->win, &in);
+    if (in.close) v->quit = 1;
+    lm_result r = LM_OK;
+    for (int a = 0; a < VIEW_ACTION_COUNT; ++a)
+        for (int k = 0; r == LM_OK && k < in.actions[a]; ++k) r = apply_action(v, (view_action)a, err);
+    if (r != LM_OK) return r;
+    if (in.drag_dx != 0 || in.drag_dy != 0) {
+        /* Dragging right turns the scene right: the camera goes left. */
+        view_camera_orbit(&v->cam, -(float)in.drag_dx * k_orbit_deg_per_unit,
+                          (float)in.drag_dy * k_orbit_deg_per_unit);
+        v->camera_moved = 1;
+    }
+    if (in.wheel != 0) {
+        view_camera_zoom(&v->cam, powf(k_zoom_per_step, (float)in.wheel));
+        v->camera_moved = 1;
+    }
+    if ((r = run_script(v, err)) != LM_OK) return r;
+    if (v->quit && !v->shot[0]) return LM_OK;
+
+    int w, h;
+    view_window_framebuffer_size(v->win, &w, &h);
+    if (w <= 0 || h <= 0) return LM_OK; /* minimised: nothing to draw into; the worker goes on */
+    r = fit_size(v, w, h, err);
+    if (r == LM_OK && v->emission_dirty) r = apply_emission(v, err);
+    if (r == LM_OK) rend_frame_set_components(v->frame, v->components);
+    if (r == LM_OK && v->camera_moved) {
+        rend_id_result ids;
+        r = rend_id_render(v->ip, &v->cam, &ids, err);
+        if (r == LM_OK) r = cache_worker_set_pixels(v->wk, ids.pixels, err);
+        v->id_seconds = ids.seconds;
+        v->id_passes++;
+        v->camera_moved = 0;
+    }
+    if (r != LM_OK) return r;
+    const cache_snapshot *s = cache_worker_acquire(v->wk); /* never waits */
+    if (s) v->snap = s;
+    if (v->snap && v->snap->failed) return lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", v->snap->error);
+    r = rend_frame_draw(v->frame, &v->cam, v->snap, NULL, err);
+    rend_frame_output o;
+    rend_frame_get_output(v->frame, &o);
+    tm_desc tm = {.exposure = v->exposure};
+    if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, o.texture, &tm, err);
+    if (r != LM_OK) return r;
+    rend_frame_get_times(v->frame, &v->times);
+    v->frames++;
+    if (v->first_image < 0 && v->snap) v->first_image = lm_now_seconds() - v->t_open;
+    if (v->shot[0]) r = take_screenshot(v, err);
+    view_window_swap(v->win);
+    return r;
+}
+
+lm_result view_app_run(const view_app_desc *d, lm_error *err)
+{
+    if (!d || !d->scene || d->camera < 0 || (uint32_t)d->camera >= d->scene->camera_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "view_app_run: no scene or no such camera");
+    view_state v = {.d = d, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
+                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL,
+                    .light_count = scene_light_count(d->scene)};
+    v.light_scale = malloc((v.light_count ? v.light_count : 1) * sizeof *v.light_scale);
+    if (!v.light_scale) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for %u lights", v.light_count);
+    for (uint32_t l = 0; l < v.light_count; ++l) v.light_scale[l] = 1.0f;
+    lm_result r = view_window_create(&(view_window_desc){.title = "lumesh view", .width = d->width,
+                                                        .height = d->height},
+                                     &v.win, err);
+    if (r != LM_OK) {
+        free(v.light_scale);
+        return r;
+    }
+    v.gl = view_window_gl(v.win);
+    v.t_open = lm_now_seconds();
+    /* pixels_later: the coarse cache is made while the first ID pass runs. */
+    r = cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels_later = 1}, &v.wk,
+                            err);
+    if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
+    double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
+    double next = lm_now_seconds(), next_title = next;
+    while (r == LM_OK && !v.quit) {
+        r = frame(&v, err);
+        double now = lm_now_seconds();
+        if (now >= next_title) {
+            update_title(&v);
+            next_title = now + TITLE_PERIOD_MS * 1e-3;
+        }
+        /* Steady pacing: aim at fixed ticks; after a slow frame start again from now
+         * rather than drawing a burst to catch up. */
+        next += period;
+        if (next < now) next = now;
+        nap(next - now);
+    }
+    if (r == LM_OK && d->finished) {
+        view_app_report rep;
+        report_of(&v, &rep);
+        r = d->finished(&rep, d->user, err);
+    }
+    if (v.paused) cache_worker_resume(v.wk);
+    cache_worker_destroy(v.wk); /* cancels the refinement and joins the thread */
+    view_tm_destroy(v.tm);
+    rend_frame_destroy(v.frame);
+    rend_id_destroy(v.ip);
+    view_window_destroy(v.win);
+    free(v.light_scale);
+    return r;
+}

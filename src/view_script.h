@@ -1,0 +1,91 @@
+/* view_script.h — the viewer's script (`lumesh view --script FILE`): one command
+ * per line, run in order by the display loop, so that tests can drive the window.
+ *
+ *     # comment; blank lines are skipped
+ *     wait SECONDS         keep drawing for this long (the worker refines meanwhile)
+ *     frames N             keep drawing for N more frames
+ *     orbit DX DY          orbit about the target, degrees (right, up), as a drag would
+ *     zoom FACTOR          distance to the target times FACTOR (> 0), as the wheel would
+ *     screenshot PATH.png  the tone-mapped image, as shown, written through img_write
+ *     key NAME             as if the key were pressed: escape, q, p, plus, minus, s, f,
+ *                          l (next light), bracketright / bracketleft (its power ×2 / ×0.5),
+ *                          1 2 3 4 (toggle direct diffuse, direct specular, indirect, emission), h
+ *     light INDEX SCALE    light INDEX's power set to SCALE × the scene's (>= 0), no new light samples
+ *     next-snapshot SECONDS  keep drawing until a snapshot newer than the one shown now is drawn
+ *                          (a light edit published), at most SECONDS
+ *     quit                 as Esc (the script also ends the viewer when it runs out)
+ *
+ * Usage:
+ *     view_cmd *cmds; size_t n;
+ *     if (view_script_load("test.view", &cmds, &n, &err) != LM_OK) ...  // "FILE:LINE: ..." on bad input
+ *     free(cmds);
+ *
+ * Does NOT do: loops, variables, mouse positions.
+ */
+#ifndef LUMESH_VIEW_SCRIPT_H
+#define LUMESH_VIEW_SCRIPT_H
+
+#include <stddef.h>
+
+#include "util.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* What a key (or the same script command) does in the viewer. */
+typedef enum view_action {
+    VIEW_ACTION_NONE = 0,
+    VIEW_ACTION_QUIT,          /* Esc, Q */
+    VIEW_ACTION_PAUSE,         /* P: pause / resume refinement */
+    VIEW_ACTION_EXPOSURE_UP,   /* + (also =, keypad +): +0.5 stop */
+    VIEW_ACTION_EXPOSURE_DOWN, /* -: −0.5 stop */
+    VIEW_ACTION_SCREENSHOT,    /* S: lumesh-view-N.png in the working directory */
+    VIEW_ACTION_FRAME_ALL,     /* F */
+    VIEW_ACTION_LIGHT_NEXT,    /* L: select the next light */
+    VIEW_ACTION_LIGHT_UP,      /* ]: the selected light's power ×2 */
+    VIEW_ACTION_LIGHT_DOWN,    /* [: the selected light's power ×0.5 */
+    VIEW_ACTION_TOGGLE_DIRECT, /* 1: direct diffuse on / off */
+    VIEW_ACTION_TOGGLE_SPECULAR, /* 2: direct specular on / off */
+    VIEW_ACTION_TOGGLE_INDIRECT, /* 3: indirect on / off */
+    VIEW_ACTION_TOGGLE_EMISSION, /* 4: emission on / off */
+    VIEW_ACTION_HELP,          /* H: the help overlay on / off (state only: no overlay is drawn yet) */
+    VIEW_ACTION_COUNT
+} view_action;
+
+typedef enum view_cmd_kind {
+    VIEW_CMD_NONE = 0,
+    VIEW_CMD_WAIT,       /* a: seconds */
+    VIEW_CMD_FRAMES,     /* a: frames */
+    VIEW_CMD_ORBIT,      /* a, b: degrees right, up */
+    VIEW_CMD_ZOOM,       /* a: factor */
+    VIEW_CMD_SCREENSHOT, /* path */
+    VIEW_CMD_KEY,        /* action */
+    VIEW_CMD_QUIT,
+    VIEW_CMD_LIGHT,      /* a: light index, b: scale of the scene's power */
+    VIEW_CMD_NEXT_SNAPSHOT, /* a: seconds at most */
+    VIEW_CMD_COUNT
+} view_cmd_kind;
+
+enum { VIEW_SCRIPT_PATH_MAX = 1024, VIEW_SCRIPT_MAX_BYTES = 1 << 20 };
+
+typedef struct view_cmd {
+    view_cmd_kind kind;
+    double a, b;
+    view_action action;
+    char path[VIEW_SCRIPT_PATH_MAX];
+    int line;            /* 1-based, for messages */
+} view_cmd;
+
+/* Parses the whole script up front (a typo on line 30 fails before the window
+ * opens). *cmds is malloc'ed (NULL when empty); LM_ERR_BAD_INPUT names FILE:LINE. */
+lm_result view_script_load(const char *path, view_cmd **cmds, size_t *count, lm_error *err);
+
+/* "escape", "q", "p", "plus", "minus", "s", "f", "l", "bracketright", "bracketleft", "1".."4", "h"
+ * -> the action; VIEW_ACTION_NONE otherwise. */
+view_action view_action_from_key_name(const char *name);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

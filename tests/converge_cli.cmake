@@ -1,0 +1,100 @@
+# `lumesh converge` end to end on the built-in Cornell box at 48x48:
+#   -DLUMESH=path -DDIR=work directory -DMODE=run|determinism
+# run:    a 64-spp reference, then converge for 3 s against it with the path
+#         tracer; checks the CSV (header, one complete row per snapshot and
+#         method), the JSON (parses, same rows, statistics), the plot, the
+#         snapshot images, that the path tracer's relMSE falls with time, that
+#         the previewer's last error is below its first, and that no temporary
+#         file is left.
+# determinism: render --samples N --deterministic twice gives identical images.
+cmake_minimum_required(VERSION 3.19)
+set(ref ${DIR}/ref.exr)
+set(out ${DIR}/run)
+file(REMOVE_RECURSE ${out})
+file(MAKE_DIRECTORY ${DIR})
+
+# check("rc EQUAL 0" "message"): the condition is evaluated as if() code.
+macro(check cond msg)
+  cmake_language(EVAL CODE "if(${cond})\nset(check_ok 1)\nelse()\nset(check_ok 0)\nendif()")
+  if(NOT check_ok)
+    message(FATAL_ERROR "${msg}")
+  endif()
+endmacro()
+
+if(MODE STREQUAL "determinism")
+  foreach(i 1 2)
+    execute_process(COMMAND ${LUMESH} render -o ${DIR}/det${i}.exr --width 64 --height 64 --samples 1500
+                            --deterministic RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 120)
+    check("rc EQUAL 0" "render ${i} failed (${rc}): ${o}${e}")
+  endforeach()
+  execute_process(COMMAND ${LUMESH} compare ${DIR}/det1.exr ${DIR}/det2.exr --json
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e)
+  check("rc EQUAL 0" "compare failed: ${o}${e}")
+  string(JSON rmse GET "${o}" rmse)
+  string(JSON maxe GET "${o}" max_abs_error)
+  check("rmse EQUAL 0 AND maxe EQUAL 0" "two deterministic renders differ: rmse ${rmse}, max ${maxe}")
+  message(STATUS "ok: two --samples 1500 --deterministic renders are identical")
+  return()
+endif()
+
+execute_process(COMMAND ${LUMESH} reference -o ${ref} --spp 64 --width 48 --height 48
+                RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 120)
+check("rc EQUAL 0" "reference failed: ${o}${e}")
+# --sampler embree: auto's calibration takes seconds under the sanitizers, and the
+# previewer must get past its first snapshot within the run for the checks below.
+execute_process(COMMAND ${LUMESH} converge --reference ${ref} --seconds 3 --snapshots 0.05,0.5,1 --out ${out}
+                        --vs-path-tracer --stats ${out}/stats.json --sampler embree
+                RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 180)
+check("rc EQUAL 0" "converge failed (${rc}): ${o}${e}")
+
+# The CSV: a header and 4 complete rows per method (0.05, 0.5, 1, 3 s).
+file(STRINGS ${out}/convergence.csv lines)
+list(LENGTH lines n)
+check("n EQUAL 9" "convergence.csv has ${n} lines, expected 9:\n${o}")
+list(GET lines 0 header)
+string(REGEX MATCHALL "," hc "${header}")
+list(LENGTH hc ncomma)
+check("header MATCHES \"^method,target_seconds,seconds,state,leaves_tested,samples_light0,samples_direct,samples_indirect,samples_specular,spp_min,spp_max,rays,rmse,relmse,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,image$\"" "unexpected header: ${header}")
+set(lumesh_rows 0)
+set(pt_rows 0)
+foreach(line IN LISTS lines)
+  string(REGEX MATCHALL "," c "${line}")
+  list(LENGTH c k)
+  check("k EQUAL ncomma" "incomplete row: ${line}")
+  if(line MATCHES "^lumesh,")
+    math(EXPR lumesh_rows "${lumesh_rows} + 1")
+  elseif(line MATCHES "^path-tracer,")
+    math(EXPR pt_rows "${pt_rows} + 1")
+  endif()
+endforeach()
+check("lumesh_rows EQUAL 4 AND pt_rows EQUAL 4" "rows: ${lumesh_rows} lumesh, ${pt_rows} path tracer")
+
+# The JSON: the same rows, errors that behave, the statistics.
+file(READ ${out}/convergence.json j)
+string(JSON nl LENGTH "${j}" methods lumesh)
+string(JSON np LENGTH "${j}" methods path-tracer)
+check("nl EQUAL 4 AND np EQUAL 4" "convergence.json: ${nl} lumesh and ${np} path tracer snapshots")
+string(JSON pt_first GET "${j}" methods path-tracer 0 error relmse)
+string(JSON pt_last GET "${j}" methods path-tracer 3 error relmse)
+string(JSON pt_spp GET "${j}" methods path-tracer 3 spp_min)
+check("pt_last LESS pt_first" "the path tracer's relMSE did not fall: ${pt_first} -> ${pt_last}")
+check("pt_spp GREATER 1" "the path tracer took ${pt_spp} samples per pixel in 3 s")
+string(JSON lm_first GET "${j}" methods lumesh 0 error delta_e_mean)
+string(JSON lm_last GET "${j}" methods lumesh 3 error delta_e_mean)
+check("lm_last LESS lm_first" "the previewer's mean dE did not fall: ${lm_first} -> ${lm_last}")
+string(JSON first GET "${j}" first_image_seconds)
+check("NOT first STREQUAL \"null\"" "no first image was drawn")
+string(JSON light_samples GET "${j}" methods lumesh 3 samples light0)
+check("light_samples GREATER 0" "no light sample recorded")
+string(JSON mesh0 GET "${j}" stats meshes 0 mesh)
+check("mesh0 STREQUAL \"light0\"" "statistics: first mesh is '${mesh0}'")
+file(READ ${out}/stats.json s)
+string(JSON nmesh LENGTH "${s}" meshes)
+check("nmesh EQUAL 3" "stats.json lists ${nmesh} meshes, expected light0, direct, indirect (no gloss: no specular)")
+
+foreach(f convergence.png first-image.exr lumesh-00000.050s.exr lumesh-00003.000s.png path-tracer-00001.000s.exr)
+  check("EXISTS ${out}/${f}" "${f} was not written")
+endforeach()
+file(GLOB tmp ${out}/*.tmp)
+check("\"${tmp}\" STREQUAL \"\"" "temporary files left: ${tmp}")
+message(STATUS "ok: lumesh dE ${lm_first} -> ${lm_last}; path tracer relMSE ${pt_first} -> ${pt_last} (${pt_spp} spp)")

@@ -1,0 +1,107 @@
+# lumesh view under Xvfb (registered only when xvfb-run is found): the window
+# opens on the built-in scene, frames are drawn, screenshots are taken before and
+# after an orbit; exit 0, the screenshots exist and are not uniform
+# (view_image_check), and the direct-diffuse sample count after the move is not
+# lower than before (the view-independent caches are kept across camera moves).
+# Light edit, refinement paused (nothing else publishes): `light 0 0.5` gives one
+# new snapshot (generation + 1) with the same light-mesh sample count and a darker
+# image; hiding the indirect term (key 3) darkens it again.
+# -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
+file(REMOVE_RECURSE ${DIR})
+file(MAKE_DIRECTORY ${DIR})
+file(WRITE ${DIR}/script.txt "# view_cli.cmake
+wait 1.5
+screenshot ${DIR}/before.png
+orbit 25 10
+frames 3
+wait 1
+screenshot ${DIR}/after.png
+key p
+frames 2
+screenshot ${DIR}/lit.png
+light 0 0.5
+next-snapshot 120
+screenshot ${DIR}/dim.png
+key 3
+frames 1
+screenshot ${DIR}/noindirect.png
+key 3
+key p
+key plus
+key minus
+zoom 1.2
+key f
+frames 2
+screenshot ${DIR}/framed.png
+quit
+")
+execute_process(
+  COMMAND ${XVFB_RUN} -a -s "-screen 0 1280x720x24" ${LUMESH} view --script ${DIR}/script.txt
+          --stats ${DIR}/stats.json
+  RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err TIMEOUT 300)
+message("${out}${err}")
+if(NOT rc EQUAL 0)
+  message(FATAL_ERROR "lumesh view exited with '${rc}'")
+endif()
+foreach(f before after framed lit dim noindirect)
+  if(NOT EXISTS ${DIR}/${f}.png)
+    message(FATAL_ERROR "no ${DIR}/${f}.png")
+  endif()
+endforeach()
+if(NOT EXISTS ${DIR}/stats.json)
+  message(FATAL_ERROR "no ${DIR}/stats.json")
+endif()
+file(READ ${DIR}/stats.json stats)
+string(JSON command GET "${stats}" command)
+if(NOT command STREQUAL "view")
+  message(FATAL_ERROR "stats.json: command is '${command}', not 'view'")
+endif()
+execute_process(COMMAND ${CHECK} ${DIR}/before.png ${DIR}/after.png ${DIR}/framed.png ${DIR}/lit.png
+                        ${DIR}/dim.png ${DIR}/noindirect.png RESULT_VARIABLE crc
+                OUTPUT_VARIABLE cout ERROR_VARIABLE cerr)
+message("${cout}${cerr}")
+if(NOT crc EQUAL 0)
+  message(FATAL_ERROR "a screenshot is missing, unreadable, uniform, or unchanged by the orbit")
+endif()
+foreach(f before after)
+  if(NOT out MATCHES "screenshot [^\n]*/${f}\\.png: [^\n]*direct samples ([0-9]+)")
+    message(FATAL_ERROR "no screenshot line for ${f}.png")
+  endif()
+  set(direct_${f} ${CMAKE_MATCH_1})
+endforeach()
+if(direct_after LESS direct_before)
+  message(FATAL_ERROR "direct samples dropped across the orbit: ${direct_before} -> ${direct_after}")
+endif()
+if(direct_before EQUAL 0)
+  message(FATAL_ERROR "no direct samples after 1.5 s")
+endif()
+
+# The light edit, paused: one new snapshot, no light sample, a darker image.
+foreach(f lit dim)
+  if(NOT out MATCHES "screenshot [^\n]*/${f}\\.png: [^\n]*light samples ([0-9]+)[^\n]*generation ([0-9]+)")
+    message(FATAL_ERROR "no screenshot line for ${f}.png")
+  endif()
+  set(light_${f} ${CMAKE_MATCH_1})
+  set(gen_${f} ${CMAKE_MATCH_2})
+endforeach()
+math(EXPR gen_expected "${gen_lit} + 1")
+if(NOT gen_dim EQUAL gen_expected)
+  message(FATAL_ERROR "light edit while paused: generation ${gen_lit} -> ${gen_dim}, expected ${gen_expected}")
+endif()
+if(NOT light_dim EQUAL light_lit OR light_lit EQUAL 0)
+  message(FATAL_ERROR "light edit took light samples: ${light_lit} -> ${light_dim}")
+endif()
+foreach(f lit dim noindirect)
+  if(NOT cout MATCHES "/${f}\\.png: [0-9]+x[0-9]+, mean ([0-9.]+)")
+    message(FATAL_ERROR "no mean for ${f}.png")
+  endif()
+  set(mean_${f} ${CMAKE_MATCH_1})
+endforeach()
+message("light edit: light samples ${light_lit} -> ${light_dim}, generation ${gen_lit} -> ${gen_dim}, "
+        "mean ${mean_lit} -> ${mean_dim}, without indirect ${mean_noindirect}")
+if(NOT mean_dim LESS mean_lit)
+  message(FATAL_ERROR "the image did not get darker with light 0 at half power: ${mean_lit} -> ${mean_dim}")
+endif()
+if(NOT mean_noindirect LESS mean_dim)
+  message(FATAL_ERROR "hiding the indirect term did not darken the image: ${mean_dim} -> ${mean_noindirect}")
+endif()

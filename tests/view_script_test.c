@@ -1,0 +1,95 @@
+/* view_script_test — the viewer's script parser (line numbers in errors, every
+ * command, comments) and its camera moves (orbit keeps the distance and turns
+ * the right way, stops short of the pole; zoom; frame-all fits the box). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "test_util.h"
+#include "view_camera.h"
+#include "view_script.h"
+
+static void test_script(void)
+{
+    char path[1024];
+    test_write_file("view_script_ok.txt",
+                    "# a comment\n\nwait 0.5\nframes 3  # trailing comment\norbit -10 5\nzoom 0.9\n"
+                    "screenshot out.png\nkey plus\nkey escape\nquit\n",
+                    path, sizeof path);
+    view_cmd *c = NULL;
+    size_t n = 0;
+    lm_error err;
+    CHECK_MSG(view_script_load(path, &c, &n, &err) == LM_OK, "%s", err.msg);
+    CHECK(n == 8);
+    if (n == 8) {
+        CHECK(c[0].kind == VIEW_CMD_WAIT && c[0].a == 0.5 && c[0].line == 3);
+        CHECK(c[1].kind == VIEW_CMD_FRAMES && c[1].a == 3);
+        CHECK(c[2].kind == VIEW_CMD_ORBIT && c[2].a == -10 && c[2].b == 5);
+        CHECK(c[3].kind == VIEW_CMD_ZOOM && fabs(c[3].a - 0.9) < 1e-12);
+        CHECK(c[4].kind == VIEW_CMD_SCREENSHOT && strcmp(c[4].path, "out.png") == 0);
+        CHECK(c[5].kind == VIEW_CMD_KEY && c[5].action == VIEW_ACTION_EXPOSURE_UP);
+        CHECK(c[6].kind == VIEW_CMD_KEY && c[6].action == VIEW_ACTION_QUIT);
+        CHECK(c[7].kind == VIEW_CMD_QUIT && c[7].line == 10);
+    }
+    free(c);
+    test_write_file("view_script_light.txt", "light 1 0.5\nnext-snapshot 30\nkey bracketright\nkey 3\nkey l\n", path,
+                    sizeof path);
+    CHECK_MSG(view_script_load(path, &c, &n, &err) == LM_OK, "%s", err.msg);
+    CHECK(n == 5);
+    if (n == 5) {
+        CHECK(c[0].kind == VIEW_CMD_LIGHT && c[0].a == 1 && c[0].b == 0.5);
+        CHECK(c[1].kind == VIEW_CMD_NEXT_SNAPSHOT && c[1].a == 30);
+        CHECK(c[2].kind == VIEW_CMD_KEY && c[2].action == VIEW_ACTION_LIGHT_UP);
+        CHECK(c[3].kind == VIEW_CMD_KEY && c[3].action == VIEW_ACTION_TOGGLE_INDIRECT);
+        CHECK(c[4].kind == VIEW_CMD_KEY && c[4].action == VIEW_ACTION_LIGHT_NEXT);
+    }
+    free(c);
+    const char *bad[] = {"wait\n",      "frames 2.5\n", "orbit 1\n",     "zoom 0\n",         "key x\n",
+                         "jump 3\n",    "quit now\n",   "light 0\n",     "light 0.5 1\n",    "light 0 -1\n",
+                         "next-snapshot\n"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+        char text[64];
+        snprintf(text, sizeof text, "wait 1\n%s", bad[i]);
+        test_write_file("view_script_bad.txt", text, path, sizeof path);
+        CHECK_MSG(view_script_load(path, &c, &n, &err) == LM_ERR_BAD_INPUT, "'%s' was accepted", bad[i]);
+        CHECK_MSG(strstr(err.msg, ":2: ") != NULL, "no line number in '%s'", err.msg);
+    }
+}
+
+static double dist(const scene_camera *c)
+{
+    double d = 0;
+    for (int i = 0; i < 3; ++i) d += ((double)c->position[i] - c->target[i]) * ((double)c->position[i] - c->target[i]);
+    return sqrt(d);
+}
+
+static void test_camera(void)
+{
+    scene_camera cam = {.position = {0, 0, 5}, .target = {0, 0, 0}, .up = {0, 1, 0}, .fov_y_deg = 40};
+    view_camera_orbit(&cam, 90, 0);
+    /* Looking down -z, right is +x: a quarter turn to the right ends on +x. */
+    CHECK_NEAR(cam.position[0], 5, 1e-5);
+    CHECK_NEAR(cam.position[2], 0, 1e-5);
+    view_camera_orbit(&cam, 0, 30);
+    CHECK(cam.position[1] > 2.4f); /* up by 30°: 5·sin 30° = 2.5 */
+    CHECK_NEAR(dist(&cam), 5, 1e-5);
+    view_camera_orbit(&cam, 0, 80); /* past the pole: stops 1° short of it */
+    CHECK_NEAR(cam.position[1], 5 * cos(3.14159265358979 / 180), 1e-4);
+    CHECK_NEAR(dist(&cam), 5, 1e-5);
+    view_camera_orbit(&cam, 0, -89); /* back down to the equator */
+    CHECK_NEAR(cam.position[1], 0, 1e-4);
+    view_camera_zoom(&cam, 0.5f);
+    CHECK_NEAR(dist(&cam), 2.5, 1e-5);
+    float bmin[3] = {-1, -1, -1}, bmax[3] = {3, 1, 1};
+    view_camera_frame_all(&cam, bmin, bmax, 16.0f / 9.0f);
+    CHECK_NEAR(cam.target[0], 1, 1e-6);
+    /* The bounding sphere (radius √6) fits the vertical field of view. */
+    CHECK(dist(&cam) * sin(20 * 3.14159265358979 / 180) >= sqrt(6.0));
+}
+
+int main(void)
+{
+    test_script();
+    test_camera();
+    return test_finish("view_script_test");
+}
