@@ -219,17 +219,77 @@ static void bary_point(const scene *s, uint32_t t, double w1, double w2, double 
                  w2 * s->positions[3 * (size_t)v[2] + (size_t)k];
 }
 
-/* ∫ over ct's front of cosθ_x dω from (x, nx): exact near (samp_polygon_G), by
- * area and cosines over distance² beyond four radii. */
-static double front_weight(const changed_tri *ct, const double x[3], const double nx[3])
+/* The changed triangles as the far-field loop reads them (structure of arrays:
+ * the loop over them runs for every indirect value and vectorises): centre,
+ * front normal, 16·radius² (nearer than four radii: exact), area × change. */
+typedef struct far_field {
+    float *cx, *cy, *cz, *nx, *ny, *nz, *lim, *ad0, *ad1, *ad2;
+    uint32_t *near;
+} far_field;
+
+static int far_field_make(far_field *f, const changed_tri *ch, uint32_t n)
 {
-    lm_dvec3 X = dv3(x[0], x[1], x[2]), to = dv3_sub(ct->centre, X);
-    double r2 = dv3_dot(to, to);
-    if (r2 > 16.0 * ct->radius * ct->radius) {
-        double r = sqrt(r2), cx = (to.x * nx[0] + to.y * nx[1] + to.z * nx[2]) / r, cy = -dv3_dot(to, ct->normal) / r;
-        return cx > 0.0 && cy > 0.0 ? ct->area * cx * cy / r2 : 0.0;
+    float *block = malloc((size_t)(n ? n : 1) * 10 * sizeof *block);
+    f->near = malloc((n ? n : 1) * sizeof *f->near);
+    if (!block || !f->near) {
+        free(block);
+        free(f->near);
+        return 0;
     }
-    return samp_polygon_G(ct->p, 3, x, nx);
+    float **cols[10] = {&f->cx, &f->cy, &f->cz, &f->nx, &f->ny, &f->nz, &f->lim, &f->ad0, &f->ad1, &f->ad2};
+    for (int k = 0; k < 10; ++k) *cols[k] = block + (size_t)k * (n ? n : 1);
+    for (uint32_t j = 0; j < n; ++j) {
+        const changed_tri *ct = &ch[j];
+        f->cx[j] = (float)ct->centre.x;
+        f->cy[j] = (float)ct->centre.y;
+        f->cz[j] = (float)ct->centre.z;
+        f->nx[j] = (float)ct->normal.x;
+        f->ny[j] = (float)ct->normal.y;
+        f->nz[j] = (float)ct->normal.z;
+        f->lim[j] = (float)(16.0 * ct->radius * ct->radius);
+        f->ad0[j] = (float)(ct->area * ct->d[0]);
+        f->ad1[j] = (float)(ct->area * ct->d[1]);
+        f->ad2[j] = (float)(ct->area * ct->d[2]);
+    }
+    return 1;
+}
+
+static void far_field_free(far_field *f)
+{
+    free(f->cx);
+    free(f->near);
+}
+
+/* Σ_j d_j·∫ over changed triangle j's front of cosθ_x dω from (x, nx), into add:
+ * by area and cosines over distance² beyond four radii, exactly
+ * (samp_polygon_G) nearer. */
+static void drift_bound(const far_field *f, const changed_tri *ch, uint32_t n, const double x[3], const double nx[3],
+                        double add[3])
+{
+    const float X = (float)x[0], Y = (float)x[1], Z = (float)x[2], NX = (float)nx[0], NY = (float)nx[1],
+                NZ = (float)nx[2];
+    float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f;
+    uint32_t nn = 0;
+    for (uint32_t j = 0; j < n; ++j) {
+        float dx = f->cx[j] - X, dy = f->cy[j] - Y, dz = f->cz[j] - Z;
+        float r2 = dx * dx + dy * dy + dz * dz;
+        float px = dx * NX + dy * NY + dz * NZ, py = -(dx * f->nx[j] + dy * f->ny[j] + dz * f->nz[j]);
+        int far = r2 > f->lim[j];
+        float w = far && px > 0.0f && py > 0.0f ? px * py / (r2 * r2) : 0.0f; /* A·cosθx·cosθy/r² over A */
+        a0 += w * f->ad0[j];
+        a1 += w * f->ad1[j];
+        a2 += w * f->ad2[j];
+        f->near[nn] = j;
+        nn += (uint32_t)!far;
+    }
+    add[0] += a0;
+    add[1] += a1;
+    add[2] += a2;
+    for (uint32_t i = 0; i < nn; ++i) {
+        const changed_tri *ct = &ch[f->near[i]];
+        double w = samp_polygon_G(ct->p, 3, x, nx);
+        for (int k = 0; k < 3; ++k) add[k] += w * ct->d[k];
+    }
 }
 
 /* The value at vertex vid as the viewer sees it, with E replaced by `e`. */
@@ -320,6 +380,9 @@ static lm_result mark_outdated(cache *c, lm_error *err)
     mesh_vtable_get_stats(c->vt, &vs);
     int any = nch || small[0] > 0.0f || small[1] > 0.0f || small[2] > 0.0f;
     if (r == LM_OK && any) r = grow_drift(c, vs.id_limit, err);
+    far_field ff = {0};
+    if (r == LM_OK && any && !far_field_make(&ff, ch, nch))
+        r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
     const float eps = samp_origin_epsilon(c->sp);
     for (uint32_t vid = 0; r == LM_OK && any && vid < vs.id_limit; ++vid) {
         float e[3];
@@ -331,10 +394,7 @@ static lm_result mark_outdated(cache *c, lm_error *err)
         samp_point_origin(s, &sp, eps, o);
         const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
         double add[3] = {M_PI * small[0], M_PI * small[1], M_PI * small[2]};
-        for (uint32_t j = 0; j < nch; ++j) {
-            double w = front_weight(&ch[j], x, nx);
-            for (int k = 0; k < 3; ++k) add[k] += w * ch[j].d[k];
-        }
+        drift_bound(&ff, ch, nch, x, nx, add);
         float *dr = c->drift + 3 * (size_t)vid;
         for (int k = 0; k < 3; ++k) dr[k] += (float)fmin(add[k], 3e38);
         /* Could the drift be seen? E ± drift against E, through the tone map. */
@@ -359,6 +419,7 @@ static lm_result mark_outdated(cache *c, lm_error *err)
         }
         if (seen) r = push_outdated(c, vid, err);
     }
+    far_field_free(&ff);
     free(ch);
     free(d);
     samp_radiance_index_free(&ix_old);

@@ -2,6 +2,7 @@
 #define _POSIX_C_SOURCE 200809L /* pthread_cond_timedwait, clock_gettime */
 #include "cache_worker.h"
 
+#include <math.h>
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -49,6 +50,8 @@ struct cache_worker {
     light_edit edits[MAX_EDITS];
     uint32_t edit_count;
     uint32_t *new_pixels;             /* set_pixels: a copy waiting for the worker to take it */
+    float new_eye[3];                 /* set_view: the eye that comes with new_pixels ... */
+    int new_eye_set;                  /* ... when this is non-zero */
     samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
 };
 
@@ -232,17 +235,24 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     return r;
 }
 
-/* Takes the pixels set_pixels left, if any: the priorities follow them. */
-static lm_result take_pixels(cache_worker *w, cache *c, lm_error *err)
+/* Takes the pixels set_pixels or set_view left, if any: the priorities follow
+ * them, and the specular mesh the eye. */
+static lm_result take_pixels(cache_worker *w, cache *c, int *taken, lm_error *err)
 {
     pthread_mutex_lock(&w->lock);
     uint32_t *p = w->new_pixels;
+    float eye[3];
+    int eye_set = w->new_eye_set;
+    memcpy(eye, w->new_eye, sizeof eye);
     w->new_pixels = NULL;
+    w->new_eye_set = 0;
     pthread_mutex_unlock(&w->lock);
+    *taken = p != NULL;
     if (!p) return LM_OK;
     free(w->pixels);
     w->pixels = p;
-    return cache_requeue(c, err);
+    lm_result r = eye_set ? cache_set_camera(c, eye, err) : LM_OK;
+    return r == LM_OK ? cache_requeue(c, err) : r;
 }
 
 static void *worker_main(void *arg)
@@ -265,9 +275,10 @@ static void *worker_main(void *arg)
             nedit = w->edit_count;
             /* pixels_later: refinement waits for the first set_pixels (the coarse cache does not). */
             int no_pixels = w->desc.pixels_later && !w->pixels && !w->new_pixels;
-            /* Paused or idle, an edit still wakes the worker: it is applied and
-             * published without a refinement step (a paused viewer shows it). */
-            if (((w->paused || idle) && nedit == 0) || no_pixels) {
+            /* Paused or idle, an edit or a new view still wakes the worker: it is
+             * applied and published without a refinement step (a paused viewer
+             * shows it); idle, refinement then goes on for it. */
+            if (((w->paused || idle) && nedit == 0 && !w->new_pixels) || no_pixels) {
                 w->parked = 1;
                 pthread_cond_broadcast(&w->cond);
                 if (w->paused) {
@@ -295,9 +306,10 @@ static void *worker_main(void *arg)
         pthread_mutex_unlock(&w->lock);
         if (cancel) break;
         for (uint32_t i = 0; r == LM_OK && i < nedit; ++i) r = cache_set_light(c, edits[i].light, edits[i].value, &err);
-        if (r == LM_OK) r = take_pixels(w, c, &err);
+        int new_view = 0;
+        if (r == LM_OK) r = take_pixels(w, c, &new_view, &err);
         if (r != LM_OK) break;
-        if (nedit) idle = 0;
+        if (nedit || new_view) idle = 0;
         cache_refine_result res = {0};
         uint32_t budget = w->desc.step_budget ? w->desc.step_budget : 512;
         if (w->desc.max_tested && tested + budget > w->desc.max_tested) budget = (uint32_t)(w->desc.max_tested - tested);
@@ -450,12 +462,23 @@ lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float va
 
 lm_result cache_worker_set_pixels(cache_worker *w, const uint32_t *pixels, lm_error *err)
 {
+    return cache_worker_set_view(w, pixels, NULL, err);
+}
+
+lm_result cache_worker_set_view(cache_worker *w, const uint32_t *pixels, const float eye[3], lm_error *err)
+{
+    if (eye && (!isfinite(eye[0]) || !isfinite(eye[1]) || !isfinite(eye[2])))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker_set_view: the eye must be a finite point");
     uint32_t *p = malloc((w->s->tri_count ? w->s->tri_count : 1) * sizeof *p);
     if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the pixel counts");
     memcpy(p, pixels, w->s->tri_count * sizeof *p);
     pthread_mutex_lock(&w->lock);
-    free(w->new_pixels); /* a newer count replaces one the worker has not taken */
+    free(w->new_pixels); /* a newer view replaces one the worker has not taken */
     w->new_pixels = p;
+    if (eye) { /* an eye not taken yet stays when pixels alone follow */
+        memcpy(w->new_eye, eye, sizeof w->new_eye);
+        w->new_eye_set = 1;
+    }
     pthread_cond_broadcast(&w->cond);
     pthread_mutex_unlock(&w->lock);
     return LM_OK;

@@ -125,6 +125,10 @@ lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float va
 /* New pixel counts per scene triangle (a new ID pass: the view changed); copied.
  * The worker takes them before its next step and reorders its queues by them. */
 lm_result cache_worker_set_pixels(cache_worker *w, const uint32_t *pixels, lm_error *err);
+/* The same for a camera move: pixel counts and the eye (scene units). With the
+ * pixels the worker also takes the eye: the specular mesh starts again from its
+ * roots for the new eye (cache_set_camera), the view-independent meshes are kept. */
+lm_result cache_worker_set_view(cache_worker *w, const uint32_t *pixels, const float eye[3], lm_error *err);
 
 #ifdef __cplusplus
 }

@@ -13,12 +13,15 @@
 #include "tonemap.h"
 #include "view_camera.h"
 #include "view_glfw.h"
+#include "view_hud.h"
 #include "view_tonemap.h"
 
 enum { TITLE_PERIOD_MS = 500 };
 static const float k_orbit_deg_per_unit = 0.3f; /* degrees per screen unit of drag */
 static const float k_zoom_per_step = 0.9f;      /* distance factor per wheel step */
 static const float k_exposure_step = 0.5f;      /* stops per + / - */
+static const float k_look_deg_per_unit = 0.2f;  /* degrees per screen unit of right drag */
+static const float k_fly_radii_per_s = 0.5f;    /* W A S D speed: scene bounding radii per second */
 
 /* Everything the loop owns; all of it display thread only (the worker's state is
  * behind cache_worker's API). */
@@ -28,11 +31,14 @@ typedef struct view_state {
     const GladGLContext *gl;
     cache_worker *wk;
     view_tm *tm;
+    view_hud *hud;
     rend_id *ip;
     rend_frame *frame;
     int fb_w, fb_h;                 /* size of ip and frame; 0 = not made */
     scene_camera cam;
+    uint32_t camera_index;          /* the scene camera C last selected */
     int camera_moved;               /* the ID pass must run again */
+    double last_input;              /* when the last frame's input was taken (fly speed) */
     int paused;
     float exposure;                 /* stops */
     uint32_t light_count, light;    /* the scene's lights; the one the keys edit */
@@ -40,6 +46,10 @@ typedef struct view_state {
     int emission_dirty;             /* the renderer's emitters differ from light_scale */
     unsigned components;            /* REND_FRAME_COMPONENT_* shown */
     int help;                       /* the help overlay is on */
+    /* Samples per second for the HUD: all samples at the start of the current
+     * one-second window, and the rate measured over the last one. */
+    double rate_t0, rate;
+    uint64_t rate_samples0;
     const cache_snapshot *snap;     /* the last acquired, valid until the next acquire */
     uint64_t frames, id_passes, screenshots;
     double t_open, first_image, id_seconds;
@@ -52,6 +62,8 @@ typedef struct view_state {
     uint64_t cmd_frames0, cmd_generation0;
     int quit;
     char shot[VIEW_SCRIPT_PATH_MAX];/* screenshot to take after this frame's draw; "" = none */
+    int shot_exr_too;               /* F12: shot is a .png, write the .exr beside it */
+    char window_shot[VIEW_SCRIPT_PATH_MAX]; /* the whole window after this frame's draw; "" = none */
 } view_state;
 
 static void nap(double seconds)
@@ -100,6 +112,19 @@ static lm_result apply_emission(view_state *v, lm_error *err)
     return r;
 }
 
+/* The scene's camera i, at the window's size. */
+static void select_camera(view_state *v, uint32_t i)
+{
+    const scene *s = v->d->scene;
+    if (i >= s->camera_count) return;
+    int w = v->cam.width, h = v->cam.height;
+    v->cam = s->cameras[i];
+    v->cam.width = w;
+    v->cam.height = h;
+    v->camera_index = i;
+    v->camera_moved = 1;
+}
+
 static lm_result apply_action(view_state *v, view_action a, lm_error *err)
 {
     switch (a) {
@@ -115,7 +140,9 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
     case VIEW_ACTION_EXPOSURE_DOWN: v->exposure -= k_exposure_step; break;
     case VIEW_ACTION_SCREENSHOT:
         snprintf(v->shot, sizeof v->shot, "lumesh-view-%llu.png", (unsigned long long)++v->screenshots);
+        v->shot_exr_too = 1;
         break;
+    case VIEW_ACTION_CAMERA_NEXT: select_camera(v, (v->camera_index + 1) % v->d->scene->camera_count); break;
     case VIEW_ACTION_FRAME_ALL:
         view_camera_frame_all(&v->cam, v->d->scene->bounds_min, v->d->scene->bounds_max,
                               v->fb_h > 0 ? (float)v->fb_w / (float)v->fb_h : 16.0f / 9.0f);
@@ -146,7 +173,7 @@ static lm_result run_script(view_state *v, lm_error *err)
 {
     const view_app_desc *d = v->d;
     if (!d->script) return LM_OK;
-    while (!v->quit && !v->shot[0]) {
+    while (!v->quit && !v->shot[0] && !v->window_shot[0]) {
         if (v->si >= d->script_count) {
             v->quit = 1; /* the script ran out: done */
             return LM_OK;
@@ -180,7 +207,30 @@ static lm_result run_script(view_state *v, lm_error *err)
             view_camera_zoom(&v->cam, (float)c->a);
             v->camera_moved = 1;
             break;
-        case VIEW_CMD_SCREENSHOT: snprintf(v->shot, sizeof v->shot, "%s", c->path); break;
+        case VIEW_CMD_PAN:
+            view_camera_pan(&v->cam, (float)c->a, (float)c->b);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_FLY:
+            view_camera_fly(&v->cam, (float)c->a, (float)c->b, (float)c->c);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_LOOK:
+            view_camera_look(&v->cam, (float)c->a, (float)c->b);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_CAMERA:
+            if (c->a >= d->scene->camera_count)
+                r = lm_fail(err, LM_ERR_INVALID_ARG, "camera %.0f does not exist (the scene has %u)", c->a,
+                            d->scene->camera_count);
+            else
+                select_camera(v, (uint32_t)c->a);
+            break;
+        case VIEW_CMD_WINDOW_SHOT: snprintf(v->window_shot, sizeof v->window_shot, "%s", c->path); break;
+        case VIEW_CMD_SCREENSHOT:
+            snprintf(v->shot, sizeof v->shot, "%s", c->path);
+            v->shot_exr_too = 0;
+            break;
         case VIEW_CMD_KEY: r = apply_action(v, c->action, err); break;
         case VIEW_CMD_QUIT: v->quit = 1; break;
         default: break;
@@ -220,18 +270,50 @@ static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
     return LM_OK;
 }
 
+static int ends_with(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), k = strlen(suffix);
+    return n >= k && strcmp(s + n - k, suffix) == 0;
+}
+
+/* The linear radiance behind the picture (the same snapshot drawn again and read
+ * back: the renderer redraws only what changed, i.e. nothing). */
+static lm_result write_exr(view_state *v, const char *path, lm_error *err)
+{
+    rend_frame_output o;
+    rend_frame_get_output(v->frame, &o);
+    float *rgb = malloc((size_t)o.width * (size_t)o.height * 3 * sizeof *rgb);
+    if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
+    lm_result r = rend_frame_draw(v->frame, &v->cam, v->snap, rgb, err);
+    if (r == LM_OK)
+        r = img_write(&(img_write_desc){.path = path, .width = o.width, .height = o.height, .channels = 3, .pixels = rgb},
+                      err);
+    free(rgb);
+    return r;
+}
+
 static lm_result take_screenshot(view_state *v, lm_error *err)
 {
     rend_frame_output o;
     rend_frame_get_output(v->frame, &o);
-    uint8_t *rgb = malloc((size_t)o.width * (size_t)o.height * 3);
-    if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-    lm_result r = view_tm_read(v->tm, o.texture, o.width, o.height, &(tm_desc){.exposure = v->exposure}, rgb, err);
-    if (r == LM_OK)
-        r = img_write(&(img_write_desc){.path = v->shot, .width = o.width, .height = o.height, .channels = 3,
-                                        .pixels8 = rgb},
-                      err);
-    free(rgb);
+    lm_result r = LM_OK;
+    if (ends_with(v->shot, ".exr")) {
+        r = write_exr(v, v->shot, err);
+    } else {
+        uint8_t *rgb = malloc((size_t)o.width * (size_t)o.height * 3);
+        if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
+        r = view_tm_read(v->tm, o.texture, o.width, o.height, &(tm_desc){.exposure = v->exposure}, rgb, err);
+        if (r == LM_OK)
+            r = img_write(&(img_write_desc){.path = v->shot, .width = o.width, .height = o.height, .channels = 3,
+                                            .pixels8 = rgb},
+                          err);
+        free(rgb);
+    }
+    if (r == LM_OK && v->shot_exr_too && ends_with(v->shot, ".png")) {
+        char exr[VIEW_SCRIPT_PATH_MAX];
+        snprintf(exr, sizeof exr, "%.*s.exr", (int)(strlen(v->shot) - 4), v->shot);
+        r = write_exr(v, exr, err);
+    }
     if (r == LM_OK && v->d->screenshot) {
         view_app_report rep;
         report_of(v, &rep);
@@ -239,6 +321,65 @@ static lm_result take_screenshot(view_state *v, lm_error *err)
     }
     v->shot[0] = '\0';
     return r;
+}
+
+static const char k_help[] =
+    "left drag: orbit    middle / shift+left drag: pan    right drag: look    wheel: zoom\n"
+    "W A S D, Space / Ctrl: fly    F: frame all    C: next camera\n"
+    "1 2 3 4: direct diffuse, direct specular, indirect, emission on / off\n"
+    "L: next light    ] [: its power x2 / x0.5 (no new light samples)\n"
+    "+ -: exposure    P: pause refinement    F12: screenshot (PNG + EXR)\n"
+    "H: this help    Esc / Q: quit";
+
+static uint64_t all_samples(const cache_snapshot *s)
+{
+    uint64_t n = s->stats.direct.samples + s->stats.indirect.samples + s->stats.specular.samples;
+    for (uint32_t l = 0; l < s->stats.light_count; ++l) n += s->stats.lights[l].samples;
+    return n;
+}
+
+/* The HUD's lines: frame rate and passes, refinement, samples per mesh, memory,
+ * the display state; the help under it when on. */
+static void hud_text(view_state *v, char *out, size_t size)
+{
+    const cache_snapshot *s = v->snap;
+    double now = lm_now_seconds();
+    if (s && now - v->rate_t0 >= 1.0) {
+        uint64_t n = all_samples(s);
+        v->rate = v->rate_t0 > 0 ? (double)(n - v->rate_samples0) / (now - v->rate_t0) : 0.0;
+        v->rate_t0 = now;
+        v->rate_samples0 = n;
+    }
+    double fps = v->frames / fmax(1e-9, now - v->t_open);
+    size_t k = (size_t)snprintf(out, size, "%.1f fps  %dx%d  frame %.1f ms (material %.1f, radiance %.1f, composite %.1f)\n",
+                                fps, v->fb_w, v->fb_h, 1e3 * v->times.total, 1e3 * v->times.material,
+                                1e3 * v->times.radiance, 1e3 * v->times.composite);
+    if (s && k < size) {
+        k += (size_t)snprintf(out + k, size - k, "refinement: %s, %.0f samples/s, %.1f MB%s\nsamples:",
+                              v->paused ? "paused" : s->converged ? "converged" : "running", v->rate,
+                              s->stats.bytes / 1048576.0, s->finished && !s->converged ? " (limit reached)" : "");
+        for (uint32_t l = 0; l < s->stats.light_count && l < 8 && k < size; ++l)
+            k += (size_t)snprintf(out + k, size - k, " light%u %llu,", l, (unsigned long long)s->stats.lights[l].samples);
+        if (k < size)
+            k += (size_t)snprintf(out + k, size - k, " direct %llu, indirect %llu, specular %llu\n",
+                                  (unsigned long long)s->stats.direct.samples,
+                                  (unsigned long long)s->stats.indirect.samples,
+                                  (unsigned long long)s->stats.specular.samples);
+    } else if (k < size) {
+        k += (size_t)snprintf(out + k, size - k, "refinement: starting\n");
+    }
+    if (k < size) {
+        char light[64] = "";
+        if (v->light_count)
+            snprintf(light, sizeof light, "  light %u/%u x%.3g", v->light + 1, v->light_count, v->light_scale[v->light]);
+        k += (size_t)snprintf(out + k, size - k, "exposure %+.1f%s  terms %c%c%c%c  camera %u/%u%s", v->exposure, light,
+                              v->components & REND_FRAME_COMPONENT_DIRECT_DIFFUSE ? 'D' : '-',
+                              v->components & REND_FRAME_COMPONENT_DIRECT_SPECULAR ? 'S' : '-',
+                              v->components & REND_FRAME_COMPONENT_INDIRECT ? 'I' : '-',
+                              v->components & REND_FRAME_COMPONENT_EMISSION ? 'E' : '-', v->camera_index + 1,
+                              v->d->scene->camera_count, v->help ? "" : "    H: help");
+    }
+    if (v->help && k < size) snprintf(out + k, size - k, "\n\n%s", k_help);
 }
 
 static void update_title(view_state *v)
@@ -280,8 +421,28 @@ static lm_result frame(view_state *v, lm_error *err)
         view_camera_zoom(&v->cam, powf(k_zoom_per_step, (float)in.wheel));
         v->camera_moved = 1;
     }
+    if (in.pan_dx != 0 || in.pan_dy != 0) {
+        /* The scene follows the cursor: the camera goes the other way. */
+        double hs = in.screen_height > 0 ? in.screen_height : 720.0;
+        view_camera_pan(&v->cam, -(float)(in.pan_dx / hs), (float)(in.pan_dy / hs));
+        v->camera_moved = 1;
+    }
+    if (in.look_dx != 0 || in.look_dy != 0) {
+        view_camera_look(&v->cam, (float)in.look_dx * k_look_deg_per_unit, -(float)in.look_dy * k_look_deg_per_unit);
+        v->camera_moved = 1;
+    }
+    double now = lm_now_seconds(), dt = fmin(0.25, now - v->last_input); /* a stall does not jump */
+    v->last_input = now;
+    if (in.fly[0] != 0 || in.fly[1] != 0 || in.fly[2] != 0) {
+        const scene *s = v->d->scene;
+        double r2 = 0;
+        for (int k = 0; k < 3; ++k) r2 += 0.25 * (s->bounds_max[k] - s->bounds_min[k]) * (s->bounds_max[k] - s->bounds_min[k]);
+        float step = (float)(sqrt(r2) * k_fly_radii_per_s * dt);
+        view_camera_fly(&v->cam, in.fly[0] * step, in.fly[1] * step, in.fly[2] * step);
+        v->camera_moved = 1;
+    }
     if ((r = run_script(v, err)) != LM_OK) return r;
-    if (v->quit && !v->shot[0]) return LM_OK;
+    if (v->quit && !v->shot[0] && !v->window_shot[0]) return LM_OK;
 
     int w, h;
     view_window_framebuffer_size(v->win, &w, &h);
@@ -292,7 +453,7 @@ static lm_result frame(view_state *v, lm_error *err)
     if (r == LM_OK && v->camera_moved) {
         rend_id_result ids;
         r = rend_id_render(v->ip, &v->cam, &ids, err);
-        if (r == LM_OK) r = cache_worker_set_pixels(v->wk, ids.pixels, err);
+        if (r == LM_OK) r = cache_worker_set_view(v->wk, ids.pixels, v->cam.position, err);
         v->id_seconds = ids.seconds;
         v->id_passes++;
         v->camera_moved = 0;
@@ -306,11 +467,27 @@ static lm_result frame(view_state *v, lm_error *err)
     rend_frame_get_output(v->frame, &o);
     tm_desc tm = {.exposure = v->exposure};
     if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, o.texture, &tm, err);
+    if (r == LM_OK && v->hud) {
+        char text[2048];
+        hud_text(v, text, sizeof text);
+        r = view_hud_draw(v->hud, &(view_hud_text){.text = text, .x = 8, .y = 8, .scale = h >= 600 ? 2.0f : 1.0f},
+                          w, h, err);
+    }
     if (r != LM_OK) return r;
     rend_frame_get_times(v->frame, &v->times);
     v->frames++;
     if (v->first_image < 0 && v->snap) v->first_image = lm_now_seconds() - v->t_open;
     if (v->shot[0]) r = take_screenshot(v, err);
+    if (r == LM_OK && v->window_shot[0]) {
+        uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
+        r = rgb ? view_hud_read_window(v->hud, w, h, rgb, err)
+                : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d window shot", w, h);
+        if (r == LM_OK)
+            r = img_write(&(img_write_desc){.path = v->window_shot, .width = w, .height = h, .channels = 3, .pixels8 = rgb},
+                          err);
+        free(rgb);
+        v->window_shot[0] = '\0';
+    }
     view_window_swap(v->win);
     return r;
 }
@@ -333,11 +510,13 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
         return r;
     }
     v.gl = view_window_gl(v.win);
-    v.t_open = lm_now_seconds();
+    v.t_open = v.last_input = lm_now_seconds();
+    v.camera_index = (uint32_t)d->camera;
     /* pixels_later: the coarse cache is made while the first ID pass runs. */
     r = cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels_later = 1}, &v.wk,
                             err);
     if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
+    if (r == LM_OK) r = view_hud_create(v.gl, &v.hud, err);
     double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
     double next = lm_now_seconds(), next_title = next;
     while (r == LM_OK && !v.quit) {
@@ -361,6 +540,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     if (v.paused) cache_worker_resume(v.wk);
     cache_worker_destroy(v.wk); /* cancels the refinement and joins the thread */
     view_tm_destroy(v.tm);
+    view_hud_destroy(v.hud);
     rend_frame_destroy(v.frame);
     rend_id_destroy(v.ip);
     view_window_destroy(v.win);

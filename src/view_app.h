@@ -13,8 +13,15 @@
  *     view_app_desc d = {.scene = s, .camera = 0, .sampler = sd, .script = cmds, .script_count = n};
  *     lm_result r = view_app_run(&d, &err);
  *
- * Does NOT do: HUD text (the window title carries the numbers), light edits,
- * culling leaves the ID pass found hidden, panning.
+ * A camera move (orbit, pan, zoom, fly, look, another named camera) runs the ID
+ * pass again and hands the worker its pixel counts and the new eye together
+ * (cache_worker_set_view): the specular mesh starts again for the new eye, the
+ * view-independent meshes stay.
+ *
+ * A HUD (view_hud.h) in the top-left corner: frame rate and pass times, samples
+ * per second, samples per mesh, memory, the display state; H adds the keys.
+ *
+ * Does NOT do: culling leaves the ID pass found hidden, mesh overlays.
  */
 #ifndef LUMESH_VIEW_APP_H
 #define LUMESH_VIEW_APP_H

@@ -81,3 +81,63 @@ void view_camera_frame_all(scene_camera *cam, const float bmin[3], const float b
         cam->position[i] = (float)(c[i] + dir[i] * dist);
     }
 }
+
+/* The camera's unit forward, right (forward × up) and true up (right × forward);
+ * 0 when the camera is degenerate (eye on the target, or looking along up). */
+static int camera_axes(const scene_camera *cam, double fwd[3], double right[3], double up[3], double *dist)
+{
+    double wup[3] = {cam->up[0], cam->up[1], cam->up[2]};
+    for (int i = 0; i < 3; ++i) fwd[i] = (double)cam->target[i] - cam->position[i];
+    *dist = sqrt(dot3(fwd, fwd));
+    if (!normalize3(fwd) || !normalize3(wup)) return 0;
+    cross3(fwd, wup, right);
+    if (!normalize3(right)) return 0;
+    cross3(right, fwd, up);
+    return 1;
+}
+
+static void move_both(scene_camera *cam, const double m[3])
+{
+    for (int i = 0; i < 3; ++i) {
+        cam->position[i] = (float)(cam->position[i] + m[i]);
+        cam->target[i] = (float)(cam->target[i] + m[i]);
+    }
+}
+
+void view_camera_pan(scene_camera *cam, float right, float up)
+{
+    double f[3], r[3], u[3], dist;
+    if (!camera_axes(cam, f, r, u, &dist) || !isfinite(right) || !isfinite(up)) return;
+    double h = 2.0 * dist * tan(0.5 * cam->fov_y_deg * k_deg), m[3];
+    for (int i = 0; i < 3; ++i) m[i] = (r[i] * right + u[i] * up) * h;
+    move_both(cam, m);
+}
+
+void view_camera_fly(scene_camera *cam, float forward, float right, float up)
+{
+    double f[3], r[3], u[3], dist, wup[3] = {cam->up[0], cam->up[1], cam->up[2]}, m[3];
+    if (!camera_axes(cam, f, r, u, &dist) || !normalize3(wup) || !isfinite(forward) || !isfinite(right) ||
+        !isfinite(up))
+        return;
+    for (int i = 0; i < 3; ++i) m[i] = f[i] * forward + r[i] * right + wup[i] * up;
+    move_both(cam, m);
+}
+
+void view_camera_look(scene_camera *cam, float yaw_deg, float pitch_deg)
+{
+    double f[3], r[3], u[3], dist, wup[3] = {cam->up[0], cam->up[1], cam->up[2]}, t[3];
+    if (!camera_axes(cam, f, r, u, &dist) || !normalize3(wup)) return;
+    /* About up by −yaw turns the forward direction to the right (up × fwd = −right);
+     * about right by +pitch turns it up (right × fwd = up). */
+    rotate3(f, wup, -(double)yaw_deg * k_deg, t);
+    double right[3];
+    cross3(t, wup, right);
+    if (normalize3(right) && pitch_deg != 0.0f) {
+        double polar = acos(fmax(-1.0, fmin(1.0, dot3(t, wup)))) / k_deg;
+        double want = fmax(VIEW_CAMERA_MIN_POLAR_DEG, fmin(180.0 - VIEW_CAMERA_MIN_POLAR_DEG, polar - pitch_deg));
+        double p[3];
+        rotate3(t, right, (polar - want) * k_deg, p);
+        for (int i = 0; i < 3; ++i) t[i] = p[i];
+    }
+    for (int i = 0; i < 3; ++i) cam->target[i] = (float)(cam->position[i] + t[i] * dist);
+}

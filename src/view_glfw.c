@@ -40,7 +40,7 @@ static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
     case GLFW_KEY_KP_ADD: a = VIEW_ACTION_EXPOSURE_UP; break;
     case GLFW_KEY_MINUS:
     case GLFW_KEY_KP_SUBTRACT: a = VIEW_ACTION_EXPOSURE_DOWN; break;
-    case GLFW_KEY_S: a = action == GLFW_PRESS ? VIEW_ACTION_SCREENSHOT : VIEW_ACTION_NONE; break;
+    case GLFW_KEY_F12: a = action == GLFW_PRESS ? VIEW_ACTION_SCREENSHOT : VIEW_ACTION_NONE; break;
     case GLFW_KEY_F: a = VIEW_ACTION_FRAME_ALL; break;
     case GLFW_KEY_RIGHT_BRACKET: a = VIEW_ACTION_LIGHT_UP; break;
     case GLFW_KEY_LEFT_BRACKET: a = VIEW_ACTION_LIGHT_DOWN; break;
@@ -49,6 +49,7 @@ static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
     /* Toggles: presses only, no auto-repeat flicker. */
     switch (action == GLFW_PRESS ? key : GLFW_KEY_UNKNOWN) {
     case GLFW_KEY_L: a = VIEW_ACTION_LIGHT_NEXT; break;
+    case GLFW_KEY_C: a = VIEW_ACTION_CAMERA_NEXT; break;
     case GLFW_KEY_1: a = VIEW_ACTION_TOGGLE_DIRECT; break;
     case GLFW_KEY_2: a = VIEW_ACTION_TOGGLE_SPECULAR; break;
     case GLFW_KEY_3: a = VIEW_ACTION_TOGGLE_INDIRECT; break;
@@ -62,9 +63,21 @@ static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
 static void cursor_cb(GLFWwindow *w, double x, double y)
 {
     view_window *win = glfwGetWindowUserPointer(w);
-    if (win->have_last && glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS) {
-        win->pending.drag_dx += x - win->last_x;
-        win->pending.drag_dy += y - win->last_y;
+    if (win->have_last) {
+        double dx = x - win->last_x, dy = y - win->last_y;
+        int left = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+        int shift = glfwGetKey(w, GLFW_KEY_LEFT_SHIFT) == GLFW_PRESS || glfwGetKey(w, GLFW_KEY_RIGHT_SHIFT) == GLFW_PRESS;
+        if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS || (left && shift)) {
+            win->pending.pan_dx += dx;
+            win->pending.pan_dy += dy;
+        } else if (left) {
+            win->pending.drag_dx += dx;
+            win->pending.drag_dy += dy;
+        }
+        if (glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS) {
+            win->pending.look_dx += dx;
+            win->pending.look_dy += dy;
+        }
     }
     win->last_x = x;
     win->last_y = y;
@@ -147,7 +160,19 @@ const char *view_window_renderer(const view_window *win) { return win->renderer;
 void view_window_poll(view_window *win, view_input *out)
 {
     glfwPollEvents();
-    win->pending.dragging = glfwGetMouseButton(win->window, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS;
+    GLFWwindow *w = win->window;
+    win->pending.dragging = glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_LEFT) == GLFW_PRESS ||
+                            glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_MIDDLE) == GLFW_PRESS ||
+                            glfwGetMouseButton(w, GLFW_MOUSE_BUTTON_RIGHT) == GLFW_PRESS;
+#define HELD(k) (glfwGetKey(w, (k)) == GLFW_PRESS)
+    win->pending.fly[0] = (float)(HELD(GLFW_KEY_W) - HELD(GLFW_KEY_S));
+    win->pending.fly[1] = (float)(HELD(GLFW_KEY_D) - HELD(GLFW_KEY_A));
+    win->pending.fly[2] = (float)((HELD(GLFW_KEY_SPACE) || HELD(GLFW_KEY_PAGE_UP)) -
+                                  (HELD(GLFW_KEY_LEFT_CONTROL) || HELD(GLFW_KEY_PAGE_DOWN)));
+#undef HELD
+    int ww = 0, wh = 0;
+    glfwGetWindowSize(w, &ww, &wh);
+    win->pending.screen_height = wh;
     win->pending.close = glfwWindowShouldClose(win->window);
     *out = win->pending;
     memset(&win->pending, 0, sizeof win->pending);

@@ -35,7 +35,12 @@ typedef struct view_window_desc {
 /* What happened since the last poll. */
 typedef struct view_input {
     double drag_dx, drag_dy;           /* cursor motion with the left button held (screen units, y down) */
-    int dragging;                      /* left button held now */
+    double pan_dx, pan_dy;             /* ... with the middle button, or the left one and shift */
+    double look_dx, look_dy;           /* ... with the right button */
+    int dragging;                      /* a mouse button held now */
+    float fly[3];                      /* keys held now: forward W − S, right D − A, up (Space, Page Up) −
+                                          (Ctrl, Page Down); each −1, 0 or 1 */
+    double screen_height;              /* the window's height in screen units (cursor motion's) */
     double wheel;                      /* vertical scroll steps (positive: away from the user) */
     int actions[VIEW_ACTION_COUNT];    /* key presses per action (repeats count) */
     int close;                         /* the window's close button */

@@ -14,8 +14,9 @@ view_action view_action_from_key_name(const char *name)
     } keys[] = {
         {"escape", VIEW_ACTION_QUIT},         {"q", VIEW_ACTION_QUIT},
         {"p", VIEW_ACTION_PAUSE},             {"plus", VIEW_ACTION_EXPOSURE_UP},
-        {"minus", VIEW_ACTION_EXPOSURE_DOWN}, {"s", VIEW_ACTION_SCREENSHOT},
+        {"minus", VIEW_ACTION_EXPOSURE_DOWN}, {"f12", VIEW_ACTION_SCREENSHOT},
         {"f", VIEW_ACTION_FRAME_ALL},         {"l", VIEW_ACTION_LIGHT_NEXT},
+        {"c", VIEW_ACTION_CAMERA_NEXT},
         {"bracketright", VIEW_ACTION_LIGHT_UP}, {"bracketleft", VIEW_ACTION_LIGHT_DOWN},
         {"1", VIEW_ACTION_TOGGLE_DIRECT},     {"2", VIEW_ACTION_TOGGLE_SPECULAR},
         {"3", VIEW_ACTION_TOGGLE_INDIRECT},   {"4", VIEW_ACTION_TOGGLE_EMISSION},
@@ -56,6 +57,23 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
     } else if (strcmp(k, "zoom") == 0) {
         c->kind = VIEW_CMD_ZOOM;
         ok = n == 2 && number(w[1], 1e-6, 1e6, &c->a) && c->a > 0;
+    } else if (strcmp(k, "pan") == 0) {
+        c->kind = VIEW_CMD_PAN;
+        ok = n == 3 && number(w[1], -1e4, 1e4, &c->a) && number(w[2], -1e4, 1e4, &c->b);
+    } else if (strcmp(k, "fly") == 0) {
+        c->kind = VIEW_CMD_FLY;
+        ok = n == 4 && number(w[1], -1e9, 1e9, &c->a) && number(w[2], -1e9, 1e9, &c->b) &&
+             number(w[3], -1e9, 1e9, &c->c);
+    } else if (strcmp(k, "look") == 0) {
+        c->kind = VIEW_CMD_LOOK;
+        ok = n == 3 && number(w[1], -1e4, 1e4, &c->a) && number(w[2], -1e4, 1e4, &c->b);
+    } else if (strcmp(k, "camera") == 0) {
+        c->kind = VIEW_CMD_CAMERA;
+        ok = n == 2 && number(w[1], 0, 1e6, &c->a) && c->a == floor(c->a);
+    } else if (strcmp(k, "window-shot") == 0) {
+        c->kind = VIEW_CMD_WINDOW_SHOT;
+        ok = n == 2 && strlen(w[1]) < sizeof c->path;
+        if (ok) strcpy(c->path, w[1]);
     } else if (strcmp(k, "screenshot") == 0) {
         c->kind = VIEW_CMD_SCREENSHOT;
         ok = n == 2 && strlen(w[1]) < sizeof c->path;
@@ -65,8 +83,8 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
         ok = n == 2 && (c->action = view_action_from_key_name(w[1])) != VIEW_ACTION_NONE;
         if (!ok)
             return lm_fail(err, LM_ERR_BAD_INPUT,
-                           "%s:%d: key wants one of escape, q, p, plus, minus, s, f, l, bracketright, bracketleft, "
-                           "1, 2, 3, 4, h",
+                           "%s:%d: key wants one of escape, q, p, plus, minus, f12, f, c, l, bracketright, "
+                           "bracketleft, 1, 2, 3, 4, h",
                            path, line);
     } else if (strcmp(k, "light") == 0) {
         c->kind = VIEW_CMD_LIGHT;
@@ -79,8 +97,8 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
         ok = n == 1;
     } else {
         return lm_fail(err, LM_ERR_BAD_INPUT,
-                       "%s:%d: unknown command '%s' (wait, frames, orbit, zoom, screenshot, key, light, "
-                       "next-snapshot, quit)", path, line,
+                       "%s:%d: unknown command '%s' (wait, frames, orbit, zoom, pan, fly, look, camera, screenshot, "
+                       "window-shot, key, light, next-snapshot, quit)", path, line,
                        k);
     }
     if (!ok) {
@@ -89,6 +107,9 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
             [VIEW_CMD_ORBIT] = "orbit DX DY",        [VIEW_CMD_ZOOM] = "zoom FACTOR (> 0)",
             [VIEW_CMD_SCREENSHOT] = "screenshot PATH", [VIEW_CMD_QUIT] = "quit",
             [VIEW_CMD_LIGHT] = "light INDEX SCALE (>= 0)", [VIEW_CMD_NEXT_SNAPSHOT] = "next-snapshot SECONDS",
+            [VIEW_CMD_PAN] = "pan DX DY",            [VIEW_CMD_FLY] = "fly FORWARD RIGHT UP",
+            [VIEW_CMD_LOOK] = "look DX DY",          [VIEW_CMD_CAMERA] = "camera INDEX",
+            [VIEW_CMD_WINDOW_SHOT] = "window-shot PATH.png",
         };
         return lm_fail(err, LM_ERR_BAD_INPUT, "%s:%d: expected '%s'", path, line, usage[c->kind]);
     }

@@ -6,9 +6,16 @@
  *     frames N             keep drawing for N more frames
  *     orbit DX DY          orbit about the target, degrees (right, up), as a drag would
  *     zoom FACTOR          distance to the target times FACTOR (> 0), as the wheel would
- *     screenshot PATH.png  the tone-mapped image, as shown, written through img_write
- *     key NAME             as if the key were pressed: escape, q, p, plus, minus, s, f,
- *                          l (next light), bracketright / bracketleft (its power ×2 / ×0.5),
+ *     pan DX DY            move eye and target by DX, DY view heights (right, up), as a middle drag would
+ *     fly F R U            move eye and target F forward, R right, U up (scene units), as W A S D would
+ *     look DX DY           turn the view about the eye, degrees (right, up), as a right drag would
+ *     camera N             the scene's camera N (0-based), as C cycles them
+ *     screenshot PATH      PATH.png: the tone-mapped image, as shown; PATH.exr: the linear
+ *                          radiance behind it (written through img_write)
+ *     window-shot PATH.png the whole window as shown, HUD included
+ *     key NAME             as if the key were pressed: escape, q, p, plus, minus, f12
+ *                          (screenshot, PNG and EXR), f, c (next camera), l (next light),
+ *                          bracketright / bracketleft (its power ×2 / ×0.5),
  *                          1 2 3 4 (toggle direct diffuse, direct specular, indirect, emission), h
  *     light INDEX SCALE    light INDEX's power set to SCALE × the scene's (>= 0), no new light samples
  *     next-snapshot SECONDS  keep drawing until a snapshot newer than the one shown now is drawn
@@ -40,8 +47,9 @@ typedef enum view_action {
     VIEW_ACTION_PAUSE,         /* P: pause / resume refinement */
     VIEW_ACTION_EXPOSURE_UP,   /* + (also =, keypad +): +0.5 stop */
     VIEW_ACTION_EXPOSURE_DOWN, /* -: −0.5 stop */
-    VIEW_ACTION_SCREENSHOT,    /* S: lumesh-view-N.png in the working directory */
+    VIEW_ACTION_SCREENSHOT,    /* F12: lumesh-view-N.png and .exr in the working directory */
     VIEW_ACTION_FRAME_ALL,     /* F */
+    VIEW_ACTION_CAMERA_NEXT,   /* C: the scene's next named camera */
     VIEW_ACTION_LIGHT_NEXT,    /* L: select the next light */
     VIEW_ACTION_LIGHT_UP,      /* ]: the selected light's power ×2 */
     VIEW_ACTION_LIGHT_DOWN,    /* [: the selected light's power ×0.5 */
@@ -49,7 +57,7 @@ typedef enum view_action {
     VIEW_ACTION_TOGGLE_SPECULAR, /* 2: direct specular on / off */
     VIEW_ACTION_TOGGLE_INDIRECT, /* 3: indirect on / off */
     VIEW_ACTION_TOGGLE_EMISSION, /* 4: emission on / off */
-    VIEW_ACTION_HELP,          /* H: the help overlay on / off (state only: no overlay is drawn yet) */
+    VIEW_ACTION_HELP,          /* H: the help text in the HUD on / off */
     VIEW_ACTION_COUNT
 } view_action;
 
@@ -64,6 +72,11 @@ typedef enum view_cmd_kind {
     VIEW_CMD_QUIT,
     VIEW_CMD_LIGHT,      /* a: light index, b: scale of the scene's power */
     VIEW_CMD_NEXT_SNAPSHOT, /* a: seconds at most */
+    VIEW_CMD_PAN,        /* a, b: view heights right, up */
+    VIEW_CMD_FLY,        /* a, b, c: forward, right, up, scene units */
+    VIEW_CMD_LOOK,       /* a, b: degrees right, up */
+    VIEW_CMD_CAMERA,     /* a: camera index */
+    VIEW_CMD_WINDOW_SHOT, /* path */
     VIEW_CMD_COUNT
 } view_cmd_kind;
 
@@ -71,7 +84,7 @@ enum { VIEW_SCRIPT_PATH_MAX = 1024, VIEW_SCRIPT_MAX_BYTES = 1 << 20 };
 
 typedef struct view_cmd {
     view_cmd_kind kind;
-    double a, b;
+    double a, b, c;
     view_action action;
     char path[VIEW_SCRIPT_PATH_MAX];
     int line;            /* 1-based, for messages */

@@ -4,6 +4,8 @@
  *     triangles as the synchronous cache's leaves give;
  *   - pause: no commit while paused; resume: refinement goes on;
  *   - a light edit through the worker: new values, no new light sample;
+ *   - a camera move through the worker (set_view): the specular mesh starts again
+ *     for the new eye (its values there change), the direct mesh keeps every node;
  *   - destroy while refining (a bigger scene): joins cleanly (ASan: nothing leaks).
  */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
@@ -27,6 +29,81 @@ static void sleep_ms(int ms)
         }
         clock_gettime(CLOCK_MONOTONIC, &t1);
     } while ((t1.tv_sec - t0.tv_sec) * 1000.0 + (t1.tv_nsec - t0.tv_nsec) / 1e6 < ms);
+}
+
+static scene *load_json(const char *name, const char *material)
+{
+    char obj[1024], json[1024], text[1024];
+    test_write_file("worker_plane.obj",
+                    "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 4 3\nf 1 3 2\n"
+                    "v -0.2 0.5 -0.2\nv 0.2 0.5 -0.2\nv 0.2 0.5 0.2\nv -0.2 0.5 0.2\nf 5 6 7\nf 5 7 8\n",
+                    obj, sizeof obj);
+    snprintf(text, sizeof text,
+             "{\"meshes\": [{\"file\": \"worker_plane.obj\", \"material\": \"paint\"}],"
+             " \"materials\": {\"paint\": %s},"
+             " \"lights\": [{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0],"
+             " \"edge2\": [0, 0, 1], \"radiance\": [5, 5, 5]}]}",
+             material);
+    test_write_file(name, text, json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
+    CHECK_MSG(r == LM_OK, "%s", err.msg);
+    return s;
+}
+
+/* Waits for a snapshot newer than generation gen (at most 10 s). */
+static const cache_snapshot *wait_newer(cache_worker *w, uint64_t gen)
+{
+    double t0 = lm_now_seconds();
+    const cache_snapshot *s = cache_worker_acquire(w);
+    while ((!s || s->generation <= gen) && lm_now_seconds() - t0 < 10.0) {
+        sleep_ms(5);
+        s = cache_worker_acquire(w);
+    }
+    return s;
+}
+
+/* The specular value published at a corner at position p (first found), or -1. */
+static float specular_at(const cache_snapshot *s, const float p[3])
+{
+    for (uint32_t i = 0; i < 3 * s->specular.triangle_count; ++i)
+        if (memcmp(s->specular.vertices[i].position, p, 3 * sizeof(float)) == 0) return s->specular.vertices[i].value[0];
+    return -1.0f;
+}
+
+static void test_set_view(const uint32_t *pixels)
+{
+    scene *s = load_json("worker_glossy.json", "{\"kd\": [0.5, 0.5, 0.5], \"ks\": [0.4, 0.4, 0.4], \"n\": 40}");
+    if (!s) return;
+    lm_error err;
+    cache_worker *w = NULL;
+    samp_desc sd = {.backend = SAMP_BACKEND_EMBREE, .seed = 2, .threads = 1};
+    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = pixels, .step_budget = 256,
+                                                   .max_tested = 4000},
+                              &w, &err) == LM_OK);
+    const cache_snapshot *a = w ? test_wait_finished(w, 60.0) : NULL;
+    CHECK(a && a->finished && a->specular.triangle_count > 0);
+    if (a && a->specular.triangle_count > 0) {
+        uint64_t nodes = a->stats.direct.mesh.nodes, gen = a->generation;
+        const float corner[3] = {2.0f, 0.0f, 2.0f}; /* a corner of the plane: every specular mesh has it */
+        float before = specular_at(a, corner);
+        /* The eye moves to where the corner mirrors the light towards it: its value grows. */
+        const float eye[3] = {3.0f * corner[0], 2.0f, 3.0f * corner[2]};
+        CHECK(cache_worker_set_view(w, pixels, eye, &err) == LM_OK);
+        const cache_snapshot *b = wait_newer(w, gen);
+        float after = b ? specular_at(b, corner) : -1.0f;
+        printf("set_view: specular at (%.1f, %.1f, %.1f) %.6f -> %.6f, direct nodes %llu -> %llu\n", corner[0],
+               corner[1], corner[2], before, after, (unsigned long long)nodes,
+               (unsigned long long)(b ? b->stats.direct.mesh.nodes : 0));
+        CHECK(b && b->generation > gen);
+        CHECK(after >= 0.0f && fabsf(after - before) > 1e-3f * fmaxf(before, after));
+        CHECK(b && b->stats.direct.mesh.nodes >= nodes);
+        float bad[3] = {NAN, 0, 0};
+        CHECK(cache_worker_set_view(w, pixels, bad, &err) == LM_ERR_INVALID_ARG);
+    }
+    cache_worker_destroy(w);
+    scene_destroy(s);
 }
 
 static scene *load(void)
@@ -157,6 +234,7 @@ int main(void)
         CHECK(g2 > g1);
         cache_worker_destroy(w); /* mid-refinement: must cancel and join */
     }
+    test_set_view(pixels);
     free(buf);
     free(pixels);
     cache_destroy(c);

@@ -102,6 +102,6 @@ lumesh_cli_test(render_deterministic_needs_samples 1 ARGS render -o x.exr --dete
 lumesh_cli_test(view_width_without_height 1 ARGS view --sampler embree --gl osmesa --width 640
   ERR "give both --width and --height")
 # A bad script fails before any window opens, naming the file and line.
-file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt "wait 1\nfly 3\n")
+file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt "wait 1\njump 3\n")
 lumesh_cli_test(view_bad_script 2 ARGS view --script ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt ONE_ERR_LINE
-  ERR "view-bad-script\\.txt:2: unknown command 'fly'")
+  ERR "view-bad-script\\.txt:2: unknown command 'jump'")

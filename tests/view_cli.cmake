@@ -2,7 +2,9 @@
 # opens on the built-in scene, frames are drawn, screenshots are taken before and
 # after an orbit; exit 0, the screenshots exist and are not uniform
 # (view_image_check), and the direct-diffuse sample count after the move is not
-# lower than before (the view-independent caches are kept across camera moves).
+# lower than before (the view-independent caches are kept across camera moves),
+# nor after pan, fly, look and a named camera (moved.png, and the linear
+# moved.exr beside it).
 # Light edit, refinement paused (nothing else publishes): `light 0 0.5` gives one
 # new snapshot (generation + 1) with the same light-mesh sample count and a darker
 # image; hiding the indirect term (key 3) darkens it again.
@@ -16,6 +18,13 @@ orbit 25 10
 frames 3
 wait 1
 screenshot ${DIR}/after.png
+camera 0
+pan 0.05 0.02
+fly 20 5 -5
+look 3 -2
+frames 3
+screenshot ${DIR}/moved.png
+screenshot ${DIR}/moved.exr
 key p
 frames 2
 screenshot ${DIR}/lit.png
@@ -43,9 +52,9 @@ message("${out}${err}")
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "lumesh view exited with '${rc}'")
 endif()
-foreach(f before after framed lit dim noindirect)
-  if(NOT EXISTS ${DIR}/${f}.png)
-    message(FATAL_ERROR "no ${DIR}/${f}.png")
+foreach(f before.png after.png framed.png lit.png dim.png noindirect.png moved.png moved.exr)
+  if(NOT EXISTS ${DIR}/${f})
+    message(FATAL_ERROR "no ${DIR}/${f}")
   endif()
 endforeach()
 if(NOT EXISTS ${DIR}/stats.json)
@@ -57,20 +66,20 @@ if(NOT command STREQUAL "view")
   message(FATAL_ERROR "stats.json: command is '${command}', not 'view'")
 endif()
 execute_process(COMMAND ${CHECK} ${DIR}/before.png ${DIR}/after.png ${DIR}/framed.png ${DIR}/lit.png
-                        ${DIR}/dim.png ${DIR}/noindirect.png RESULT_VARIABLE crc
+                        ${DIR}/dim.png ${DIR}/noindirect.png ${DIR}/moved.png ${DIR}/moved.exr RESULT_VARIABLE crc
                 OUTPUT_VARIABLE cout ERROR_VARIABLE cerr)
 message("${cout}${cerr}")
 if(NOT crc EQUAL 0)
   message(FATAL_ERROR "a screenshot is missing, unreadable, uniform, or unchanged by the orbit")
 endif()
-foreach(f before after)
+foreach(f before after moved)
   if(NOT out MATCHES "screenshot [^\n]*/${f}\\.png: [^\n]*direct samples ([0-9]+)")
     message(FATAL_ERROR "no screenshot line for ${f}.png")
   endif()
   set(direct_${f} ${CMAKE_MATCH_1})
 endforeach()
-if(direct_after LESS direct_before)
-  message(FATAL_ERROR "direct samples dropped across the orbit: ${direct_before} -> ${direct_after}")
+if(direct_after LESS direct_before OR direct_moved LESS direct_after)
+  message(FATAL_ERROR "direct samples dropped across camera moves: ${direct_before} -> ${direct_after} -> ${direct_moved}")
 endif()
 if(direct_before EQUAL 0)
   message(FATAL_ERROR "no direct samples after 1.5 s")

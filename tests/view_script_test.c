@@ -1,6 +1,8 @@
 /* view_script_test — the viewer's script parser (line numbers in errors, every
  * command, comments) and its camera moves (orbit keeps the distance and turns
- * the right way, stops short of the pole; zoom; frame-all fits the box). */
+ * the right way, stops short of the pole; zoom; frame-all fits the box; pan and
+ * fly move eye and target together by the amounts asked; look keeps the eye and
+ * the distance and turns the right way). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -44,9 +46,23 @@ static void test_script(void)
         CHECK(c[4].kind == VIEW_CMD_KEY && c[4].action == VIEW_ACTION_LIGHT_NEXT);
     }
     free(c);
+    test_write_file("view_script_moves.txt", "pan 0.1 -0.2\nfly 1 2 3\nlook 5 -5\ncamera 2\nkey c\nkey f12\n", path,
+                    sizeof path);
+    CHECK_MSG(view_script_load(path, &c, &n, &err) == LM_OK, "%s", err.msg);
+    CHECK(n == 6);
+    if (n == 6) {
+        CHECK(c[0].kind == VIEW_CMD_PAN && c[0].a == 0.1 && c[0].b == -0.2);
+        CHECK(c[1].kind == VIEW_CMD_FLY && c[1].a == 1 && c[1].b == 2 && c[1].c == 3);
+        CHECK(c[2].kind == VIEW_CMD_LOOK && c[2].a == 5 && c[2].b == -5);
+        CHECK(c[3].kind == VIEW_CMD_CAMERA && c[3].a == 2);
+        CHECK(c[4].kind == VIEW_CMD_KEY && c[4].action == VIEW_ACTION_CAMERA_NEXT);
+        CHECK(c[5].kind == VIEW_CMD_KEY && c[5].action == VIEW_ACTION_SCREENSHOT);
+    }
+    free(c);
     const char *bad[] = {"wait\n",      "frames 2.5\n", "orbit 1\n",     "zoom 0\n",         "key x\n",
                          "jump 3\n",    "quit now\n",   "light 0\n",     "light 0.5 1\n",    "light 0 -1\n",
-                         "next-snapshot\n"};
+                         "next-snapshot\n", "pan 1\n",     "fly 1 2\n",   "look x y\n",      "camera 1.5\n",
+                         "camera -1\n",    "key s\n"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
         char text[64];
         snprintf(text, sizeof text, "wait 1\n%s", bad[i]);
@@ -85,6 +101,35 @@ static void test_camera(void)
     CHECK_NEAR(cam.target[0], 1, 1e-6);
     /* The bounding sphere (radius √6) fits the vertical field of view. */
     CHECK(dist(&cam) * sin(20 * 3.14159265358979 / 180) >= sqrt(6.0));
+
+    /* Pan: a whole view height up, at distance 5 with a 40° field: 2·5·tan 20°. */
+    scene_camera p = {.position = {0, 0, 5}, .target = {0, 0, 0}, .up = {0, 1, 0}, .fov_y_deg = 40};
+    view_camera_pan(&p, 0.0f, 1.0f);
+    double h = 10 * tan(20 * 3.14159265358979 / 180);
+    CHECK_NEAR(p.position[1], h, 1e-5);
+    CHECK_NEAR(p.target[1], h, 1e-5);
+    view_camera_pan(&p, 0.5f, 0.0f); /* right is +x looking down -z */
+    CHECK_NEAR(p.position[0], 0.5 * h, 1e-5);
+    CHECK_NEAR(p.target[0], 0.5 * h, 1e-5);
+    CHECK_NEAR(dist(&p), 5, 1e-5);
+    /* Fly: forward is -z, right +x, up +y, in scene units. */
+    scene_camera f = {.position = {0, 0, 5}, .target = {0, 0, 0}, .up = {0, 1, 0}, .fov_y_deg = 40};
+    view_camera_fly(&f, 2.0f, 1.0f, -0.5f);
+    CHECK_NEAR(f.position[0], 1, 1e-6);
+    CHECK_NEAR(f.position[1], -0.5, 1e-6);
+    CHECK_NEAR(f.position[2], 3, 1e-6);
+    CHECK_NEAR(f.target[2], -2, 1e-6);
+    /* Look: the eye stays; a quarter turn right looks along +x, 30° up raises the target. */
+    scene_camera l = {.position = {0, 0, 5}, .target = {0, 0, 0}, .up = {0, 1, 0}, .fov_y_deg = 40};
+    view_camera_look(&l, 90, 0);
+    CHECK_NEAR(l.position[2], 5, 1e-6);
+    CHECK_NEAR(l.target[0], 5, 1e-5);
+    CHECK_NEAR(l.target[2], 5, 1e-5);
+    view_camera_look(&l, 0, 30);
+    CHECK_NEAR(l.target[1], 2.5, 1e-5);
+    CHECK_NEAR(dist(&l), 5, 1e-5);
+    view_camera_look(&l, 0, 80); /* stops 1° short of straight up */
+    CHECK_NEAR(l.target[1], 5 * cos(3.14159265358979 / 180), 1e-4);
 }
 
 int main(void)
