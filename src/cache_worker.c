@@ -305,7 +305,13 @@ static void *worker_main(void *arg)
         }
         pthread_mutex_unlock(&w->lock);
         if (cancel) break;
-        for (uint32_t i = 0; r == LM_OK && i < nedit; ++i) r = cache_set_light(c, edits[i].light, edits[i].value, &err);
+        /* An edit sets a light's value outright: of several queued for one light only
+         * the last counts (each costs a gather of the indirect mesh). */
+        for (uint32_t i = 0; r == LM_OK && i < nedit; ++i) {
+            int later = 0;
+            for (uint32_t j = i + 1; j < nedit && !later; ++j) later = edits[j].light == edits[i].light;
+            if (!later) r = cache_set_light(c, edits[i].light, edits[i].value, &err);
+        }
         int new_view = 0;
         if (r == LM_OK) r = take_pixels(w, c, &new_view, &err);
         if (r != LM_OK) break;
@@ -426,6 +432,14 @@ void cache_worker_pause(cache_worker *w)
     w->paused = 1;
     pthread_cond_broadcast(&w->cond);
     while (!w->parked && !w->finished) pthread_cond_wait(&w->cond, &w->lock);
+    pthread_mutex_unlock(&w->lock);
+}
+
+void cache_worker_request_pause(cache_worker *w)
+{
+    pthread_mutex_lock(&w->lock);
+    w->paused = 1;
+    pthread_cond_broadcast(&w->cond);
     pthread_mutex_unlock(&w->lock);
 }
 

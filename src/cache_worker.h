@@ -119,6 +119,9 @@ const cache_snapshot *cache_worker_acquire(cache_worker *w);
  * refines nothing, but a light edit (set_light) is still applied and published
  * as one new snapshot (no refinement step, not converged). */
 void cache_worker_pause(cache_worker *w);
+/* The same without waiting: the step in flight may still commit one snapshot (a
+ * display thread that must not block uses this). */
+void cache_worker_request_pause(cache_worker *w);
 void cache_worker_resume(cache_worker *w);
 /* Queued; the worker applies it before its next step (cache_set_light: no resampling). */
 lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float value[3], lm_error *err);

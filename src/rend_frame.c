@@ -50,6 +50,8 @@ struct rend_frame {
     GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
     GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
     unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
+    int comp_valid;                  /* the output holds the composite of the current inputs ... */
+    unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
     GLuint mat_fbo, mat_tex, mat_depth; /* R32UI material codes */
     GLuint out_fbo, out_tex;
     GLuint empty_vao;
@@ -259,7 +261,7 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
 void rend_frame_invalidate(rend_frame *f)
 {
     if (!f) return;
-    f->mat_valid = f->val_valid = f->snap_valid = 0;
+    f->mat_valid = f->val_valid = f->snap_valid = f->comp_valid = 0;
     for (int t = 0; t < TERMS; ++t) f->term[t].drawn = 0;
 }
 
@@ -566,16 +568,21 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
     tt->radiance_reused = !drew;
     if (drew) tt->radiance = lap(gl, &t0);
 
-    /* Composite: always (it is what the caller sees). */
+    /* Composite: unless its inputs are those of the output already (same camera,
+     * no radiance redrawn, same terms, no emission edit): a resting viewer's frame
+     * is then the tone mapping alone. */
     gl->Disable(GL_DEPTH_TEST);
     gl->DepthFunc(GL_LESS);
     gl->ClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
     gl->Viewport(0, 0, w, h);
-    if (r == LM_OK) {
+    unsigned comp_terms = (terms | REND_FRAME_COMPONENT_EMISSION) & f->components;
+    tt->composite_reused = r == LM_OK && f->comp_valid && tt->material_reused && tt->radiance_reused &&
+                           comp_terms == f->comp_terms;
+    if (r == LM_OK && !tt->composite_reused) {
         gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->out_fbo);
         gl->UseProgram(f->prog_composite);
         /* Bits 0..2: the radiance images drawn and shown; bit 3: emission shown. */
-        gl->Uniform1ui(f->loc_comp_terms, (terms | REND_FRAME_COMPONENT_EMISSION) & f->components);
+        gl->Uniform1ui(f->loc_comp_terms, comp_terms);
         GLuint inputs[1 + TERMS] = {f->mat_tex, f->term[0].tex, f->term[1].tex, f->term[2].tex};
         gl->BindTextures(0, 1 + TERMS, inputs);
         gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
@@ -583,6 +590,8 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
         gl->DrawArrays(GL_TRIANGLES, 0, 3);
         gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
         gl->BindTextures(0, 1 + TERMS, NULL);
+        f->comp_valid = 1;
+        f->comp_terms = comp_terms;
     }
     gl->BindVertexArray(0);
     gl->UseProgram(0);
@@ -629,6 +638,7 @@ lm_result rend_frame_set_emission(rend_frame *f, uint32_t material, const float 
     float v[4] = {le[0], le[1], le[2], 0.0f};
     GLintptr at = (GLintptr)(material * sizeof(material_entry) + offsetof(material_entry, le));
     f->gl->NamedBufferSubData(f->material_ssbo, at, sizeof v, v);
+    f->comp_valid = 0;
     return LM_OK;
 }
 

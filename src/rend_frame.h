@@ -113,6 +113,7 @@ typedef struct rend_frame_times {
     int material_reused;     /* same camera as the draw before: material pass skipped */
     int upload_reused;       /* no mesh changed since the draw before: nothing uploaded */
     int radiance_reused;     /* same camera, no mesh changed: radiance passes skipped */
+    int composite_reused;    /* and same terms, no emission edit: the output is already the composite */
     int supersample;         /* s of this renderer */
 } rend_frame_times;
 

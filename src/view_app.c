@@ -9,6 +9,7 @@
 #include <time.h>
 
 #include "image.h"
+#include "rend_debug.h"
 #include "rend_id.h"
 #include "tonemap.h"
 #include "view_camera.h"
@@ -22,11 +23,21 @@ static const float k_zoom_per_step = 0.9f;      /* distance factor per wheel ste
 static const float k_exposure_step = 0.5f;      /* stops per + / - */
 static const float k_look_deg_per_unit = 0.2f;  /* degrees per screen unit of right drag */
 static const float k_fly_radii_per_s = 0.5f;    /* W A S D speed: scene bounding radii per second */
+/* A new snapshot is taken at most this often while the camera rests: redrawing the
+ * radiance images of a refined mesh is most of a frame's cost on llvmpipe (46 of
+ * 75 ms at 1280x720 on Water), and the eye does not need each of the worker's
+ * ~30 commits a second to see the picture sharpen. After a move: at once. */
+static const double k_snapshot_period = 0.25;
+/* While the camera moves the worker rests (the paper refines while the view is
+ * idle): llvmpipe gets both cores for the moving frames. It resumes this long
+ * after the last move. */
+static const double k_motion_rest = 0.15;
 
 /* Everything the loop owns; all of it display thread only (the worker's state is
  * behind cache_worker's API). */
 typedef struct view_state {
     const view_app_desc *d;
+    const scene *s;                 /* d->scene, or the last one d->reload gave */
     view_window *win;
     const GladGLContext *gl;
     cache_worker *wk;
@@ -38,20 +49,34 @@ typedef struct view_state {
     scene_camera cam;
     uint32_t camera_index;          /* the scene camera C last selected */
     int camera_moved;               /* the ID pass must run again */
+    int fresh_view;                 /* the camera moved: take the next snapshot at once */
+    double snap_taken;              /* when the snapshot drawn was acquired */
     double last_input;              /* when the last frame's input was taken (fly speed) */
-    int paused;
+    int paused;                     /* P: the user paused refinement */
+    int motion_paused;              /* the camera is moving: refinement rests (not the user's pause) */
+    double last_motion;
     float exposure;                 /* stops */
     uint32_t light_count, light;    /* the scene's lights; the one the keys edit */
     float *light_scale;             /* per light: power relative to the scene's */
+    float *light_tint;              /* per light, RGB: colour multiplier of the scene's (K cycles presets) */
+    uint32_t *light_preset;         /* per light: the K preset shown (0 = the scene's colour) */
     int emission_dirty;             /* the renderer's emitters differ from light_scale */
     unsigned components;            /* REND_FRAME_COMPONENT_* shown */
     int help;                       /* the help overlay is on */
+    /* Mesh overlay (paper Fig. 4b/4c, rend_debug.h): 0 off, else 1 + the mesh
+     * (0 direct, 1 indirect, 2 specular, 3 + l light l); the image made on the CPU
+     * is kept until the snapshot, the camera, the size or the choice changes. */
+    int overlay, overlay_points;
+    uint8_t *ov_bg, *ov_rgb;
+    uint32_t *ov_ids;
+    int ov_w, ov_h, ov_stale;
+    uint64_t ov_generation;
     /* Samples per second for the HUD: all samples at the start of the current
      * one-second window, and the rate measured over the last one. */
     double rate_t0, rate;
     uint64_t rate_samples0;
     const cache_snapshot *snap;     /* the last acquired, valid until the next acquire */
-    uint64_t frames, id_passes, screenshots;
+    uint64_t frames, id_passes, screenshots, reloads;
     double t_open, first_image, id_seconds;
     rend_frame_times times;
     int drawn;                      /* a frame with the current sizes exists */
@@ -61,6 +86,7 @@ typedef struct view_state {
     double cmd_t0;
     uint64_t cmd_frames0, cmd_generation0;
     int quit;
+    int in_script;                  /* apply_action runs for a script command */
     char shot[VIEW_SCRIPT_PATH_MAX];/* screenshot to take after this frame's draw; "" = none */
     int shot_exr_too;               /* F12: shot is a .png, write the .exr beside it */
     char window_shot[VIEW_SCRIPT_PATH_MAX]; /* the whole window after this frame's draw; "" = none */
@@ -75,47 +101,135 @@ static void nap(double seconds)
 
 static void report_of(const view_state *v, view_app_report *r)
 {
-    *r = (view_app_report){.camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
+    *r = (view_app_report){.scene = v->s, .camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
                            .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
                            .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
                            .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win)};
 }
 
-/* Light l's power to scale × the scene's: the worker recomputes the direct mesh
- * from its stored G (no light sample), the renderer shows the emitter's new Le. */
-static lm_result set_light_scale(view_state *v, uint32_t l, float scale, lm_error *err)
+/* K's colours: multipliers of the scene's, about equal in luminance. */
+static const float k_light_presets[][3] = {
+    {1.0f, 1.0f, 1.0f},    /* as the scene says */
+    {1.25f, 0.95f, 0.62f}, /* warm */
+    {0.78f, 0.98f, 1.35f}, /* cool */
+    {2.2f, 0.55f, 0.45f},  /* red */
+    {0.55f, 1.25f, 0.6f},  /* green */
+};
+enum { LIGHT_PRESETS = sizeof k_light_presets / sizeof k_light_presets[0] };
+static const char *const k_preset_names[LIGHT_PRESETS] = {"", " warm", " cool", " red", " green"};
+
+/* Light l to scale × tint × the scene's radiance (or intensity): the worker
+ * recomputes the direct mesh from its stored G (no light sample), the renderer
+ * shows the emitter's new Le. */
+static lm_result set_light(view_state *v, uint32_t l, float scale, const float tint[3], lm_error *err)
 {
-    const scene *s = v->d->scene;
+    const scene *s = v->s;
     if (l >= v->light_count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", l, v->light_count);
     const float *base = l < s->area_light_count ? s->area_lights[l].le
                                                 : s->point_lights[l - s->area_light_count].intensity;
-    float value[3] = {base[0] * scale, base[1] * scale, base[2] * scale};
+    float value[3] = {base[0] * scale * tint[0], base[1] * scale * tint[1], base[2] * scale * tint[2]};
     lm_result r = cache_worker_set_light(v->wk, l, value, err);
     if (r != LM_OK) return r;
     v->light_scale[l] = scale;
+    memmove(v->light_tint + 3 * (size_t)l, tint, 3 * sizeof *tint); /* tint may be that very row */
     v->emission_dirty = 1;
     return LM_OK;
+}
+
+static lm_result set_light_scale(view_state *v, uint32_t l, float scale, lm_error *err)
+{
+    if (l >= v->light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", l, v->light_count);
+    return set_light(v, l, scale, v->light_tint + 3 * (size_t)l, err);
 }
 
 /* The emitters' Le as light_scale says, after an edit or a new renderer. */
 static lm_result apply_emission(view_state *v, lm_error *err)
 {
-    const scene *s = v->d->scene;
+    const scene *s = v->s;
     lm_result r = LM_OK;
     for (uint32_t l = 0; r == LM_OK && l < s->area_light_count; ++l) {
-        const float *le = s->area_lights[l].le, k = v->light_scale[l];
-        r = rend_frame_set_emission(v->frame, s->area_lights[l].material, (float[3]){le[0] * k, le[1] * k, le[2] * k},
-                                    err);
+        const float *le = s->area_lights[l].le, k = v->light_scale[l], *t = v->light_tint + 3 * (size_t)l;
+        r = rend_frame_set_emission(v->frame, s->area_lights[l].material,
+                                    (float[3]){le[0] * k * t[0], le[1] * k * t[1], le[2] * k * t[2]}, err);
     }
     v->emission_dirty = 0;
+    return r;
+}
+
+static lm_result start_worker(view_state *v, lm_error *err)
+{
+    /* pixels_later: the coarse cache is made while the first ID pass runs;
+     * publish_debug: the snapshots carry what the mesh overlays (O) draw. */
+    return cache_worker_create(&(cache_worker_desc){.scene = v->s, .sampler = v->d->sampler, .pixels_later = 1,
+                                                    .publish_debug = 1},
+                               &v->wk, err);
+}
+
+/* Per light, power relative to the scene's: all 1 for a new scene. */
+static lm_result reset_lights(view_state *v, lm_error *err)
+{
+    v->light_count = scene_light_count(v->s);
+    v->light = 0;
+    free(v->light_scale);
+    free(v->light_tint);
+    free(v->light_preset);
+    size_t n = v->light_count ? v->light_count : 1;
+    v->light_scale = malloc(n * sizeof *v->light_scale);
+    v->light_tint = malloc(3 * n * sizeof *v->light_tint);
+    v->light_preset = calloc(n, sizeof *v->light_preset);
+    if (!v->light_scale || !v->light_tint || !v->light_preset)
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for %u lights", v->light_count);
+    for (uint32_t l = 0; l < v->light_count; ++l) {
+        v->light_scale[l] = 1.0f;
+        for (int k = 0; k < 3; ++k) v->light_tint[3 * l + (uint32_t)k] = 1.0f;
+    }
+    v->emission_dirty = 1;
+    return LM_OK;
+}
+
+/* R: the scene again from its file (it changed on disk). Everything made from the
+ * old scene goes (the worker is joined), the camera stays where the user put it.
+ * A file that no longer loads keeps the old scene (the reason is printed). */
+static lm_result reload_scene(view_state *v, lm_error *err)
+{
+    const view_app_desc *d = v->d;
+    if (!d->reload) return LM_OK;
+    const scene *fresh = NULL;
+    lm_error why = {{0}};
+    if (d->reload(d->user, &fresh, &why) != LM_OK || !fresh || fresh->camera_count == 0) {
+        fprintf(stderr, "lumesh view: the scene did not reload, keeping the one shown: %s\n",
+                why.msg[0] ? why.msg : "it has no camera");
+        if (fresh && d->release) d->release(d->user, fresh);
+        return LM_OK;
+    }
+    if (v->paused) cache_worker_resume(v->wk);
+    cache_worker_destroy(v->wk); /* cancels and joins: nothing refers to the old scene after this */
+    v->wk = NULL;
+    v->snap = NULL;
+    v->paused = v->motion_paused = 0;
+    rend_frame_destroy(v->frame);
+    rend_id_destroy(v->ip);
+    v->frame = NULL;
+    v->ip = NULL;
+    v->fb_w = v->fb_h = 0;
+    const scene *old = v->s;
+    v->s = fresh;
+    if (v->camera_index >= fresh->camera_count) v->camera_index = 0;
+    v->camera_moved = 1;
+    v->ov_stale = 1;
+    v->reloads++;
+    lm_result r = reset_lights(v, err);
+    if (r == LM_OK) r = start_worker(v, err);
+    if (d->release) d->release(d->user, old);
     return r;
 }
 
 /* The scene's camera i, at the window's size. */
 static void select_camera(view_state *v, uint32_t i)
 {
-    const scene *s = v->d->scene;
+    const scene *s = v->s;
     if (i >= s->camera_count) return;
     int w = v->cam.width, h = v->cam.height;
     v->cam = s->cameras[i];
@@ -127,13 +241,15 @@ static void select_camera(view_state *v, uint32_t i)
 
 static lm_result apply_action(view_state *v, view_action a, lm_error *err)
 {
+    v->ov_stale = 1; /* whatever it changes, the overlay is made again from the picture */
     switch (a) {
     case VIEW_ACTION_QUIT: v->quit = 1; break;
     case VIEW_ACTION_PAUSE:
-        /* cache_worker_pause waits for the worker to finish its step (one step:
-         * step_budget leaves); a key press may take that long, frames do not. */
+        /* The key does not wait for the worker's step in flight (the display never
+         * blocks on it); a script does, so that what follows sees no more commits. */
         if (v->paused) cache_worker_resume(v->wk);
-        else cache_worker_pause(v->wk);
+        else if (v->in_script) cache_worker_pause(v->wk);
+        else cache_worker_request_pause(v->wk);
         v->paused = !v->paused;
         break;
     case VIEW_ACTION_EXPOSURE_UP: v->exposure += k_exposure_step; break;
@@ -142,9 +258,9 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
         snprintf(v->shot, sizeof v->shot, "lumesh-view-%llu.png", (unsigned long long)++v->screenshots);
         v->shot_exr_too = 1;
         break;
-    case VIEW_ACTION_CAMERA_NEXT: select_camera(v, (v->camera_index + 1) % v->d->scene->camera_count); break;
+    case VIEW_ACTION_CAMERA_NEXT: select_camera(v, (v->camera_index + 1) % v->s->camera_count); break;
     case VIEW_ACTION_FRAME_ALL:
-        view_camera_frame_all(&v->cam, v->d->scene->bounds_min, v->d->scene->bounds_max,
+        view_camera_frame_all(&v->cam, v->s->bounds_min, v->s->bounds_max,
                               v->fb_h > 0 ? (float)v->fb_w / (float)v->fb_h : 16.0f / 9.0f);
         v->camera_moved = 1;
         break;
@@ -157,11 +273,26 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
             return set_light_scale(v, v->light, v->light_scale[v->light] * (a == VIEW_ACTION_LIGHT_UP ? 2.0f : 0.5f),
                                    err);
         break;
+    case VIEW_ACTION_LIGHT_COLOR:
+        if (v->light_count) {
+            uint32_t p = v->light_preset[v->light] = (v->light_preset[v->light] + 1) % LIGHT_PRESETS;
+            return set_light(v, v->light, v->light_scale[v->light], k_light_presets[p], err);
+        }
+        break;
     case VIEW_ACTION_TOGGLE_DIRECT: v->components ^= REND_FRAME_COMPONENT_DIRECT_DIFFUSE; break;
     case VIEW_ACTION_TOGGLE_SPECULAR: v->components ^= REND_FRAME_COMPONENT_DIRECT_SPECULAR; break;
     case VIEW_ACTION_TOGGLE_INDIRECT: v->components ^= REND_FRAME_COMPONENT_INDIRECT; break;
     case VIEW_ACTION_TOGGLE_EMISSION: v->components ^= REND_FRAME_COMPONENT_EMISSION; break;
     case VIEW_ACTION_HELP: v->help = !v->help; break;
+    case VIEW_ACTION_RELOAD: return reload_scene(v, err);
+    case VIEW_ACTION_OVERLAY_NEXT:
+        v->overlay = (v->overlay + 1) % (int)(4 + v->light_count);
+        v->ov_stale = 1;
+        break;
+    case VIEW_ACTION_OVERLAY_KIND:
+        v->overlay_points = !v->overlay_points;
+        v->ov_stale = 1;
+        break;
     default: break;
     }
     return LM_OK;
@@ -199,6 +330,12 @@ static lm_result run_script(view_state *v, lm_error *err)
                 return LM_OK;
             break;
         case VIEW_CMD_LIGHT: r = set_light_scale(v, (uint32_t)c->a, (float)c->b, err); break;
+        case VIEW_CMD_LIGHT_COLOR:
+            r = (uint32_t)c->a < v->light_count
+                    ? set_light(v, (uint32_t)c->a, v->light_scale[(uint32_t)c->a], c->rgb, err)
+                    : lm_fail(err, LM_ERR_INVALID_ARG, "light %.0f does not exist (the scene has %u)", c->a,
+                              v->light_count);
+            break;
         case VIEW_CMD_ORBIT:
             view_camera_orbit(&v->cam, (float)c->a, (float)c->b);
             v->camera_moved = 1;
@@ -220,18 +357,24 @@ static lm_result run_script(view_state *v, lm_error *err)
             v->camera_moved = 1;
             break;
         case VIEW_CMD_CAMERA:
-            if (c->a >= d->scene->camera_count)
+            if (c->a >= v->s->camera_count)
                 r = lm_fail(err, LM_ERR_INVALID_ARG, "camera %.0f does not exist (the scene has %u)", c->a,
-                            d->scene->camera_count);
+                            v->s->camera_count);
             else
                 select_camera(v, (uint32_t)c->a);
             break;
+        case VIEW_CMD_RESIZE: view_window_resize(v->win, (int)c->a, (int)c->b); break;
+        case VIEW_CMD_MINIMISE: view_window_minimise(v->win, (int)c->a); break;
         case VIEW_CMD_WINDOW_SHOT: snprintf(v->window_shot, sizeof v->window_shot, "%s", c->path); break;
         case VIEW_CMD_SCREENSHOT:
             snprintf(v->shot, sizeof v->shot, "%s", c->path);
             v->shot_exr_too = 0;
             break;
-        case VIEW_CMD_KEY: r = apply_action(v, c->action, err); break;
+        case VIEW_CMD_KEY:
+            v->in_script = 1;
+            r = apply_action(v, c->action, err);
+            v->in_script = 0;
+            break;
         case VIEW_CMD_QUIT: v->quit = 1; break;
         default: break;
         }
@@ -256,9 +399,9 @@ static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
     v->ip = NULL;
     v->fb_w = v->fb_h = 0;
     v->drawn = 0;
-    lm_result r = rend_id_create(v->gl, &(rend_id_desc){.scene = v->d->scene, .width = w, .height = h}, &v->ip, err);
+    lm_result r = rend_id_create(v->gl, &(rend_id_desc){.scene = v->s, .width = w, .height = h}, &v->ip, err);
     if (r == LM_OK)
-        r = rend_frame_create(v->gl, &(rend_frame_desc){.scene = v->d->scene, .width = w, .height = h, .supersample = 1},
+        r = rend_frame_create(v->gl, &(rend_frame_desc){.scene = v->s, .width = w, .height = h, .supersample = 1},
                               &v->frame, err);
     if (r != LM_OK) return r;
     v->fb_w = w;
@@ -323,13 +466,62 @@ static lm_result take_screenshot(view_state *v, lm_error *err)
     return r;
 }
 
+/* The overlay's mesh in the snapshot, and its name; NULL when it has none. */
+static const cache_snapshot_mesh *overlay_mesh(const view_state *v, char *name, size_t size)
+{
+    const cache_snapshot *s = v->snap;
+    int k = v->overlay - 1;
+    if (k < 3) snprintf(name, size, "%s", k == 0 ? "direct" : k == 1 ? "indirect" : "specular");
+    else snprintf(name, size, "light%d", k - 3);
+    if (!s) return NULL;
+    const cache_snapshot_mesh *m = k == 0 ? &s->direct : k == 1 ? &s->indirect : k == 2 ? &s->specular
+                                 : (uint32_t)(k - 3) < s->light_mesh_count ? &s->lights[k - 3] : NULL;
+    return m && m->corners && m->triangle_count ? m : NULL;
+}
+
+/* Draws the overlay over the tone-mapped picture in the window (made again when
+ * what it shows changed). Returns LM_OK and draws nothing without data. */
+static lm_result draw_overlay(view_state *v, int w, int h, GLuint texture, const tm_desc *tm, lm_error *err)
+{
+    char name[32];
+    const cache_snapshot_mesh *m = overlay_mesh(v, name, sizeof name);
+    if (!m) return LM_OK;
+    size_t n = (size_t)w * (size_t)h;
+    if (v->ov_w != w || v->ov_h != h) {
+        free(v->ov_bg);
+        free(v->ov_rgb);
+        free(v->ov_ids);
+        v->ov_bg = malloc(3 * n);
+        v->ov_rgb = malloc(3 * n);
+        v->ov_ids = malloc(n * sizeof *v->ov_ids);
+        v->ov_w = v->ov_bg && v->ov_rgb && v->ov_ids ? w : 0;
+        v->ov_h = h;
+        if (!v->ov_w) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d overlay", w, h);
+        v->ov_stale = 1;
+    }
+    lm_result r = LM_OK;
+    if (v->ov_stale || v->ov_generation != v->snap->generation) {
+        r = rend_id_read_image(v->ip, v->ov_ids, err);
+        if (r == LM_OK) r = view_tm_read(v->tm, texture, w, h, tm, v->ov_bg, err);
+        rend_debug_desc d = {.camera = &v->cam, .width = w, .height = h, .ids = v->ov_ids, .background = v->ov_bg};
+        if (r == LM_OK)
+            r = v->overlay_points ? rend_debug_samples(&d, m, v->ov_rgb, NULL, err)
+                                  : rend_debug_leaves(&d, m, v->ov_rgb, NULL, err);
+        if (r != LM_OK) return r;
+        v->ov_stale = 0;
+        v->ov_generation = v->snap->generation;
+    }
+    return view_tm_show_rgb8(v->tm, v->ov_rgb, w, h, err);
+}
+
 static const char k_help[] =
     "left drag: orbit    middle / shift+left drag: pan    right drag: look    wheel: zoom\n"
     "W A S D, Space / Ctrl: fly    F: frame all    C: next camera\n"
     "1 2 3 4: direct diffuse, direct specular, indirect, emission on / off\n"
-    "L: next light    ] [: its power x2 / x0.5 (no new light samples)\n"
+    "L: next light    ] [: its power x2 / x0.5    K: its colour (no new light samples)\n"
     "+ -: exposure    P: pause refinement    F12: screenshot (PNG + EXR)\n"
-    "H: this help    Esc / Q: quit";
+    "O: overlay the next mesh    V: wireframe / sample points\n"
+    "R: reload the scene from its file    H: this help    Esc / Q: quit";
 
 static uint64_t all_samples(const cache_snapshot *s)
 {
@@ -371,13 +563,20 @@ static void hud_text(view_state *v, char *out, size_t size)
     if (k < size) {
         char light[64] = "";
         if (v->light_count)
-            snprintf(light, sizeof light, "  light %u/%u x%.3g", v->light + 1, v->light_count, v->light_scale[v->light]);
+            snprintf(light, sizeof light, "  light %u/%u x%.3g%s", v->light + 1, v->light_count,
+                     v->light_scale[v->light], k_preset_names[v->light_preset[v->light]]);
         k += (size_t)snprintf(out + k, size - k, "exposure %+.1f%s  terms %c%c%c%c  camera %u/%u%s", v->exposure, light,
                               v->components & REND_FRAME_COMPONENT_DIRECT_DIFFUSE ? 'D' : '-',
                               v->components & REND_FRAME_COMPONENT_DIRECT_SPECULAR ? 'S' : '-',
                               v->components & REND_FRAME_COMPONENT_INDIRECT ? 'I' : '-',
                               v->components & REND_FRAME_COMPONENT_EMISSION ? 'E' : '-', v->camera_index + 1,
-                              v->d->scene->camera_count, v->help ? "" : "    H: help");
+                              v->s->camera_count, v->help ? "" : "    H: help");
+    }
+    if (v->overlay && k < size) {
+        char name[32];
+        const cache_snapshot_mesh *m = overlay_mesh(v, name, sizeof name);
+        k += (size_t)snprintf(out + k, size - k, "\noverlay: %s %s%s", name,
+                              v->overlay_points ? "sample points" : "leaf wireframe", m ? "" : " (nothing to show)");
     }
     if (v->help && k < size) snprintf(out + k, size - k, "\n\n%s", k_help);
 }
@@ -434,7 +633,7 @@ static lm_result frame(view_state *v, lm_error *err)
     double now = lm_now_seconds(), dt = fmin(0.25, now - v->last_input); /* a stall does not jump */
     v->last_input = now;
     if (in.fly[0] != 0 || in.fly[1] != 0 || in.fly[2] != 0) {
-        const scene *s = v->d->scene;
+        const scene *s = v->s;
         double r2 = 0;
         for (int k = 0; k < 3; ++k) r2 += 0.25 * (s->bounds_max[k] - s->bounds_min[k]) * (s->bounds_max[k] - s->bounds_min[k]);
         float step = (float)(sqrt(r2) * k_fly_radii_per_s * dt);
@@ -457,16 +656,39 @@ static lm_result frame(view_state *v, lm_error *err)
         v->id_seconds = ids.seconds;
         v->id_passes++;
         v->camera_moved = 0;
+        v->fresh_view = 1;
+        v->last_motion = lm_now_seconds();
+        if (!v->paused && !v->motion_paused && v->frames > 0) {
+            cache_worker_request_pause(v->wk);
+            v->motion_paused = 1;
+        }
+        v->ov_stale = 1;
     }
     if (r != LM_OK) return r;
-    const cache_snapshot *s = cache_worker_acquire(v->wk); /* never waits */
-    if (s) v->snap = s;
+    double now_s = lm_now_seconds();
+    if (v->motion_paused && (v->paused || now_s - v->last_motion >= k_motion_rest)) {
+        if (!v->paused) cache_worker_resume(v->wk);
+        v->motion_paused = 0;
+    }
+    if (!v->snap || v->fresh_view || v->shot[0] || v->window_shot[0] || now_s - v->snap_taken >= k_snapshot_period) {
+        /* The snapshot held is valid until the acquire: its generation is read before. */
+        uint64_t held = v->snap ? v->snap->generation : 0;
+        const cache_snapshot *s = cache_worker_acquire(v->wk); /* never waits */
+        if (s) {
+            if (s->generation != held) {
+                v->snap_taken = now_s;
+                v->fresh_view = 0;
+            }
+            v->snap = s;
+        }
+    }
     if (v->snap && v->snap->failed) return lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", v->snap->error);
     r = rend_frame_draw(v->frame, &v->cam, v->snap, NULL, err);
     rend_frame_output o;
     rend_frame_get_output(v->frame, &o);
     tm_desc tm = {.exposure = v->exposure};
     if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, o.texture, &tm, err);
+    if (r == LM_OK && v->overlay && v->snap) r = draw_overlay(v, w, h, o.texture, &tm, err);
     if (r == LM_OK && v->hud) {
         char text[2048];
         hud_text(v, text, sizeof text);
@@ -496,25 +718,23 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
 {
     if (!d || !d->scene || d->camera < 0 || (uint32_t)d->camera >= d->scene->camera_count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "view_app_run: no scene or no such camera");
-    view_state v = {.d = d, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
-                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL,
-                    .light_count = scene_light_count(d->scene)};
-    v.light_scale = malloc((v.light_count ? v.light_count : 1) * sizeof *v.light_scale);
-    if (!v.light_scale) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for %u lights", v.light_count);
-    for (uint32_t l = 0; l < v.light_count; ++l) v.light_scale[l] = 1.0f;
-    lm_result r = view_window_create(&(view_window_desc){.title = "lumesh view", .width = d->width,
+    view_state v = {.d = d, .s = d->scene, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
+                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL};
+    lm_result r = reset_lights(&v, err);
+    if (r != LM_OK) return r;
+    r = view_window_create(&(view_window_desc){.title = "lumesh view", .width = d->width,
                                                         .height = d->height},
                                      &v.win, err);
     if (r != LM_OK) {
         free(v.light_scale);
+        free(v.light_tint);
+        free(v.light_preset);
         return r;
     }
     v.gl = view_window_gl(v.win);
     v.t_open = v.last_input = lm_now_seconds();
     v.camera_index = (uint32_t)d->camera;
-    /* pixels_later: the coarse cache is made while the first ID pass runs. */
-    r = cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels_later = 1}, &v.wk,
-                            err);
+    r = start_worker(&v, err);
     if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
     if (r == LM_OK) r = view_hud_create(v.gl, &v.hud, err);
     double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
@@ -545,5 +765,10 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     rend_id_destroy(v.ip);
     view_window_destroy(v.win);
     free(v.light_scale);
+    free(v.light_tint);
+    free(v.light_preset);
+    free(v.ov_bg);
+    free(v.ov_rgb);
+    free(v.ov_ids);
     return r;
 }

@@ -44,6 +44,7 @@ enum { VIEW_APP_DEFAULT_FPS = 60 };
 
 /* What the run measured, for the caller's report and --stats. */
 typedef struct view_app_report {
+    const scene *scene;                /* the scene now (d->scene, or the last reload's) */
     const scene_camera *camera;        /* the camera now */
     int width, height;                 /* framebuffer pixels of the last frame */
     uint64_t frames;                   /* frames drawn */
@@ -67,6 +68,11 @@ typedef struct view_app_desc {
     void *user;
     /* Called after each screenshot is written (report->snap: the snapshot in it). */
     void (*screenshot)(const char *path, const view_app_report *report, void *user);
+    /* R: a new scene from the same file (the caller's; NULL: R does nothing). On
+     * error the viewer prints the reason and keeps the scene it shows. */
+    lm_result (*reload)(void *user, const scene **fresh, lm_error *err);
+    /* A scene the viewer no longer uses (after a reload): the caller may free it. */
+    void (*release)(void *user, const scene *old);
     /* Called once when the run ends without error, before the worker is destroyed. */
     lm_result (*finished)(const view_app_report *report, void *user, lm_error *err);
 } view_app_desc;

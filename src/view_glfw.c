@@ -55,6 +55,10 @@ static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
     case GLFW_KEY_3: a = VIEW_ACTION_TOGGLE_INDIRECT; break;
     case GLFW_KEY_4: a = VIEW_ACTION_TOGGLE_EMISSION; break;
     case GLFW_KEY_H: a = VIEW_ACTION_HELP; break;
+    case GLFW_KEY_O: a = VIEW_ACTION_OVERLAY_NEXT; break;
+    case GLFW_KEY_V: a = VIEW_ACTION_OVERLAY_KIND; break;
+    case GLFW_KEY_R: a = VIEW_ACTION_RELOAD; break;
+    case GLFW_KEY_K: a = VIEW_ACTION_LIGHT_COLOR; break;
     default: break;
     }
     if (a != VIEW_ACTION_NONE) win->pending.actions[a]++;
@@ -185,3 +189,11 @@ void view_window_framebuffer_size(view_window *win, int *width, int *height)
 
 void view_window_swap(view_window *win) { glfwSwapBuffers(win->window); }
 void view_window_set_title(view_window *win, const char *title) { glfwSetWindowTitle(win->window, title); }
+
+void view_window_resize(view_window *win, int width, int height) { glfwSetWindowSize(win->window, width, height); }
+
+void view_window_minimise(view_window *win, int minimised)
+{
+    if (minimised) glfwIconifyWindow(win->window);
+    else glfwRestoreWindow(win->window);
+}

@@ -61,6 +61,10 @@ void view_window_poll(view_window *win, view_input *out);
 void view_window_framebuffer_size(view_window *win, int *width, int *height);
 void view_window_swap(view_window *win);
 void view_window_set_title(view_window *win, const char *title);
+/* Asks for a new size (screen coordinates) or for the window to be minimised (0 × 0)
+ * or restored, as a user would; the framebuffer follows at the window system's pace. */
+void view_window_resize(view_window *win, int width, int height);
+void view_window_minimise(view_window *win, int minimised);
 
 #ifdef __cplusplus
 }

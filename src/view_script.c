@@ -16,7 +16,9 @@ view_action view_action_from_key_name(const char *name)
         {"p", VIEW_ACTION_PAUSE},             {"plus", VIEW_ACTION_EXPOSURE_UP},
         {"minus", VIEW_ACTION_EXPOSURE_DOWN}, {"f12", VIEW_ACTION_SCREENSHOT},
         {"f", VIEW_ACTION_FRAME_ALL},         {"l", VIEW_ACTION_LIGHT_NEXT},
-        {"c", VIEW_ACTION_CAMERA_NEXT},
+        {"c", VIEW_ACTION_CAMERA_NEXT},       {"o", VIEW_ACTION_OVERLAY_NEXT},
+        {"v", VIEW_ACTION_OVERLAY_KIND},      {"r", VIEW_ACTION_RELOAD},
+        {"k", VIEW_ACTION_LIGHT_COLOR},
         {"bracketright", VIEW_ACTION_LIGHT_UP}, {"bracketleft", VIEW_ACTION_LIGHT_DOWN},
         {"1", VIEW_ACTION_TOGGLE_DIRECT},     {"2", VIEW_ACTION_TOGGLE_SPECULAR},
         {"3", VIEW_ACTION_TOGGLE_INDIRECT},   {"4", VIEW_ACTION_TOGGLE_EMISSION},
@@ -38,7 +40,7 @@ static int number(const char *s, double lo, double hi, double *out)
     return 1;
 }
 
-/* One line, already split into at most 4 words. */
+/* One line, already split into at most 5 words. */
 static lm_result parse_line(char **w, int n, const char *path, int line, view_cmd *c, lm_error *err)
 {
     memset(c, 0, sizeof *c);
@@ -84,11 +86,25 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
         if (!ok)
             return lm_fail(err, LM_ERR_BAD_INPUT,
                            "%s:%d: key wants one of escape, q, p, plus, minus, f12, f, c, l, bracketright, "
-                           "bracketleft, 1, 2, 3, 4, h",
+                           "bracketleft, 1, 2, 3, 4, h, o, v, r, k",
                            path, line);
     } else if (strcmp(k, "light") == 0) {
         c->kind = VIEW_CMD_LIGHT;
         ok = n == 3 && number(w[1], 0, 1e9, &c->a) && c->a == floor(c->a) && number(w[2], 0, 1e6, &c->b);
+    } else if (strcmp(k, "resize") == 0) {
+        c->kind = VIEW_CMD_RESIZE;
+        ok = n == 3 && number(w[1], 1, 16384, &c->a) && c->a == floor(c->a) && number(w[2], 1, 16384, &c->b) &&
+             c->b == floor(c->b);
+    } else if (strcmp(k, "minimise") == 0 || strcmp(k, "restore") == 0) {
+        c->kind = VIEW_CMD_MINIMISE;
+        c->a = k[0] == 'm';
+        ok = n == 1;
+    } else if (strcmp(k, "light-color") == 0) {
+        c->kind = VIEW_CMD_LIGHT_COLOR;
+        double rgb[3] = {0, 0, 0};
+        ok = n == 5 && number(w[1], 0, 1e9, &c->a) && c->a == floor(c->a) && number(w[2], 0, 1e6, &rgb[0]) &&
+             number(w[3], 0, 1e6, &rgb[1]) && number(w[4], 0, 1e6, &rgb[2]);
+        for (int i = 0; i < 3; ++i) c->rgb[i] = (float)rgb[i];
     } else if (strcmp(k, "next-snapshot") == 0) {
         c->kind = VIEW_CMD_NEXT_SNAPSHOT;
         ok = n == 2 && number(w[1], 0, 1e6, &c->a);
@@ -98,7 +114,7 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
     } else {
         return lm_fail(err, LM_ERR_BAD_INPUT,
                        "%s:%d: unknown command '%s' (wait, frames, orbit, zoom, pan, fly, look, camera, screenshot, "
-                       "window-shot, key, light, next-snapshot, quit)", path, line,
+                       "window-shot, resize, minimise, restore, key, light, light-color, next-snapshot, quit)", path, line,
                        k);
     }
     if (!ok) {
@@ -109,7 +125,8 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
             [VIEW_CMD_LIGHT] = "light INDEX SCALE (>= 0)", [VIEW_CMD_NEXT_SNAPSHOT] = "next-snapshot SECONDS",
             [VIEW_CMD_PAN] = "pan DX DY",            [VIEW_CMD_FLY] = "fly FORWARD RIGHT UP",
             [VIEW_CMD_LOOK] = "look DX DY",          [VIEW_CMD_CAMERA] = "camera INDEX",
-            [VIEW_CMD_WINDOW_SHOT] = "window-shot PATH.png",
+            [VIEW_CMD_WINDOW_SHOT] = "window-shot PATH.png", [VIEW_CMD_LIGHT_COLOR] = "light-color INDEX R G B (>= 0)",
+            [VIEW_CMD_RESIZE] = "resize WIDTH HEIGHT",  [VIEW_CMD_MINIMISE] = "minimise (or restore), alone",
         };
         return lm_fail(err, LM_ERR_BAD_INPUT, "%s:%d: expected '%s'", path, line, usage[c->kind]);
     }
@@ -141,11 +158,11 @@ lm_result view_script_load(const char *path, view_cmd **cmds, size_t *count, lm_
         ++line;
         char *hash = strchr(p, '#');
         if (hash) *hash = '\0';
-        char *w[5];
+        char *w[6]; /* the longest command has five words (light-color INDEX R G B) */
         int nw = 0;
-        for (char *tok = strtok_r(p, " \t\r", &save); tok && nw < 5; tok = strtok_r(NULL, " \t\r", &save))
+        for (char *tok = strtok_r(p, " \t\r", &save); tok && nw < 6; tok = strtok_r(NULL, " \t\r", &save))
             w[nw++] = tok;
-        if (nw == 5) r = lm_fail(err, LM_ERR_BAD_INPUT, "%s:%d: too many words", path, line);
+        if (nw == 6) r = lm_fail(err, LM_ERR_BAD_INPUT, "%s:%d: too many words", path, line);
         else if (nw > 0) r = parse_line(w, nw, path, line, &out[n++], err);
         p = nl ? nl + 1 : NULL;
     }

@@ -3,7 +3,7 @@
  *
  *     # comment; blank lines are skipped
  *     wait SECONDS         keep drawing for this long (the worker refines meanwhile)
- *     frames N             keep drawing for N more frames
+ *     frames N             keep drawing for N more frames (none are drawn while minimised: use wait)
  *     orbit DX DY          orbit about the target, degrees (right, up), as a drag would
  *     zoom FACTOR          distance to the target times FACTOR (> 0), as the wheel would
  *     pan DX DY            move eye and target by DX, DY view heights (right, up), as a middle drag would
@@ -13,11 +13,16 @@
  *     screenshot PATH      PATH.png: the tone-mapped image, as shown; PATH.exr: the linear
  *                          radiance behind it (written through img_write)
  *     window-shot PATH.png the whole window as shown, HUD included
+ *     resize W H           the window to W × H screen units, as a user dragging its border
+ *     minimise / restore   the window minimised (a 0 × 0 framebuffer: nothing drawn) or back
  *     key NAME             as if the key were pressed: escape, q, p, plus, minus, f12
  *                          (screenshot, PNG and EXR), f, c (next camera), l (next light),
  *                          bracketright / bracketleft (its power ×2 / ×0.5),
- *                          1 2 3 4 (toggle direct diffuse, direct specular, indirect, emission), h
+ *                          1 2 3 4 (toggle direct diffuse, direct specular, indirect, emission), h,
+ *                          o (overlay the next mesh), v (wireframe / sample points),
+ *                          r (reload the scene from its file), k (the light's next colour)
  *     light INDEX SCALE    light INDEX's power set to SCALE × the scene's (>= 0), no new light samples
+ *     light-color INDEX R G B  light INDEX's colour: the scene's times (R, G, B) (>= 0), no new light samples
  *     next-snapshot SECONDS  keep drawing until a snapshot newer than the one shown now is drawn
  *                          (a light edit published), at most SECONDS
  *     quit                 as Esc (the script also ends the viewer when it runs out)
@@ -53,11 +58,15 @@ typedef enum view_action {
     VIEW_ACTION_LIGHT_NEXT,    /* L: select the next light */
     VIEW_ACTION_LIGHT_UP,      /* ]: the selected light's power ×2 */
     VIEW_ACTION_LIGHT_DOWN,    /* [: the selected light's power ×0.5 */
+    VIEW_ACTION_LIGHT_COLOR,   /* K: the selected light's next colour (scene's, warm, cool, red, green) */
     VIEW_ACTION_TOGGLE_DIRECT, /* 1: direct diffuse on / off */
     VIEW_ACTION_TOGGLE_SPECULAR, /* 2: direct specular on / off */
     VIEW_ACTION_TOGGLE_INDIRECT, /* 3: indirect on / off */
     VIEW_ACTION_TOGGLE_EMISSION, /* 4: emission on / off */
     VIEW_ACTION_HELP,          /* H: the help text in the HUD on / off */
+    VIEW_ACTION_OVERLAY_NEXT,  /* O: overlay the next mesh (direct, indirect, specular, each light, off) */
+    VIEW_ACTION_OVERLAY_KIND,  /* V: the overlay shows sample points / the leaf wireframe */
+    VIEW_ACTION_RELOAD,        /* R: the scene again from its file */
     VIEW_ACTION_COUNT
 } view_action;
 
@@ -77,6 +86,9 @@ typedef enum view_cmd_kind {
     VIEW_CMD_LOOK,       /* a, b: degrees right, up */
     VIEW_CMD_CAMERA,     /* a: camera index */
     VIEW_CMD_WINDOW_SHOT, /* path */
+    VIEW_CMD_LIGHT_COLOR, /* a: light index, rgb: colour multipliers of the scene's */
+    VIEW_CMD_RESIZE,     /* a, b: width, height */
+    VIEW_CMD_MINIMISE,   /* a: 1 minimise, 0 restore */
     VIEW_CMD_COUNT
 } view_cmd_kind;
 
@@ -85,6 +97,7 @@ enum { VIEW_SCRIPT_PATH_MAX = 1024, VIEW_SCRIPT_MAX_BYTES = 1 << 20 };
 typedef struct view_cmd {
     view_cmd_kind kind;
     double a, b, c;
+    float rgb[3];
     view_action action;
     char path[VIEW_SCRIPT_PATH_MAX];
     int line;            /* 1-based, for messages */

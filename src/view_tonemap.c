@@ -17,6 +17,9 @@ struct view_tm {
     GLuint read_fbo, read_tex;
     int read_w, read_h;
     uint8_t *rgba;          /* read-back buffer, read_w·read_h·4 */
+    /* view_tm_show_rgb8's texture and its framebuffer (a blit source), kept while the size stays. */
+    GLuint show_fbo, show_tex;
+    int show_w, show_h;
 };
 
 lm_result view_tm_create(const GladGLContext *gl, view_tm **out, lm_error *err)
@@ -50,6 +53,8 @@ void view_tm_destroy(view_tm *t)
     gl->DeleteVertexArrays(1, &t->vao);
     gl->DeleteFramebuffers(1, &t->read_fbo);
     gl->DeleteTextures(1, &t->read_tex);
+    gl->DeleteFramebuffers(1, &t->show_fbo);
+    gl->DeleteTextures(1, &t->show_tex);
     free(t->rgba);
     free(t);
 }
@@ -136,5 +141,31 @@ lm_result view_tm_read(view_tm *t, GLuint texture, int width, int height, const 
         uint8_t *dst = rgb + (size_t)y * (size_t)width * 3;
         for (int x = 0; x < width; ++x) memcpy(dst + 3 * x, src + 4 * x, 3);
     }
+    return LM_OK;
+}
+
+lm_result view_tm_show_rgb8(view_tm *t, const uint8_t *rgb, int width, int height, lm_error *err)
+{
+    if (width <= 0 || height <= 0 || !rgb)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "viewer: cannot show a %dx%d image", width, height);
+    const GladGLContext *gl = t->gl;
+    if (!t->show_fbo || t->show_w != width || t->show_h != height) {
+        gl->DeleteFramebuffers(1, &t->show_fbo);
+        gl->DeleteTextures(1, &t->show_tex);
+        gl->CreateTextures(GL_TEXTURE_2D, 1, &t->show_tex);
+        gl->TextureStorage2D(t->show_tex, 1, GL_RGBA8, width, height);
+        gl->CreateFramebuffers(1, &t->show_fbo);
+        gl->NamedFramebufferTexture(t->show_fbo, GL_COLOR_ATTACHMENT0, t->show_tex, 0);
+        if (gl->CheckNamedFramebufferStatus(t->show_fbo, GL_READ_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE)
+            return lm_fail(err, LM_ERR_RUNTIME, "viewer: cannot make a %dx%d overlay framebuffer", width, height);
+        t->show_w = width;
+        t->show_h = height;
+    }
+    gl->PixelStorei(GL_UNPACK_ALIGNMENT, 1);
+    gl->TextureSubImage2D(t->show_tex, 0, 0, 0, width, height, GL_RGB, GL_UNSIGNED_BYTE, rgb);
+    gl->PixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    /* Rows arrive top first, GL's run from the bottom: the blit turns it over. */
+    gl->BlitNamedFramebuffer(t->show_fbo, 0, 0, 0, width, height, 0, height, width, 0, GL_COLOR_BUFFER_BIT, GL_NEAREST);
+    if (gl->GetError() != GL_NO_ERROR) return lm_fail(err, LM_ERR_RUNTIME, "viewer: a GL error occurred showing an overlay");
     return LM_OK;
 }

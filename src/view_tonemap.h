@@ -45,6 +45,9 @@ lm_result view_tm_draw(view_tm *t, const view_tm_target *target, GLuint texture,
 
 /* Tone maps `texture` (width × height) into an 8-bit image the same size and reads
  * it: rgb, width·height·3 bytes, top row first (img_write's order). */
+/* Shows an 8-bit RGB image (width·height·3 bytes, top row first: a debug
+ * overlay made on the CPU) in the default framebuffer of the same size. */
+lm_result view_tm_show_rgb8(view_tm *t, const uint8_t *rgb, int width, int height, lm_error *err);
 lm_result view_tm_read(view_tm *t, GLuint texture, int width, int height, const tm_desc *tm, uint8_t *rgb,
                        lm_error *err);
 

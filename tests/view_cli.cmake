@@ -8,6 +8,9 @@
 # Light edit, refinement paused (nothing else publishes): `light 0 0.5` gives one
 # new snapshot (generation + 1) with the same light-mesh sample count and a darker
 # image; hiding the indirect term (key 3) darkens it again.
+# The direct mesh's leaf overlay (key o) and the HUD change the window (window-shot
+# against the screenshot of the same frame); a reload (key r) gives a new worker
+# that refines again (a screenshot after it has direct samples).
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -31,6 +34,11 @@ screenshot ${DIR}/lit.png
 light 0 0.5
 next-snapshot 120
 screenshot ${DIR}/dim.png
+light-color 0 1 0.3 0.3
+next-snapshot 120
+screenshot ${DIR}/red.png
+light-color 0 1 1 1
+next-snapshot 120
 key 3
 frames 1
 screenshot ${DIR}/noindirect.png
@@ -42,6 +50,20 @@ zoom 1.2
 key f
 frames 2
 screenshot ${DIR}/framed.png
+key o
+frames 2
+window-shot ${DIR}/overlay.png
+screenshot ${DIR}/plain.png
+key o
+key r
+wait 2
+screenshot ${DIR}/reloaded.png
+minimise
+wait 0.3
+restore
+resize 640 360
+wait 1
+screenshot ${DIR}/resized.png
 quit
 ")
 execute_process(
@@ -52,7 +74,8 @@ message("${out}${err}")
 if(NOT rc EQUAL 0)
   message(FATAL_ERROR "lumesh view exited with '${rc}'")
 endif()
-foreach(f before.png after.png framed.png lit.png dim.png noindirect.png moved.png moved.exr)
+foreach(f before.png after.png framed.png lit.png dim.png noindirect.png moved.png moved.exr overlay.png plain.png
+        reloaded.png resized.png)
   if(NOT EXISTS ${DIR}/${f})
     message(FATAL_ERROR "no ${DIR}/${f}")
   endif()
@@ -113,4 +136,39 @@ if(NOT mean_dim LESS mean_lit)
 endif()
 if(NOT mean_noindirect LESS mean_dim)
   message(FATAL_ERROR "hiding the indirect term did not darken the image: ${mean_dim} -> ${mean_noindirect}")
+endif()
+
+# The overlay and the HUD: the window differs from the picture of the same frame.
+execute_process(COMMAND ${CHECK} ${DIR}/overlay.png ${DIR}/plain.png RESULT_VARIABLE orc OUTPUT_VARIABLE oout
+                ERROR_VARIABLE oerr)
+message("${oout}${oerr}")
+if(NOT orc EQUAL 0)
+  message(FATAL_ERROR "the window with the mesh overlay and the HUD looks like the plain picture")
+endif()
+# The reload: a new worker refined the reloaded scene.
+if(NOT out MATCHES "reloaded [^\n]*: [0-9]+ triangles")
+  message(FATAL_ERROR "no 'reloaded' line after key r")
+endif()
+if(NOT out MATCHES "screenshot [^\n]*/reloaded\\.png: [^\n]*direct samples ([0-9]+)")
+  message(FATAL_ERROR "no screenshot line for reloaded.png")
+endif()
+if(CMAKE_MATCH_1 EQUAL 0)
+  message(FATAL_ERROR "no direct samples 2 s after the reload")
+endif()
+
+# A colour edit while paused: one more snapshot, still no light sample.
+if(NOT out MATCHES "screenshot [^\n]*/red\\.png: [^\n]*light samples ([0-9]+)[^\n]*generation ([0-9]+)")
+  message(FATAL_ERROR "no screenshot line for red.png")
+endif()
+if(NOT CMAKE_MATCH_1 EQUAL light_dim)
+  message(FATAL_ERROR "the colour edit took light samples: ${light_dim} -> ${CMAKE_MATCH_1}")
+endif()
+math(EXPR gen_red_expected "${gen_dim} + 1")
+if(NOT CMAKE_MATCH_2 EQUAL gen_red_expected)
+  message(FATAL_ERROR "colour edit while paused: generation ${gen_dim} -> ${CMAKE_MATCH_2}")
+endif()
+
+# Minimised and restored, then resized: the picture follows the new framebuffer.
+if(NOT out MATCHES "screenshot [^\n]*/resized\\.png: 640x360,")
+  message(FATAL_ERROR "the screenshot after 'resize 640 360' is not 640x360")
 endif()

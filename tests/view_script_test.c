@@ -46,23 +46,31 @@ static void test_script(void)
         CHECK(c[4].kind == VIEW_CMD_KEY && c[4].action == VIEW_ACTION_LIGHT_NEXT);
     }
     free(c);
-    test_write_file("view_script_moves.txt", "pan 0.1 -0.2\nfly 1 2 3\nlook 5 -5\ncamera 2\nkey c\nkey f12\n", path,
+    test_write_file("view_script_moves.txt", "pan 0.1 -0.2\nfly 1 2 3\nlook 5 -5\ncamera 2\nkey c\nkey f12\n"
+                    "light-color 0 1 0.5 0.25\nkey k\nkey o\nkey v\nkey r\nwindow-shot w.png\n", path,
                     sizeof path);
     CHECK_MSG(view_script_load(path, &c, &n, &err) == LM_OK, "%s", err.msg);
-    CHECK(n == 6);
-    if (n == 6) {
+    CHECK(n == 12);
+    if (n == 12) {
         CHECK(c[0].kind == VIEW_CMD_PAN && c[0].a == 0.1 && c[0].b == -0.2);
         CHECK(c[1].kind == VIEW_CMD_FLY && c[1].a == 1 && c[1].b == 2 && c[1].c == 3);
         CHECK(c[2].kind == VIEW_CMD_LOOK && c[2].a == 5 && c[2].b == -5);
         CHECK(c[3].kind == VIEW_CMD_CAMERA && c[3].a == 2);
         CHECK(c[4].kind == VIEW_CMD_KEY && c[4].action == VIEW_ACTION_CAMERA_NEXT);
         CHECK(c[5].kind == VIEW_CMD_KEY && c[5].action == VIEW_ACTION_SCREENSHOT);
+        CHECK(c[6].kind == VIEW_CMD_LIGHT_COLOR && c[6].a == 0 && c[6].rgb[0] == 1.0f && c[6].rgb[1] == 0.5f &&
+              c[6].rgb[2] == 0.25f);
+        CHECK(c[7].kind == VIEW_CMD_KEY && c[7].action == VIEW_ACTION_LIGHT_COLOR);
+        CHECK(c[8].action == VIEW_ACTION_OVERLAY_NEXT && c[9].action == VIEW_ACTION_OVERLAY_KIND &&
+              c[10].action == VIEW_ACTION_RELOAD);
+        CHECK(c[11].kind == VIEW_CMD_WINDOW_SHOT && strcmp(c[11].path, "w.png") == 0);
     }
     free(c);
     const char *bad[] = {"wait\n",      "frames 2.5\n", "orbit 1\n",     "zoom 0\n",         "key x\n",
                          "jump 3\n",    "quit now\n",   "light 0\n",     "light 0.5 1\n",    "light 0 -1\n",
                          "next-snapshot\n", "pan 1\n",     "fly 1 2\n",   "look x y\n",      "camera 1.5\n",
-                         "camera -1\n",    "key s\n"};
+                         "camera -1\n",    "key s\n",       "light-color 0 1 1\n", "light-color 0 1 -1 1\n",
+                         "window-shot\n"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
         char text[64];
         snprintf(text, sizeof text, "wait 1\n%s", bad[i]);

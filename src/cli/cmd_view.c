@@ -16,7 +16,9 @@
 #include "view_script.h"
 
 typedef struct view_cli {
-    const scene *s;
+    const char *path;        /* the scene file (NULL: the built-in scene), for R */
+    scene *current;          /* the scene the viewer shows; freed by cmd_view at the end */
+    scene *pending;          /* the last reload, until the viewer takes it (or releases it) */
     const char *stats;
     double t_loaded;
 } view_cli;
@@ -44,7 +46,7 @@ static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
            (unsigned long long)rep->id_passes, rep->renderer);
     if (!c->stats) return LM_OK;
     if (!rep->snap) return lm_fail(err, LM_ERR_RUNTIME, "%s: no snapshot was drawn, no statistics to write", c->stats);
-    cJSON *j = app_stats_json(&(app_stats_desc){.command = "view", .scene = c->s->source, .width = rep->width,
+    cJSON *j = app_stats_json(&(app_stats_desc){.command = "view", .scene = rep->scene->source, .width = rep->width,
                                                .height = rep->height, .supersample = 1,
                                                .seconds = lm_now_seconds() - c->t_loaded,
                                                .first_image_seconds = rep->first_image_seconds, .snap = rep->snap,
@@ -54,6 +56,34 @@ static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
     lm_result r = app_write_json(c->stats, j, err);
     cJSON_Delete(j);
     return r;
+}
+
+/* R in the viewer: the same file loaded again. */
+static lm_result reload(void *user, const scene **fresh, lm_error *err)
+{
+    view_cli *c = user;
+    scene *s = NULL;
+    lm_result r = scene_load(&(scene_load_desc){.path = c->path, .require_light = 1}, &s, err);
+    if (r != LM_OK) return r;
+    printf("reloaded %s: %u triangles, %u lights\n", s->source, s->tri_count, scene_light_count(s));
+    fflush(stdout);
+    c->pending = s;
+    *fresh = s;
+    return LM_OK;
+}
+
+/* The viewer let go of `old`: the scene it showed (it took the reload) or the
+ * reload itself (it refused it). */
+static void release(void *user, const scene *old)
+{
+    view_cli *c = user;
+    if (old == c->current) {
+        scene_destroy(c->current);
+        c->current = c->pending;
+    } else if (old == c->pending) {
+        scene_destroy(c->pending);
+    }
+    c->pending = NULL;
 }
 
 int cmd_view(const app_command *cmd, int argc, char **argv)
@@ -95,12 +125,15 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
         if (sampler) samp_backend_from_name(sampler, &sd.backend);
         sd.gl_platform = SAMP_GL_EGL;
         if (gl_name) samp_gl_platform_from_name(gl_name, &sd.gl_platform);
-        view_cli c = {.s = s, .stats = stats, .t_loaded = t_loaded};
+        view_cli c = {.path = npos ? pos[0] : NULL, .current = s, .stats = stats, .t_loaded = t_loaded};
         r = view_app_run(&(view_app_desc){.scene = s, .camera = ci, .width = (int)width, .height = (int)height,
                                           .sampler = sd, .script = script ? cmds : NULL, .script_count = ncmds,
                                           .max_fps = max_fps > 0 ? max_fps : -1, .user = &c,
-                                          .screenshot = print_screenshot, .finished = finished},
+                                          .screenshot = print_screenshot, .finished = finished, .reload = reload,
+                                          .release = release},
                          &err);
+        s = c.current; /* the scene shown last (the first one or a reload's); the others are freed */
+        scene_destroy(c.pending); /* a reload the run ended before taking (an error) */
     }
     free(cmds);
     scene_destroy(s);
