@@ -29,8 +29,10 @@ static const float k_fly_radii_per_s = 0.5f;    /* W A S D speed: scene bounding
  * ~30 commits a second to see the picture sharpen. After a move: at once. */
 static const double k_snapshot_period = 0.25;
 /* While the camera moves the worker rests (the paper refines while the view is
- * idle): llvmpipe gets both cores for the moving frames. It resumes this long
- * after the last move. */
+ * idle), the picture is drawn at half the resolution and the ID pass waits: a
+ * moving frame on llvmpipe cost ~165 ms at 1280x720 on Water, most of it the
+ * radiance images and the composite. This long after the last move, the ID pass
+ * runs, the worker gets the new view and resumes, and frames are full size again. */
 static const double k_motion_rest = 0.15;
 
 /* Everything the loop owns; all of it display thread only (the worker's state is
@@ -45,10 +47,12 @@ typedef struct view_state {
     view_hud *hud;
     rend_id *ip;
     rend_frame *frame;
+    rend_frame *motion_frame;       /* half size: drawn while the camera moves */
     int fb_w, fb_h;                 /* size of ip and frame; 0 = not made */
     scene_camera cam;
     uint32_t camera_index;          /* the scene camera C last selected */
-    int camera_moved;               /* the ID pass must run again */
+    int camera_moved;               /* the camera moved this frame */
+    int view_pending;               /* it moved since the last ID pass (which waits for it to rest) */
     int fresh_view;                 /* the camera moved: take the next snapshot at once */
     double snap_taken;              /* when the snapshot drawn was acquired */
     double last_input;              /* when the last frame's input was taken (fly speed) */
@@ -151,8 +155,9 @@ static lm_result apply_emission(view_state *v, lm_error *err)
     lm_result r = LM_OK;
     for (uint32_t l = 0; r == LM_OK && l < s->area_light_count; ++l) {
         const float *le = s->area_lights[l].le, k = v->light_scale[l], *t = v->light_tint + 3 * (size_t)l;
-        r = rend_frame_set_emission(v->frame, s->area_lights[l].material,
-                                    (float[3]){le[0] * k * t[0], le[1] * k * t[1], le[2] * k * t[2]}, err);
+        const float e[3] = {le[0] * k * t[0], le[1] * k * t[1], le[2] * k * t[2]};
+        r = rend_frame_set_emission(v->frame, s->area_lights[l].material, e, err);
+        if (r == LM_OK) r = rend_frame_set_emission(v->motion_frame, s->area_lights[l].material, e, err);
     }
     v->emission_dirty = 0;
     return r;
@@ -210,8 +215,9 @@ static lm_result reload_scene(view_state *v, lm_error *err)
     v->snap = NULL;
     v->paused = v->motion_paused = 0;
     rend_frame_destroy(v->frame);
+    rend_frame_destroy(v->motion_frame);
     rend_id_destroy(v->ip);
-    v->frame = NULL;
+    v->frame = v->motion_frame = NULL;
     v->ip = NULL;
     v->fb_w = v->fb_h = 0;
     const scene *old = v->s;
@@ -394,6 +400,8 @@ static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
 {
     if (v->frame && w == v->fb_w && h == v->fb_h) return LM_OK;
     rend_frame_destroy(v->frame);
+    rend_frame_destroy(v->motion_frame);
+    v->motion_frame = NULL;
     rend_id_destroy(v->ip);
     v->frame = NULL;
     v->ip = NULL;
@@ -403,6 +411,11 @@ static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
     if (r == LM_OK)
         r = rend_frame_create(v->gl, &(rend_frame_desc){.scene = v->s, .width = w, .height = h, .supersample = 1},
                               &v->frame, err);
+    if (r == LM_OK)
+        r = rend_frame_create(v->gl,
+                              &(rend_frame_desc){.scene = v->s, .width = (w + 1) / 2, .height = (h + 1) / 2,
+                                                 .supersample = 1},
+                              &v->motion_frame, err);
     if (r != LM_OK) return r;
     v->fb_w = w;
     v->fb_h = h;
@@ -648,25 +661,37 @@ static lm_result frame(view_state *v, lm_error *err)
     if (w <= 0 || h <= 0) return LM_OK; /* minimised: nothing to draw into; the worker goes on */
     r = fit_size(v, w, h, err);
     if (r == LM_OK && v->emission_dirty) r = apply_emission(v, err);
-    if (r == LM_OK) rend_frame_set_components(v->frame, v->components);
-    if (r == LM_OK && v->camera_moved) {
+    if (r == LM_OK) {
+        rend_frame_set_components(v->frame, v->components);
+        rend_frame_set_components(v->motion_frame, v->components);
+    }
+    double now_m = lm_now_seconds();
+    if (v->camera_moved) {
+        v->camera_moved = 0;
+        v->view_pending = 1;
+        v->last_motion = now_m;
+        v->ov_stale = 1;
+        if (!v->paused && !v->motion_paused && v->frames > 0) {
+            cache_worker_request_pause(v->wk);
+            v->motion_paused = 1;
+        }
+    }
+    /* The ID pass once the camera rests (or at once for the first frame and for a
+     * screenshot of the picture, which must show the view refined; a window-shot
+     * shows what the window shows). */
+    int at_rest = now_m - v->last_motion >= k_motion_rest || v->frames == 0 || v->shot[0];
+    if (r == LM_OK && v->view_pending && at_rest) {
         rend_id_result ids;
         r = rend_id_render(v->ip, &v->cam, &ids, err);
         if (r == LM_OK) r = cache_worker_set_view(v->wk, ids.pixels, v->cam.position, err);
         v->id_seconds = ids.seconds;
         v->id_passes++;
-        v->camera_moved = 0;
+        v->view_pending = 0;
         v->fresh_view = 1;
-        v->last_motion = lm_now_seconds();
-        if (!v->paused && !v->motion_paused && v->frames > 0) {
-            cache_worker_request_pause(v->wk);
-            v->motion_paused = 1;
-        }
-        v->ov_stale = 1;
     }
     if (r != LM_OK) return r;
     double now_s = lm_now_seconds();
-    if (v->motion_paused && (v->paused || now_s - v->last_motion >= k_motion_rest)) {
+    if (v->motion_paused && (v->paused || !v->view_pending)) {
         if (!v->paused) cache_worker_resume(v->wk);
         v->motion_paused = 0;
     }
@@ -683,12 +708,17 @@ static lm_result frame(view_state *v, lm_error *err)
         }
     }
     if (v->snap && v->snap->failed) return lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", v->snap->error);
-    r = rend_frame_draw(v->frame, &v->cam, v->snap, NULL, err);
+    /* Moving: the half-size renderer, its picture stretched by the tone mapping. */
+    rend_frame *f = v->view_pending ? v->motion_frame : v->frame;
+    scene_camera cam = v->cam;
     rend_frame_output o;
-    rend_frame_get_output(v->frame, &o);
+    rend_frame_get_output(f, &o);
+    cam.width = o.width;
+    cam.height = o.height;
+    r = rend_frame_draw(f, &cam, v->snap, NULL, err);
     tm_desc tm = {.exposure = v->exposure};
     if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, o.texture, &tm, err);
-    if (r == LM_OK && v->overlay && v->snap) r = draw_overlay(v, w, h, o.texture, &tm, err);
+    if (r == LM_OK && v->overlay && v->snap && f == v->frame) r = draw_overlay(v, w, h, o.texture, &tm, err);
     if (r == LM_OK && v->hud) {
         char text[2048];
         hud_text(v, text, sizeof text);
@@ -696,7 +726,7 @@ static lm_result frame(view_state *v, lm_error *err)
                           w, h, err);
     }
     if (r != LM_OK) return r;
-    rend_frame_get_times(v->frame, &v->times);
+    rend_frame_get_times(f, &v->times);
     v->frames++;
     if (v->first_image < 0 && v->snap) v->first_image = lm_now_seconds() - v->t_open;
     if (v->shot[0]) r = take_screenshot(v, err);
@@ -762,6 +792,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     view_tm_destroy(v.tm);
     view_hud_destroy(v.hud);
     rend_frame_destroy(v.frame);
+    rend_frame_destroy(v.motion_frame);
     rend_id_destroy(v.ip);
     view_window_destroy(v.win);
     free(v.light_scale);
