@@ -1,6 +1,6 @@
 /* view_app.c — `lumesh view`'s display loop (view_app.h). */
 #define _POSIX_C_SOURCE 200809L /* nanosleep */
-#include "view_app.h"
+#include "view_app_internal.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -9,7 +9,6 @@
 #include <time.h>
 
 #include "image.h"
-#include "rend_debug.h"
 #include "rend_id.h"
 #include "tonemap.h"
 #include "view_camera.h"
@@ -35,66 +34,6 @@ static const double k_snapshot_period = 0.25;
  * runs, the worker gets the new view and resumes, and frames are full size again. */
 static const double k_motion_rest = 0.15;
 
-/* Everything the loop owns; all of it display thread only (the worker's state is
- * behind cache_worker's API). */
-typedef struct view_state {
-    const view_app_desc *d;
-    const scene *s;                 /* d->scene, or the last one d->reload gave */
-    view_window *win;
-    const GladGLContext *gl;
-    cache_worker *wk;
-    view_tm *tm;
-    view_hud *hud;
-    rend_id *ip;
-    rend_frame *frame;
-    rend_frame *motion_frame;       /* half size: drawn while the camera moves */
-    int fb_w, fb_h;                 /* size of ip and frame; 0 = not made */
-    scene_camera cam;
-    uint32_t camera_index;          /* the scene camera C last selected */
-    int camera_moved;               /* the camera moved this frame */
-    int view_pending;               /* it moved since the last ID pass (which waits for it to rest) */
-    int fresh_view;                 /* the camera moved: take the next snapshot at once */
-    double snap_taken;              /* when the snapshot drawn was acquired */
-    double last_input;              /* when the last frame's input was taken (fly speed) */
-    int paused;                     /* P: the user paused refinement */
-    int motion_paused;              /* the camera is moving: refinement rests (not the user's pause) */
-    double last_motion;
-    float exposure;                 /* stops */
-    uint32_t light_count, light;    /* the scene's lights; the one the keys edit */
-    float *light_scale;             /* per light: power relative to the scene's */
-    float *light_tint;              /* per light, RGB: colour multiplier of the scene's (K cycles presets) */
-    uint32_t *light_preset;         /* per light: the K preset shown (0 = the scene's colour) */
-    int emission_dirty;             /* the renderer's emitters differ from light_scale */
-    unsigned components;            /* REND_FRAME_COMPONENT_* shown */
-    int help;                       /* the help overlay is on */
-    /* Mesh overlay (paper Fig. 4b/4c, rend_debug.h): 0 off, else 1 + the mesh
-     * (0 direct, 1 indirect, 2 specular, 3 + l light l); the image made on the CPU
-     * is kept until the snapshot, the camera, the size or the choice changes. */
-    int overlay, overlay_points;
-    uint8_t *ov_bg, *ov_rgb;
-    uint32_t *ov_ids;
-    int ov_w, ov_h, ov_stale;
-    uint64_t ov_generation;
-    /* Samples per second for the HUD: all samples at the start of the current
-     * one-second window, and the rate measured over the last one. */
-    double rate_t0, rate;
-    uint64_t rate_samples0;
-    const cache_snapshot *snap;     /* the last acquired, valid until the next acquire */
-    uint64_t frames, id_passes, screenshots, reloads;
-    double t_open, first_image, id_seconds;
-    rend_frame_times times;
-    int drawn;                      /* a frame with the current sizes exists */
-    /* The script: the command running and when it started. */
-    size_t si;
-    int cmd_started;
-    double cmd_t0;
-    uint64_t cmd_frames0, cmd_generation0;
-    int quit;
-    int in_script;                  /* apply_action runs for a script command */
-    char shot[VIEW_SCRIPT_PATH_MAX];/* screenshot to take after this frame's draw; "" = none */
-    int shot_exr_too;               /* F12: shot is a .png, write the .exr beside it */
-    char window_shot[VIEW_SCRIPT_PATH_MAX]; /* the whole window after this frame's draw; "" = none */
-} view_state;
 
 static void nap(double seconds)
 {
@@ -103,7 +42,7 @@ static void nap(double seconds)
     nanosleep(&t, NULL);
 }
 
-static void report_of(const view_state *v, view_app_report *r)
+void view_app_report_of(const view_state *v, view_app_report *r)
 {
     *r = (view_app_report){.scene = v->s, .camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
                            .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
@@ -120,7 +59,7 @@ static const float k_light_presets[][3] = {
     {0.55f, 1.25f, 0.6f},  /* green */
 };
 enum { LIGHT_PRESETS = sizeof k_light_presets / sizeof k_light_presets[0] };
-static const char *const k_preset_names[LIGHT_PRESETS] = {"", " warm", " cool", " red", " green"};
+const char *const view_light_preset_names[LIGHT_PRESETS] = {"", " warm", " cool", " red", " green"};
 
 /* Light l to scale × tint × the scene's radiance (or intensity): the worker
  * recomputes the direct mesh from its stored G (no light sample), the renderer
@@ -426,193 +365,6 @@ static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
     return LM_OK;
 }
 
-static int ends_with(const char *s, const char *suffix)
-{
-    size_t n = strlen(s), k = strlen(suffix);
-    return n >= k && strcmp(s + n - k, suffix) == 0;
-}
-
-/* The linear radiance behind the picture (the same snapshot drawn again and read
- * back: the renderer redraws only what changed, i.e. nothing). */
-static lm_result write_exr(view_state *v, const char *path, lm_error *err)
-{
-    rend_frame_output o;
-    rend_frame_get_output(v->frame, &o);
-    float *rgb = malloc((size_t)o.width * (size_t)o.height * 3 * sizeof *rgb);
-    if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-    lm_result r = rend_frame_draw(v->frame, &v->cam, v->snap, rgb, err);
-    if (r == LM_OK)
-        r = img_write(&(img_write_desc){.path = path, .width = o.width, .height = o.height, .channels = 3, .pixels = rgb},
-                      err);
-    free(rgb);
-    return r;
-}
-
-static lm_result take_screenshot(view_state *v, lm_error *err)
-{
-    rend_frame_output o;
-    rend_frame_get_output(v->frame, &o);
-    lm_result r = LM_OK;
-    if (ends_with(v->shot, ".exr")) {
-        r = write_exr(v, v->shot, err);
-    } else {
-        uint8_t *rgb = malloc((size_t)o.width * (size_t)o.height * 3);
-        if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-        r = view_tm_read(v->tm, o.texture, o.width, o.height, &(tm_desc){.exposure = v->exposure}, rgb, err);
-        if (r == LM_OK)
-            r = img_write(&(img_write_desc){.path = v->shot, .width = o.width, .height = o.height, .channels = 3,
-                                            .pixels8 = rgb},
-                          err);
-        free(rgb);
-    }
-    if (r == LM_OK && v->shot_exr_too && ends_with(v->shot, ".png")) {
-        char exr[VIEW_SCRIPT_PATH_MAX];
-        snprintf(exr, sizeof exr, "%.*s.exr", (int)(strlen(v->shot) - 4), v->shot);
-        r = write_exr(v, exr, err);
-    }
-    if (r == LM_OK && v->d->screenshot) {
-        view_app_report rep;
-        report_of(v, &rep);
-        v->d->screenshot(v->shot, &rep, v->d->user);
-    }
-    v->shot[0] = '\0';
-    return r;
-}
-
-/* The overlay's mesh in the snapshot, and its name; NULL when it has none. */
-static const cache_snapshot_mesh *overlay_mesh(const view_state *v, char *name, size_t size)
-{
-    const cache_snapshot *s = v->snap;
-    int k = v->overlay - 1;
-    if (k < 3) snprintf(name, size, "%s", k == 0 ? "direct" : k == 1 ? "indirect" : "specular");
-    else snprintf(name, size, "light%d", k - 3);
-    if (!s) return NULL;
-    const cache_snapshot_mesh *m = k == 0 ? &s->direct : k == 1 ? &s->indirect : k == 2 ? &s->specular
-                                 : (uint32_t)(k - 3) < s->light_mesh_count ? &s->lights[k - 3] : NULL;
-    return m && m->corners && m->triangle_count ? m : NULL;
-}
-
-/* Draws the overlay over the tone-mapped picture in the window (made again when
- * what it shows changed). Returns LM_OK and draws nothing without data. */
-static lm_result draw_overlay(view_state *v, int w, int h, GLuint texture, const tm_desc *tm, lm_error *err)
-{
-    char name[32];
-    const cache_snapshot_mesh *m = overlay_mesh(v, name, sizeof name);
-    if (!m) return LM_OK;
-    size_t n = (size_t)w * (size_t)h;
-    if (v->ov_w != w || v->ov_h != h) {
-        free(v->ov_bg);
-        free(v->ov_rgb);
-        free(v->ov_ids);
-        v->ov_bg = malloc(3 * n);
-        v->ov_rgb = malloc(3 * n);
-        v->ov_ids = malloc(n * sizeof *v->ov_ids);
-        v->ov_w = v->ov_bg && v->ov_rgb && v->ov_ids ? w : 0;
-        v->ov_h = h;
-        if (!v->ov_w) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d overlay", w, h);
-        v->ov_stale = 1;
-    }
-    lm_result r = LM_OK;
-    if (v->ov_stale || v->ov_generation != v->snap->generation) {
-        r = rend_id_read_image(v->ip, v->ov_ids, err);
-        if (r == LM_OK) r = view_tm_read(v->tm, texture, w, h, tm, v->ov_bg, err);
-        rend_debug_desc d = {.camera = &v->cam, .width = w, .height = h, .ids = v->ov_ids, .background = v->ov_bg};
-        if (r == LM_OK)
-            r = v->overlay_points ? rend_debug_samples(&d, m, v->ov_rgb, NULL, err)
-                                  : rend_debug_leaves(&d, m, v->ov_rgb, NULL, err);
-        if (r != LM_OK) return r;
-        v->ov_stale = 0;
-        v->ov_generation = v->snap->generation;
-    }
-    return view_tm_show_rgb8(v->tm, v->ov_rgb, w, h, err);
-}
-
-static const char k_help[] =
-    "left drag: orbit    middle / shift+left drag: pan    right drag: look    wheel: zoom\n"
-    "W A S D, Space / Ctrl: fly    F: frame all    C: next camera\n"
-    "1 2 3 4: direct diffuse, direct specular, indirect, emission on / off\n"
-    "L: next light    ] [: its power x2 / x0.5    K: its colour (no new light samples)\n"
-    "+ -: exposure    P: pause refinement    F12: screenshot (PNG + EXR)\n"
-    "O: overlay the next mesh    V: wireframe / sample points\n"
-    "R: reload the scene from its file    H: this help    Esc / Q: quit";
-
-static uint64_t all_samples(const cache_snapshot *s)
-{
-    uint64_t n = s->stats.direct.samples + s->stats.indirect.samples + s->stats.specular.samples;
-    for (uint32_t l = 0; l < s->stats.light_count; ++l) n += s->stats.lights[l].samples;
-    return n;
-}
-
-/* The HUD's lines: frame rate and passes, refinement, samples per mesh, memory,
- * the display state; the help under it when on. */
-static void hud_text(view_state *v, char *out, size_t size)
-{
-    const cache_snapshot *s = v->snap;
-    double now = lm_now_seconds();
-    if (s && now - v->rate_t0 >= 1.0) {
-        uint64_t n = all_samples(s);
-        v->rate = v->rate_t0 > 0 ? (double)(n - v->rate_samples0) / (now - v->rate_t0) : 0.0;
-        v->rate_t0 = now;
-        v->rate_samples0 = n;
-    }
-    double fps = v->frames / fmax(1e-9, now - v->t_open);
-    size_t k = (size_t)snprintf(out, size, "%.1f fps  %dx%d  frame %.1f ms (material %.1f, radiance %.1f, composite %.1f)\n",
-                                fps, v->fb_w, v->fb_h, 1e3 * v->times.total, 1e3 * v->times.material,
-                                1e3 * v->times.radiance, 1e3 * v->times.composite);
-    if (s && k < size) {
-        k += (size_t)snprintf(out + k, size - k, "refinement: %s, %.0f samples/s, %.1f MB%s\nsamples:",
-                              v->paused ? "paused" : s->converged ? "converged" : "running", v->rate,
-                              s->stats.bytes / 1048576.0, s->finished && !s->converged ? " (limit reached)" : "");
-        for (uint32_t l = 0; l < s->stats.light_count && l < 8 && k < size; ++l)
-            k += (size_t)snprintf(out + k, size - k, " light%u %llu,", l, (unsigned long long)s->stats.lights[l].samples);
-        if (k < size)
-            k += (size_t)snprintf(out + k, size - k, " direct %llu, indirect %llu, specular %llu\n",
-                                  (unsigned long long)s->stats.direct.samples,
-                                  (unsigned long long)s->stats.indirect.samples,
-                                  (unsigned long long)s->stats.specular.samples);
-    } else if (k < size) {
-        k += (size_t)snprintf(out + k, size - k, "refinement: starting\n");
-    }
-    if (k < size) {
-        char light[64] = "";
-        if (v->light_count)
-            snprintf(light, sizeof light, "  light %u/%u x%.3g%s", v->light + 1, v->light_count,
-                     v->light_scale[v->light], k_preset_names[v->light_preset[v->light]]);
-        k += (size_t)snprintf(out + k, size - k, "exposure %+.1f%s  terms %c%c%c%c  camera %u/%u%s", v->exposure, light,
-                              v->components & REND_FRAME_COMPONENT_DIRECT_DIFFUSE ? 'D' : '-',
-                              v->components & REND_FRAME_COMPONENT_DIRECT_SPECULAR ? 'S' : '-',
-                              v->components & REND_FRAME_COMPONENT_INDIRECT ? 'I' : '-',
-                              v->components & REND_FRAME_COMPONENT_EMISSION ? 'E' : '-', v->camera_index + 1,
-                              v->s->camera_count, v->help ? "" : "    H: help");
-    }
-    if (v->overlay && k < size) {
-        char name[32];
-        const cache_snapshot_mesh *m = overlay_mesh(v, name, sizeof name);
-        k += (size_t)snprintf(out + k, size - k, "\noverlay: %s %s%s", name,
-                              v->overlay_points ? "sample points" : "leaf wireframe", m ? "" : " (nothing to show)");
-    }
-    if (v->help && k < size) snprintf(out + k, size - k, "\n\n%s", k_help);
-}
-
-static void update_title(view_state *v)
-{
-    const cache_snapshot *s = v->snap;
-    char title[256];
-    double fps = v->frames / fmax(1e-9, lm_now_seconds() - v->t_open);
-    char light[64] = "";
-    if (v->light_count)
-        snprintf(light, sizeof light, ", light %u/%u ×%.3g", v->light + 1, v->light_count, v->light_scale[v->light]);
-    snprintf(title, sizeof title,
-             "lumesh view — %.0f fps, exposure %+.1f%s, terms %c%c%c%c — %s%llu direct, %llu indirect samples%s", fps,
-             v->exposure, light, v->components & REND_FRAME_COMPONENT_DIRECT_DIFFUSE ? 'D' : '-',
-             v->components & REND_FRAME_COMPONENT_DIRECT_SPECULAR ? 'S' : '-',
-             v->components & REND_FRAME_COMPONENT_INDIRECT ? 'I' : '-',
-             v->components & REND_FRAME_COMPONENT_EMISSION ? 'E' : '-', v->paused ? "paused, " : "",
-             s ? (unsigned long long)s->stats.direct.samples : 0ull,
-             s ? (unsigned long long)s->stats.indirect.samples : 0ull, s && s->converged ? ", converged" : "");
-    view_window_set_title(v->win, title);
-}
-
 /* One frame: input, script, ID pass after a move, the latest snapshot, draw, present. */
 static lm_result frame(view_state *v, lm_error *err)
 {
@@ -718,10 +470,10 @@ static lm_result frame(view_state *v, lm_error *err)
     r = rend_frame_draw(f, &cam, v->snap, NULL, err);
     tm_desc tm = {.exposure = v->exposure};
     if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, o.texture, &tm, err);
-    if (r == LM_OK && v->overlay && v->snap && f == v->frame) r = draw_overlay(v, w, h, o.texture, &tm, err);
+    if (r == LM_OK && v->overlay && v->snap && f == v->frame) r = view_app_draw_overlay(v, w, h, o.texture, &tm, err);
     if (r == LM_OK && v->hud) {
         char text[2048];
-        hud_text(v, text, sizeof text);
+        view_app_hud_text(v, text, sizeof text);
         r = view_hud_draw(v->hud, &(view_hud_text){.text = text, .x = 8, .y = 8, .scale = h >= 600 ? 2.0f : 1.0f},
                           w, h, err);
     }
@@ -729,7 +481,7 @@ static lm_result frame(view_state *v, lm_error *err)
     rend_frame_get_times(f, &v->times);
     v->frames++;
     if (v->first_image < 0 && v->snap) v->first_image = lm_now_seconds() - v->t_open;
-    if (v->shot[0]) r = take_screenshot(v, err);
+    if (v->shot[0]) r = view_app_take_screenshot(v, err);
     if (r == LM_OK && v->window_shot[0]) {
         uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
         r = rgb ? view_hud_read_window(v->hud, w, h, rgb, err)
@@ -773,7 +525,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
         r = frame(&v, err);
         double now = lm_now_seconds();
         if (now >= next_title) {
-            update_title(&v);
+            view_app_update_title(&v);
             next_title = now + TITLE_PERIOD_MS * 1e-3;
         }
         /* Steady pacing: aim at fixed ticks; after a slow frame start again from now
@@ -784,7 +536,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     }
     if (r == LM_OK && d->finished) {
         view_app_report rep;
-        report_of(&v, &rep);
+        view_app_report_of(&v, &rep);
         r = d->finished(&rep, d->user, err);
     }
     if (v.paused) cache_worker_resume(v.wk);
