@@ -196,22 +196,59 @@ static int draw_segment(const rend_debug_desc *d, double ax, double ay, double b
     return drawn;
 }
 
+/* What both overlays start and end with: arguments checked, defaults filled, the
+ * clock started, a pixel mask and per-corner scratch (records of rec_size bytes
+ * and triangle ids). */
+typedef struct overlay_work {
+    rend_debug_desc d;
+    size_t ncorner;
+    uint8_t *mask;
+    void *recs;
+    uint32_t *tris;
+    double t0;
+} overlay_work;
+
+static lm_result overlay_begin(const rend_debug_desc *din, const cache_snapshot_mesh *m, uint8_t *out_rgb,
+                               rend_debug_counts *counts, size_t rec_size, const char *who, overlay_work *w,
+                               lm_error *err)
+{
+    memset(w, 0, sizeof *w);
+    w->t0 = lm_now_seconds();
+    if (counts) memset(counts, 0, sizeof *counts);
+    lm_result r = check_args(din, m, out_rgb, who, err);
+    if (r != LM_OK) return r;
+    w->d = rend_debug_defaults(din);
+    w->ncorner = 3 * (size_t)m->triangle_count;
+    size_t n = w->ncorner ? w->ncorner : 1;
+    w->mask = calloc((size_t)w->d.width * (size_t)w->d.height, 1);
+    w->recs = malloc(n * rec_size);
+    w->tris = malloc(n * sizeof *w->tris);
+    if (!w->mask || !w->recs || !w->tris) {
+        free(w->mask), free(w->recs), free(w->tris);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory for %zu corners", who, w->ncorner);
+    }
+    return LM_OK;
+}
+
+/* Frees the scratch and hands out the counts with the time taken. */
+static void overlay_end(overlay_work *w, rend_debug_counts *n, rend_debug_counts *counts)
+{
+    free(w->mask), free(w->recs), free(w->tris);
+    n->seconds = lm_now_seconds() - w->t0;
+    if (counts) *counts = *n;
+}
+
 lm_result rend_debug_leaves(const rend_debug_desc *din, const cache_snapshot_mesh *m, uint8_t *out_rgb,
                             rend_debug_counts *counts, lm_error *err)
 {
-    const double t0 = lm_now_seconds();
-    if (counts) memset(counts, 0, sizeof *counts);
-    lm_result r = check_args(din, m, out_rgb, "rend_debug_leaves", err);
+    overlay_work w;
+    lm_result r = overlay_begin(din, m, out_rgb, counts, sizeof(edge_rec), "rend_debug_leaves", &w, err);
     if (r != LM_OK) return r;
-    const rend_debug_desc d = rend_debug_defaults(din);
-    const size_t npx = (size_t)d.width * (size_t)d.height, ncorner = 3 * (size_t)m->triangle_count;
-    uint8_t *mask = calloc(npx, 1);
-    edge_rec *e = malloc((ncorner ? ncorner : 1) * sizeof *e);
-    uint32_t *tris = malloc((ncorner ? ncorner : 1) * sizeof *tris);
-    if (!mask || !e || !tris) {
-        free(mask), free(e), free(tris);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "rend_debug_leaves: out of memory for %zu edges", ncorner);
-    }
+    const rend_debug_desc d = w.d;
+    const size_t ncorner = w.ncorner;
+    uint8_t *mask = w.mask;
+    edge_rec *e = w.recs;
+    uint32_t *tris = w.tris;
     size_t ne = 0;
     for (size_t i = 0; i < ncorner; ++i) {
         if (!(m->corners[i].flags & CACHE_CORNER_LEAF_EDGE)) continue;
@@ -239,9 +276,7 @@ lm_result rend_debug_leaves(const rend_debug_desc *din, const cache_snapshot_mes
         n.segments_drawn += (uint32_t)draw_segment(&d, ax, ay, bx, by, tris, nt, mask);
     }
     n.wire_pixels = compose(&d, mask, d.wire_color, out_rgb);
-    free(mask), free(e), free(tris);
-    n.seconds = lm_now_seconds() - t0;
-    if (counts) *counts = n;
+    overlay_end(&w, &n, counts);
     return LM_OK;
 }
 
@@ -261,19 +296,14 @@ static int vert_cmp(const void *pa, const void *pb)
 lm_result rend_debug_samples(const rend_debug_desc *din, const cache_snapshot_mesh *m, uint8_t *out_rgb,
                              rend_debug_counts *counts, lm_error *err)
 {
-    const double t0 = lm_now_seconds();
-    if (counts) memset(counts, 0, sizeof *counts);
-    lm_result r = check_args(din, m, out_rgb, "rend_debug_samples", err);
+    overlay_work w;
+    lm_result r = overlay_begin(din, m, out_rgb, counts, sizeof(vert_rec), "rend_debug_samples", &w, err);
     if (r != LM_OK) return r;
-    const rend_debug_desc d = rend_debug_defaults(din);
-    const size_t npx = (size_t)d.width * (size_t)d.height, ncorner = 3 * (size_t)m->triangle_count;
-    uint8_t *mask = calloc(npx, 1);
-    vert_rec *v = malloc((ncorner ? ncorner : 1) * sizeof *v);
-    uint32_t *tris = malloc((ncorner ? ncorner : 1) * sizeof *tris);
-    if (!mask || !v || !tris) {
-        free(mask), free(v), free(tris);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "rend_debug_samples: out of memory for %zu corners", ncorner);
-    }
+    const rend_debug_desc d = w.d;
+    const size_t ncorner = w.ncorner;
+    uint8_t *mask = w.mask;
+    vert_rec *v = w.recs;
+    uint32_t *tris = w.tris;
     size_t nv = 0;
     for (size_t i = 0; i < ncorner; ++i)
         if (m->corners[i].flags & CACHE_CORNER_SAMPLED)
@@ -312,9 +342,7 @@ lm_result rend_debug_samples(const rend_debug_desc *din, const cache_snapshot_me
             }
     }
     n.point_pixels = compose(&d, mask, d.point_color, out_rgb);
-    free(mask), free(v), free(tris);
-    n.seconds = lm_now_seconds() - t0;
-    if (counts) *counts = n;
+    overlay_end(&w, &n, counts);
     return LM_OK;
 }
 
