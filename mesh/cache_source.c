@@ -37,14 +37,6 @@ struct source_pick {
     uint32_t node;
 };
 
-static double tri_area(const scene *s, uint32_t t)
-{
-    const uint32_t *v = s->tris[t].v;
-    lm_dvec3 a = dv3_load(s->positions + 3 * (size_t)v[0]), b = dv3_load(s->positions + 3 * (size_t)v[1]),
-             c = dv3_load(s->positions + 3 * (size_t)v[2]);
-    return 0.5 * dv3_length(dv3_cross(dv3_sub(b, a), dv3_sub(c, a)));
-}
-
 static float source_error(cache *c, uint32_t node)
 {
     const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
@@ -115,14 +107,14 @@ static lm_result choose_cut(cache *c, lm_error *err)
         if (root == MESH_QMESH_NONE) continue;
         count++;
         float e = source_error(c, root);
-        if (e > 0.0f) heap_push(c->src_heap, &hn, (struct source_pick){e * (float)tri_area(s, t), root});
+        if (e > 0.0f) heap_push(c->src_heap, &hn, (struct source_pick){e * s->tri_areas[t], root});
     }
     while (hn && count + 3 <= CACHE_RMESH_TRIANGLES) {
         struct source_pick p = heap_pop(c->src_heap, &hn);
         const mesh_qnode *n = mesh_qmesh_node(c->direct, p.node);
         c->src_open[p.node] = 1;
         count += 3;
-        double area = tri_area(s, n->tri) * ldexp(1.0, -2 * ((int)n->depth + 1));
+        double area = s->tri_areas[n->tri] * ldexp(1.0, -2 * ((int)n->depth + 1));
         for (uint32_t k = 0; k < 4; ++k) {
             float e = c->src_err[n->child + k];
             if (e > 0.0f) heap_push(c->src_heap, &hn, (struct source_pick){e * (float)area, n->child + k});

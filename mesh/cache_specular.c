@@ -18,14 +18,14 @@
  * so an edge inside the light appears once in each direction and cancels; what is
  * left is the boundary: outer loops counter-clockwise seen from the front, holes
  * clockwise. A quad light integrates four edges instead of six, and a lamp of many
- * triangles a handful. Vertices are welded by exact position first (files repeat
- * positions per face). A light whose triangles are not coplanar and facing one way
- * keeps one loop per triangle: samp_polygon_phong wants planar polygons. */
+ * triangles a handful. The scene model guarantees what this needs: corners welded
+ * by exact position (scene_build.c), and each area light one connected group of
+ * coplanar triangles facing one way (scene_lights.c), so every loop is planar. */
 
 static lm_dvec3 dv3_of(const double *p) { return dv3(p[0], p[1], p[2]); }
 
 typedef struct outline_edge {
-    uint64_t key;  /* from << 32 | to (welded vertex ids) */
+    uint64_t key;  /* min << 32 | max (scene vertex ids) */
     int32_t count; /* net multiplicity, from → to positive */
 } outline_edge;
 
@@ -45,20 +45,6 @@ static int cmp_u64(const void *a, const void *b)
 }
 
 static int cmp_edge(const void *a, const void *b) { return cmp_u64(&((const outline_edge *)a)->key, &((const outline_edge *)b)->key); }
-
-/* Position order, then id: equal positions end up adjacent. */
-typedef struct weld_item {
-    float p[3];
-    uint32_t id;
-} weld_item;
-
-static int cmp_weld(const void *a, const void *b)
-{
-    const weld_item *x = a, *y = b;
-    for (int k = 0; k < 3; ++k)
-        if (x->p[k] != y->p[k]) return x->p[k] < y->p[k] ? -1 : 1;
-    return (x->id > y->id) - (x->id < y->id);
-}
 
 static int push_point(outline_buf *b, const float p[3])
 {
@@ -126,55 +112,26 @@ static int close_loop(outline_buf *b, size_t start, const float front[3])
     return 1;
 }
 
-/* Are the light's triangles coplanar and all facing its front? */
-static int light_is_flat(const scene *s, const scene_area_light *L)
-{
-    lm_dvec3 nl = dv3_load(L->normal), cl = dv3_load(L->centroid);
-    double extent = 0.0;
-    for (int k = 0; k < 3; ++k) extent = fmax(extent, (double)L->bounds_max[k] - L->bounds_min[k]);
-    for (uint32_t i = 0; i < L->count; ++i) {
-        uint32_t t = s->light_tris[L->first + i];
-        if (dv3_dot(dv3_load(s->tri_normals + 3 * (size_t)t), nl) < 0.9999) return 0;
-        for (int k = 0; k < 3; ++k) {
-            lm_dvec3 p = dv3_load(s->positions + 3 * (size_t)s->tris[t].v[k]);
-            if (fabs(dv3_dot(dv3_sub(p, cl), nl)) > 1e-5 * extent) return 0;
-        }
-    }
-    return 1;
-}
-
-/* The boundary loops of one flat light. */
-static int outline_flat_light(const scene *s, const scene_area_light *L, outline_buf *b)
+/* The boundary loops of one light. */
+static int outline_light(const scene *s, const scene_area_light *L, outline_buf *b)
 {
     const uint32_t nv = 3 * L->count;
-    weld_item *w = malloc(nv * sizeof *w);
-    uint32_t *welded = malloc(nv * sizeof *welded); /* corner 3i+k → welded id */
-    outline_edge *e = malloc(2 * (size_t)nv * sizeof *e);
-    uint64_t *out = malloc(nv * sizeof *out);
+    outline_edge *e = malloc((nv ? nv : 1) * sizeof *e);
+    uint64_t *out = malloc((nv ? nv : 1) * sizeof *out);
     uint8_t *used = calloc(nv ? nv : 1, 1);
-    int ok = w && welded && e && out && used;
-    for (uint32_t i = 0; ok && i < L->count; ++i)
-        for (int k = 0; k < 3; ++k) {
-            uint32_t id = s->tris[s->light_tris[L->first + i]].v[k];
-            memcpy(w[3 * i + (uint32_t)k].p, s->positions + 3 * (size_t)id, 3 * sizeof(float));
-            w[3 * i + (uint32_t)k].id = 3 * i + (uint32_t)k;
-        }
-    if (ok) qsort(w, nv, sizeof *w, cmp_weld);
-    /* welded id: the sorted index of the first item of each run of equal positions */
-    for (uint32_t j = 0, head = 0; ok && j < nv; ++j) {
-        if (j > 0 && memcmp(w[j].p, w[j - 1].p, sizeof w[j].p) != 0) head = j;
-        welded[w[j].id] = head;
-    }
-    /* Directed edges with a sign: (min, max) keys, +1 going up, −1 going down. */
+    int ok = e && out && used;
+    /* Edges by (min, max) vertex id with a sign: +1 going up, −1 going down. */
     size_t ne = 0;
-    for (uint32_t i = 0; ok && i < L->count; ++i)
+    for (uint32_t i = 0; ok && i < L->count; ++i) {
+        const uint32_t *v = s->tris[s->light_tris[L->first + i]].v;
         for (uint32_t k = 0; k < 3; ++k) {
-            uint32_t a = welded[3 * i + k], c = welded[3 * i + (k + 1) % 3];
+            uint32_t a = v[k], c = v[(k + 1) % 3];
             if (a == c) continue; /* degenerate */
             uint32_t lo = a < c ? a : c, hi = a < c ? c : a;
             e[ne].key = (uint64_t)lo << 32 | hi;
             e[ne++].count = a < c ? 1 : -1;
         }
+    }
     if (ok) qsort(e, ne, sizeof *e, cmp_edge);
     /* Net edges, as directed keys from << 32 | to, sorted for the chaining. */
     size_t no = 0;
@@ -196,7 +153,7 @@ static int outline_flat_light(const scene *s, const scene_area_light *L, outline
         for (size_t steps = 0; ok && steps <= no; ++steps) {
             used[cur] = 1;
             uint32_t from = (uint32_t)(out[cur] >> 32), to = (uint32_t)out[cur];
-            ok = push_point(b, w[from].p);
+            ok = push_point(b, s->positions + 3 * (size_t)from);
             if (to == loop_from) break; /* closed (a vertex two loops touch ends each) */
             /* the edges leaving `to` start at the lower bound of to << 32 */
             size_t lo = 0, hi = no;
@@ -216,25 +173,10 @@ static int outline_flat_light(const scene *s, const scene_area_light *L, outline
         }
         if (ok) ok = close_loop(b, start, L->normal);
     }
-    free(w);
-    free(welded);
     free(e);
     free(out);
     free(used);
     return ok;
-}
-
-/* One loop per triangle, in its winding (a light that is not flat). */
-static int outline_triangles(const scene *s, const scene_area_light *L, outline_buf *b)
-{
-    for (uint32_t i = 0; i < L->count; ++i) {
-        uint32_t t = s->light_tris[L->first + i];
-        size_t start = b->xyz_n;
-        for (int k = 0; k < 3; ++k)
-            if (!push_point(b, s->positions + 3 * (size_t)s->tris[t].v[k])) return 0;
-        if (!close_loop(b, start, s->tri_normals + 3 * (size_t)t)) return 0;
-    }
-    return 1;
 }
 
 int cache_build_outlines(cache *c)
@@ -248,10 +190,7 @@ int cache_build_outlines(cache *c)
     int ok = b.light_loop && b.loop && b.sign;
     for (uint32_t l = 0; ok && l < c->light_count; ++l) {
         b.light_loop[l] = (uint32_t)b.loop_n;
-        if (l < s->area_light_count) {
-            const scene_area_light *L = &s->area_lights[l];
-            ok = light_is_flat(s, L) ? outline_flat_light(s, L, &b) : outline_triangles(s, L, &b);
-        }
+        if (l < s->area_light_count) ok = outline_light(s, &s->area_lights[l], &b);
     }
     if (ok) b.light_loop[c->light_count] = (uint32_t)b.loop_n;
     if (!ok) {

@@ -50,6 +50,9 @@ struct cache_worker {
     light_edit edits[MAX_EDITS];
     uint32_t edit_count;
     uint32_t *new_pixels;             /* set_pixels: a copy waiting for the worker to take it */
+    int debug_wanted;                 /* snapshots carry the debug data (desc.publish_debug, then
+                                         cache_worker_set_publish_debug) */
+    int republish;                    /* debug_wanted changed: publish once even when idle or paused */
     float new_eye[3];                 /* set_view: the eye that comes with new_pixels ... */
     int new_eye_set;                  /* ... when this is non-zero */
     samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
@@ -219,7 +222,10 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
         r = cache_create(&cd, c, err);
     }
     if (r == LM_OK) r = cache_init(*c, err);
-    if (r == LM_OK) r = fill_snapshot(w->back, *c, w->desc.publish_debug, ++*generation, 0, 0, buf, buf_cap, err);
+    pthread_mutex_lock(&w->lock);
+    int debug = w->debug_wanted;
+    pthread_mutex_unlock(&w->lock);
+    if (r == LM_OK) r = fill_snapshot(w->back, *c, debug, ++*generation, 0, 0, buf, buf_cap, err);
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
     if (r == LM_OK) commit(w);
     if (r == LM_OK && !w->desc.no_quick_start) samp_get_stats(first, &w->quick_stats);
@@ -275,10 +281,10 @@ static void *worker_main(void *arg)
             nedit = w->edit_count;
             /* pixels_later: refinement waits for the first set_pixels (the coarse cache does not). */
             int no_pixels = w->desc.pixels_later && !w->pixels && !w->new_pixels;
-            /* Paused or idle, an edit or a new view still wakes the worker: it is
-             * applied and published without a refinement step (a paused viewer
-             * shows it); idle, refinement then goes on for it. */
-            if (((w->paused || idle) && nedit == 0 && !w->new_pixels) || no_pixels) {
+            /* Paused or idle, an edit, a new view or a change of the debug data still
+             * wakes the worker: it is applied and published without a refinement
+             * step (a paused viewer shows it); idle, refinement then goes on for it. */
+            if (((w->paused || idle) && nedit == 0 && !w->new_pixels && !w->republish) || no_pixels) {
                 w->parked = 1;
                 pthread_cond_broadcast(&w->cond);
                 if (w->paused) {
@@ -298,7 +304,8 @@ static void *worker_main(void *arg)
             }
             break;
         }
-        int cancel = w->cancel, paused = w->paused;
+        int cancel = w->cancel, paused = w->paused, debug = w->debug_wanted;
+        w->republish = 0;
         if (!cancel && nedit) {
             memcpy(edits, w->edits, nedit * sizeof *edits);
             w->edit_count = 0;
@@ -326,7 +333,7 @@ static void *worker_main(void *arg)
         /* After an edit while paused nothing was tested: every leaf is queued again (not converged). */
         int converged = !paused && res.remaining == 0;
         idle = converged || (w->desc.max_tested && tested >= w->desc.max_tested);
-        r = fill_snapshot(w->back, c, w->desc.publish_debug, ++generation, tested, converged, &buf, &buf_cap, &err);
+        r = fill_snapshot(w->back, c, debug, ++generation, tested, converged, &buf, &buf_cap, &err);
         w->back->snap.finished = idle;
         if (r == LM_OK) samp_get_stats(sp, &w->back->snap.sampler);
         w->back->snap.quick_sampler = w->quick_stats;
@@ -387,6 +394,7 @@ lm_result cache_worker_create(const cache_worker_desc *desc, cache_worker **out,
     cache_worker *w = calloc(1, sizeof *w);
     if (!w) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the refinement worker");
     w->desc = *desc;
+    w->debug_wanted = desc->publish_debug != 0;
     w->s = desc->scene;
     w->front = calloc(1, sizeof *w->front);
     w->ready = calloc(1, sizeof *w->ready);
@@ -432,6 +440,17 @@ void cache_worker_pause(cache_worker *w)
     w->paused = 1;
     pthread_cond_broadcast(&w->cond);
     while (!w->parked && !w->finished) pthread_cond_wait(&w->cond, &w->lock);
+    pthread_mutex_unlock(&w->lock);
+}
+
+void cache_worker_set_publish_debug(cache_worker *w, int on)
+{
+    pthread_mutex_lock(&w->lock);
+    if (w->debug_wanted != (on != 0)) {
+        w->debug_wanted = on != 0;
+        w->republish = 1;
+        pthread_cond_broadcast(&w->cond);
+    }
     pthread_mutex_unlock(&w->lock);
 }
 

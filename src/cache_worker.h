@@ -59,7 +59,9 @@ typedef struct cache_worker_desc {
     uint32_t step_budget;        /* leaves tested between publications; 0 = 512 */
     uint64_t max_tested;         /* stop after this many leaves tested (deterministic runs); 0 = no limit */
     int publish_debug;           /* non-zero: snapshots also carry the light meshes and per-corner
-                                    cache_snapshot_corner data (debug overlays); 0 = off, no extra cost */
+                                    cache_snapshot_corner data (debug overlays); 0 = off, no extra cost
+                                    (on Water about 10% of the refinement); cache_worker_set_publish_debug
+                                    changes it later */
 } cache_worker_desc;
 
 /* One corner of a published triangle. */
@@ -119,6 +121,9 @@ const cache_snapshot *cache_worker_acquire(cache_worker *w);
  * refines nothing, but a light edit (set_light) is still applied and published
  * as one new snapshot (no refinement step, not converged). */
 void cache_worker_pause(cache_worker *w);
+/* Snapshots from now on carry the debug data or not (cache_worker_desc.publish_debug);
+ * a change is published at once, even by a worker that is idle or paused. */
+void cache_worker_set_publish_debug(cache_worker *w, int on);
 /* The same without waiting: the step in flight may still commit one snapshot (a
  * display thread that must not block uses this). */
 void cache_worker_request_pause(cache_worker *w);

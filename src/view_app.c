@@ -96,7 +96,7 @@ static lm_result apply_emission(view_state *v, lm_error *err)
         const float *le = s->area_lights[l].le, k = v->light_scale[l], *t = v->light_tint + 3 * (size_t)l;
         const float e[3] = {le[0] * k * t[0], le[1] * k * t[1], le[2] * k * t[2]};
         r = rend_frame_set_emission(v->frame, s->area_lights[l].material, e, err);
-        if (r == LM_OK) r = rend_frame_set_emission(v->motion_frame, s->area_lights[l].material, e, err);
+        if (r == LM_OK && v->motion_frame) r = rend_frame_set_emission(v->motion_frame, s->area_lights[l].material, e, err);
     }
     v->emission_dirty = 0;
     return r;
@@ -105,9 +105,10 @@ static lm_result apply_emission(view_state *v, lm_error *err)
 static lm_result start_worker(view_state *v, lm_error *err)
 {
     /* pixels_later: the coarse cache is made while the first ID pass runs;
-     * publish_debug: the snapshots carry what the mesh overlays (O) draw. */
+     * publish_debug: the snapshots carry what a mesh overlay (O) draws, only while
+     * one is shown (it costs the worker about a tenth of its pace on Water). */
     return cache_worker_create(&(cache_worker_desc){.scene = v->s, .sampler = v->d->sampler, .pixels_later = 1,
-                                                    .publish_debug = 1},
+                                                    .publish_debug = v->overlay != 0},
                                &v->wk, err);
 }
 
@@ -233,6 +234,7 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
     case VIEW_ACTION_OVERLAY_NEXT:
         v->overlay = (v->overlay + 1) % (int)(4 + v->light_count);
         v->ov_stale = 1;
+        cache_worker_set_publish_debug(v->wk, v->overlay != 0);
         break;
     case VIEW_ACTION_OVERLAY_KIND:
         v->overlay_points = !v->overlay_points;
@@ -350,11 +352,7 @@ static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
     if (r == LM_OK)
         r = rend_frame_create(v->gl, &(rend_frame_desc){.scene = v->s, .width = w, .height = h, .supersample = 1},
                               &v->frame, err);
-    if (r == LM_OK)
-        r = rend_frame_create(v->gl,
-                              &(rend_frame_desc){.scene = v->s, .width = (w + 1) / 2, .height = (h + 1) / 2,
-                                                 .supersample = 1},
-                              &v->motion_frame, err);
+
     if (r != LM_OK) return r;
     v->fb_w = w;
     v->fb_h = h;
@@ -415,7 +413,7 @@ static lm_result frame(view_state *v, lm_error *err)
     if (r == LM_OK && v->emission_dirty) r = apply_emission(v, err);
     if (r == LM_OK) {
         rend_frame_set_components(v->frame, v->components);
-        rend_frame_set_components(v->motion_frame, v->components);
+        if (v->motion_frame) rend_frame_set_components(v->motion_frame, v->components);
     }
     double now_m = lm_now_seconds();
     if (v->camera_moved) {
@@ -447,7 +445,10 @@ static lm_result frame(view_state *v, lm_error *err)
         if (!v->paused) cache_worker_resume(v->wk);
         v->motion_paused = 0;
     }
-    if (!v->snap || v->fresh_view || v->shot[0] || v->window_shot[0] || now_s - v->snap_taken >= k_snapshot_period) {
+    /* An overlay waiting for the worker's debug data takes each snapshot until it comes. */
+    int debug_missing = v->overlay && v->snap && !v->snap->direct.corners;
+    if (!v->snap || v->fresh_view || debug_missing || v->shot[0] || v->window_shot[0] ||
+        now_s - v->snap_taken >= k_snapshot_period) {
         /* The snapshot held is valid until the acquire: its generation is read before. */
         uint64_t held = v->snap ? v->snap->generation : 0;
         const cache_snapshot *s = cache_worker_acquire(v->wk); /* never waits */
@@ -460,7 +461,17 @@ static lm_result frame(view_state *v, lm_error *err)
         }
     }
     if (v->snap && v->snap->failed) return lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", v->snap->error);
-    /* Moving: the half-size renderer, its picture stretched by the tone mapping. */
+    /* Moving: the half-size renderer, its picture stretched by the tone mapping;
+     * made at the first move after a resize (its shaders cost start-up time). */
+    if (v->view_pending && !v->motion_frame) {
+        r = rend_frame_create(v->gl,
+                              &(rend_frame_desc){.scene = v->s, .width = (w + 1) / 2, .height = (h + 1) / 2,
+                                                 .supersample = 1},
+                              &v->motion_frame, err);
+        if (r == LM_OK) r = apply_emission(v, err);
+        if (r == LM_OK) rend_frame_set_components(v->motion_frame, v->components);
+        if (r != LM_OK) return r;
+    }
     rend_frame *f = v->view_pending ? v->motion_frame : v->frame;
     scene_camera cam = v->cam;
     rend_frame_output o;

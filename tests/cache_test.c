@@ -40,7 +40,7 @@
 
 static scene *load_lights(const char *name, int blocker, const char *lights)
 {
-    char obj[1024], json[1024], text[2048];
+    char obj[1024], text[2048];
     test_write_file("cache_plane.obj", "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 4 3\nf 1 3 2\n", obj, sizeof obj);
     test_write_file("cache_blocker.obj", "v -0.2 0.5 -0.2\nv 0.2 0.5 -0.2\nv 0.2 0.5 0.2\nv -0.2 0.5 0.2\nf 1 2 3\nf 1 3 4\n",
                     obj, sizeof obj);
@@ -48,12 +48,7 @@ static scene *load_lights(const char *name, int blocker, const char *lights)
              "{\"meshes\": [{\"file\": \"cache_plane.obj\", \"material\": \"paint\"}%s],"
              " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}}, \"lights\": [%s]}",
              blocker ? ", {\"file\": \"cache_blocker.obj\", \"material\": \"paint\"}" : "", KD, KD, KD, lights);
-    test_write_file(name, text, json, sizeof json);
-    scene *s = NULL;
-    lm_error err;
-    lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
-    CHECK_MSG(r == LM_OK, "%s", err.msg);
-    return s;
+    return test_load_json(name, text);
 }
 
 static scene *load(const char *name, int blocker)

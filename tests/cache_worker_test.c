@@ -6,6 +6,7 @@
  *   - a light edit through the worker: new values, no new light sample;
  *   - a camera move through the worker (set_view): the specular mesh starts again
  *     for the new eye (its values there change), the direct mesh keeps every node;
+ *   - debug data switched on and off on a finished worker: published at once;
  *   - destroy while refining (a bigger scene): joins cleanly (ASan: nothing leaks).
  */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
@@ -33,7 +34,7 @@ static void sleep_ms(int ms)
 
 static scene *load_json(const char *name, const char *material)
 {
-    char obj[1024], json[1024], text[1024];
+    char obj[1024], text[1024];
     test_write_file("worker_plane.obj",
                     "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 4 3\nf 1 3 2\n"
                     "v -0.2 0.5 -0.2\nv 0.2 0.5 -0.2\nv 0.2 0.5 0.2\nv -0.2 0.5 0.2\nf 5 6 7\nf 5 7 8\n",
@@ -44,12 +45,7 @@ static scene *load_json(const char *name, const char *material)
              " \"lights\": [{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0],"
              " \"edge2\": [0, 0, 1], \"radiance\": [5, 5, 5]}]}",
              material);
-    test_write_file(name, text, json, sizeof json);
-    scene *s = NULL;
-    lm_error err;
-    lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
-    CHECK_MSG(r == LM_OK, "%s", err.msg);
-    return s;
+    return test_load_json(name, text);
 }
 
 /* Waits for a snapshot newer than generation gen (at most 10 s). */
@@ -101,30 +97,29 @@ static void test_set_view(const uint32_t *pixels)
         CHECK(b && b->stats.direct.mesh.nodes >= nodes);
         float bad[3] = {NAN, 0, 0};
         CHECK(cache_worker_set_view(w, pixels, bad, &err) == LM_ERR_INVALID_ARG);
+        /* Debug data on, then off: each a new snapshot, with and without corners. */
+        const cache_snapshot *on = NULL, *off = NULL;
+        if (b) {
+            uint64_t g = b->generation;
+            CHECK(b->direct.corners == NULL && b->lights == NULL);
+            cache_worker_set_publish_debug(w, 1);
+            on = wait_newer(w, g);
+            int has = on && on->generation > g && on->direct.corners != NULL && on->light_mesh_count == 1;
+            g = on ? on->generation : g;
+            cache_worker_set_publish_debug(w, 0);
+            off = wait_newer(w, g);
+            int gone = off && off->generation > g && off->direct.corners == NULL && off->lights == NULL;
+            printf("publish_debug on: corners %s; off again: corners %s\n", has ? "published" : "missing",
+                   gone ? "gone" : "still there");
+            CHECK(has);
+            CHECK(gone);
+        }
     }
     cache_worker_destroy(w);
     scene_destroy(s);
 }
 
-static scene *load(void)
-{
-    char obj[1024], json[1024];
-    test_write_file("worker_plane.obj",
-                    "v -2 0 -2\nv 2 0 -2\nv 2 0 2\nv -2 0 2\nf 1 4 3\nf 1 3 2\n"
-                    "v -0.2 0.5 -0.2\nv 0.2 0.5 -0.2\nv 0.2 0.5 0.2\nv -0.2 0.5 0.2\nf 5 6 7\nf 5 7 8\n",
-                    obj, sizeof obj);
-    test_write_file("worker.json",
-                    "{\"meshes\": [{\"file\": \"worker_plane.obj\", \"material\": \"paint\"}],"
-                    " \"materials\": {\"paint\": {\"kd\": [0.6, 0.6, 0.6]}},"
-                    " \"lights\": [{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0],"
-                    " \"edge2\": [0, 0, 1], \"radiance\": [5, 5, 5]}]}",
-                    json, sizeof json);
-    scene *s = NULL;
-    lm_error err;
-    lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
-    CHECK_MSG(r == LM_OK, "%s", err.msg);
-    return s;
-}
+static scene *load(void) { return load_json("worker.json", "{\"kd\": [0.6, 0.6, 0.6]}"); }
 
 
 int main(void)

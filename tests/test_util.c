@@ -104,7 +104,7 @@ double test_write_icosphere(int level, double radius, const char *path)
 
 struct scene *test_plane_load(const test_plane *p, const char *name)
 {
-    char file[256], obj[1024], json[1024], text[2048];
+    char file[256], obj[1024], text[2048];
     snprintf(file, sizeof file, "%s.obj", name);
     test_write_file(file,
                     "v -4 0 -4\nv 4 0 -4\nv 4 0 4\nv -4 0 4\n"
@@ -122,7 +122,13 @@ struct scene *test_plane_load(const test_plane *p, const char *name)
              p->light_z - p->light_half, 2 * p->light_half, 2 * p->light_half, p->le[0], p->le[1], p->le[2],
              p->cam_height, p->fov_y, p->width, p->height);
     snprintf(file, sizeof file, "%s.json", name);
-    test_write_file(file, text, json, sizeof json);
+    return test_load_json(file, text);
+}
+
+struct scene *test_load_json(const char *name, const char *text)
+{
+    char json[1024];
+    test_write_file(name, text, json, sizeof json);
     scene *s = NULL;
     lm_error err;
     lm_result r = scene_load(&(scene_load_desc){.path = json, .require_light = 1}, &s, &err);
@@ -160,4 +166,10 @@ const cache_snapshot *test_wait_finished(cache_worker *w, double seconds)
         nanosleep(&t, NULL);
     }
     return s;
+}
+
+int test_no_gl(const char *why)
+{
+    printf("no GL context: %s\n", why);
+    return getenv("LUMESH_REQUIRE_GL") ? 1 : 77;
 }

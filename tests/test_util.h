@@ -68,6 +68,9 @@ typedef struct test_plane {
 /* Writes NAME.obj and NAME.json and loads them; NULL (a failed check) on error. */
 struct scene;
 struct scene *test_plane_load(const test_plane *p, const char *name);
+/* Writes text as the test file `name` (a JSON scene) and loads it with a light
+ * required; NULL (and a failed CHECK) when it does not load. */
+struct scene *test_load_json(const char *name, const char *text);
 /* Mean G over the sub×sub grid of centres in pixel (px, py), top row 0, as the
  * renderer's s×s samples (and a midpoint rule for a box-filtered pixel). */
 double test_plane_pixel_G(const test_plane *p, int px, int py, int sub);
@@ -80,5 +83,9 @@ const struct cache_snapshot *test_wait_finished(struct cache_worker *w, double s
 
 /* Prints a summary and returns the process exit code. */
 int test_finish(const char *name);
+/* The exit status of a GL test that found no GL context (why: the reason, printed):
+ * 77, skipped, or 1 where LUMESH_REQUIRE_GL says one must exist (tools/test.sh, CI:
+ * llvmpipe is installed there, so a missing context is a broken install). */
+int test_no_gl(const char *why);
 
 #endif

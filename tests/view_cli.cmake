@@ -51,7 +51,7 @@ key f
 frames 2
 screenshot ${DIR}/framed.png
 key o
-frames 2
+wait 1
 window-shot ${DIR}/overlay.png
 screenshot ${DIR}/plain.png
 key o
