@@ -18,15 +18,15 @@
 #include <math.h>
 #include <time.h>
 
-#include "cache.h"
-#include "gl_context.h"
-#include "ref_shading.h"
-#include "rend_camera.h"
-#include "rend_id.h"
-#include "rt_scene.h"
-#include "samp.h"
-#include "tonemap.h"
-#include "vecmath.h"
+#include "mesh/cache/cache.h"
+#include "src/gpu/gl_context.h"
+#include "src/base/rng.h"
+#include "src/scene/camera.h"
+#include "src/render/rend_id.h"
+#include "sampling/rt_scene.h"
+#include "sampling/samp.h"
+#include "src/base/tonemap.h"
+#include "src/base/vecmath.h"
 
 static void print_mesh(const char *name, const cache_mesh_stats *m)
 {
@@ -57,12 +57,12 @@ static int make_probes(const scene *s, rend_id *ip, probe *pr, lm_error *err)
     lm_dvec3 pos = dv3_load(cam->position), fwd = dv3_normalize(dv3_sub(dv3_load(cam->target), pos));
     lm_dvec3 right = dv3_normalize(dv3_cross(fwd, dv3_load(cam->up))), up = dv3_cross(right, fwd);
     double ty = tan(0.5 * cam->fov_y_deg * M_PI / 180.0), tx = ty * 640.0 / 480.0;
-    ref_rng g;
-    ref_rng_seed(&g, 21, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 21, 0, 0);
     tm_desc tm = {.exposure = s->exposure};
     int n = 0;
     for (int tries = 0; n < PROBES && tries < 100 * PROBES; ++tries) {
-        int px = (int)(ref_rng_float(&g) * 640) % 640, py = (int)(ref_rng_float(&g) * 480) % 480;
+        int px = (int)(lm_rng_float(&g) * 640) % 640, py = (int)(lm_rng_float(&g) * 480) % 480;
         if (!ids[py * 640 + px]) continue;
         double sx = 2.0 * (px + 0.5) / 640 - 1.0, sy = 1.0 - 2.0 * (py + 0.5) / 480;
         lm_dvec3 d = dv3_normalize(dv3_add(fwd, dv3_add(dv3_scale(right, sx * tx), dv3_scale(up, sy * ty))));

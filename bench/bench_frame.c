@@ -23,10 +23,10 @@
 #include <string.h>
 #include <time.h>
 
-#include "cache_worker.h"
-#include "gl_context.h"
-#include "rend_frame.h"
-#include "rend_id.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
 
 enum { W = 640, H = 480, WARMUP = 3, MAX_FRAMES = 2000, COLS = 7 };
 

@@ -8,8 +8,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "reference.h"
-#include "scene.h"
+#include "sampling/reference.h"
+#include "src/scene/scene.h"
 
 static const double targets[3] = {0.01, 0.003, 0.001};
 

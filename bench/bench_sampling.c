@@ -19,10 +19,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "ref_shading.h"
-#include "samp.h"
-#include "samp_internal.h"
-#include "scene.h"
+#include "src/base/rng.h"
+#include "sampling/samp.h"
+#include "src/scene/scene.h"
 
 enum { BATCH = 256, BATCHES = 5, MAX_POINTS = 64 };
 
@@ -32,7 +31,7 @@ typedef struct point_set {
     uint32_t n_unocc, n_occ;
 } point_set;
 
-static samp_sampler *make(const scene *s, samp_backend b, samp_gl_platform pl, int res, int rays, int ind_res,
+static samp_sampler *make(const scene *s, samp_backend b, glctx_platform pl, int res, int rays, int ind_res,
                           int ind_rays, char *why, size_t why_n)
 {
     samp_desc d = {.scene = s, .backend = b, .gl_platform = pl, .direct_res = res, .direct_rays = rays,
@@ -49,8 +48,8 @@ static samp_sampler *make(const scene *s, samp_backend b, samp_gl_platform pl, i
 static void build_points(const scene *s, point_set *ps, int quick)
 {
     double *cdf = samp_area_cdf(s);
-    ref_rng g;
-    ref_rng_seed(&g, 77, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 77, 0, 0);
     char why[256];
     samp_sampler *probe = make(s, SAMP_BACKEND_EMBREE, 0, 0, 4096, 0, 0, why, sizeof why);
     samp_sampler *ref = make(s, SAMP_BACKEND_EMBREE, 0, 0, quick ? 65536 : 1000000, 0, 0, why, sizeof why);
@@ -120,7 +119,7 @@ static double time_per_sample(samp_sampler *sp, const samp_radiance_mesh *ind, c
 typedef struct config {
     const char *label;
     samp_backend backend;
-    samp_gl_platform platform;
+    glctx_platform platform;
     int res, rays; /* direct: GL pixels per side, or Embree rays */
 } config;
 
@@ -128,18 +127,18 @@ static const config direct_configs[] = {
     {"embree", SAMP_BACKEND_EMBREE, 0, 0, 16},     {"embree", SAMP_BACKEND_EMBREE, 0, 0, 64},
     {"embree", SAMP_BACKEND_EMBREE, 0, 0, 256},    {"embree", SAMP_BACKEND_EMBREE, 0, 0, 1024},
     {"embree", SAMP_BACKEND_EMBREE, 0, 0, 4096},   {"embree", SAMP_BACKEND_EMBREE, 0, 0, 16384},
-    {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 16, 0}, {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 32, 0},
-    {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 64, 0}, {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 128, 0},
-    {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 16, 0}, {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 32, 0},
-    {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 64, 0}, {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 128, 0},
+    {"gl-egl", SAMP_BACKEND_GL, GLCTX_EGL, 16, 0}, {"gl-egl", SAMP_BACKEND_GL, GLCTX_EGL, 32, 0},
+    {"gl-egl", SAMP_BACKEND_GL, GLCTX_EGL, 64, 0}, {"gl-egl", SAMP_BACKEND_GL, GLCTX_EGL, 128, 0},
+    {"gl-osmesa", SAMP_BACKEND_GL, GLCTX_OSMESA, 16, 0}, {"gl-osmesa", SAMP_BACKEND_GL, GLCTX_OSMESA, 32, 0},
+    {"gl-osmesa", SAMP_BACKEND_GL, GLCTX_OSMESA, 64, 0}, {"gl-osmesa", SAMP_BACKEND_GL, GLCTX_OSMESA, 128, 0},
 };
 
 static const config indirect_configs[] = {
     {"embree", SAMP_BACKEND_EMBREE, 0, 0, 1024},    {"embree", SAMP_BACKEND_EMBREE, 0, 0, 4096},
     {"embree", SAMP_BACKEND_EMBREE, 0, 0, 16384},   {"embree", SAMP_BACKEND_EMBREE, 0, 0, 65536},
-    {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 64, 0},  {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 128, 0},
-    {"gl-egl", SAMP_BACKEND_GL, SAMP_GL_EGL, 256, 0}, {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 64, 0},
-    {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 128, 0}, {"gl-osmesa", SAMP_BACKEND_GL, SAMP_GL_OSMESA, 256, 0},
+    {"gl-egl", SAMP_BACKEND_GL, GLCTX_EGL, 64, 0},  {"gl-egl", SAMP_BACKEND_GL, GLCTX_EGL, 128, 0},
+    {"gl-egl", SAMP_BACKEND_GL, GLCTX_EGL, 256, 0}, {"gl-osmesa", SAMP_BACKEND_GL, GLCTX_OSMESA, 64, 0},
+    {"gl-osmesa", SAMP_BACKEND_GL, GLCTX_OSMESA, 128, 0}, {"gl-osmesa", SAMP_BACKEND_GL, GLCTX_OSMESA, 256, 0},
 };
 
 static void bench_scene(const char *name, int quick)

@@ -31,7 +31,7 @@
 #define LUMESH_GEOMESH_H
 
 #include <stdint.h>
-#include "util.h"
+#include "src/base/util.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -60,7 +60,7 @@
  * Every C++ exception stops here: std::bad_alloc -> LM_ERR_NO_MEMORY, anything
  * else -> LM_ERR_RUNTIME.
  */
-#include "geomesh.h"
+#include "mesh/geomesh.h"
 
 /* OpenMesh's PropertyT<Vec3f>::push_back() copies a default-constructed (by
  * design uninitialised) VectorT; GCC 12 at -O2 reports that through inlining

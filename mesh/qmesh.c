@@ -20,7 +20,7 @@
  * scene triangle as the address, which shares keys with the neighbour across an
  * un-creased scene edge.
  */
-#include "qmesh.h"
+#include "mesh/qmesh.h"
 
 #include <math.h>
 #include <stdlib.h>

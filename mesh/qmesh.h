@@ -39,9 +39,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "scene.h"
-#include "util.h"
-#include "vtable.h"
+#include "src/scene/scene.h"
+#include "src/base/util.h"
+#include "mesh/vtable.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -14,8 +14,8 @@
  * needs the normal-class table and an edge-kind query; storing 20 bytes per
  * vertex keeps a probe to one memcmp-sized compare.
  */
-#include "vtable.h"
-#include "vecmath.h" /* M_PI */
+#include "mesh/vtable.h"
+#include "src/base/vecmath.h" /* M_PI */
 
 #include <math.h>
 #include <stdlib.h>

@@ -1,5 +1,5 @@
 /* analytic.c — closed-form geometric term of a polygonal light (see analytic.h). */
-#include "analytic.h"
+#include "sampling/analytic.h"
 
 #include <float.h>
 #include <math.h>

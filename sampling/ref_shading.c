@@ -1,43 +1,11 @@
-/* ref_shading.c — random numbers, modified Phong, surfaces and light sampling for
+/* ref_shading.c — modified Phong, surfaces and light sampling for
  * the reference renderer. */
-#include "ref_shading.h"
+#include "sampling/ref_shading.h"
 
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
-/* ---- random numbers ------------------------------------------------------ */
-
-static uint64_t mix64(uint64_t z)
-{
-    z += 0x9e3779b97f4a7c15ull;
-    z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ull;
-    z = (z ^ (z >> 27)) * 0x94d049bb133111ebull;
-    return z ^ (z >> 31);
-}
-
-static uint32_t pcg32(ref_rng *g)
-{
-    uint64_t old = g->state;
-    g->state = old * 6364136223846793005ull + g->inc;
-    uint32_t xorshifted = (uint32_t)(((old >> 18u) ^ old) >> 27u);
-    uint32_t rot = (uint32_t)(old >> 59u);
-    return (xorshifted >> rot) | (xorshifted << ((-rot) & 31u));
-}
-
-void ref_rng_seed(ref_rng *g, uint64_t seed, uint64_t pixel, uint64_t sample)
-{
-    g->state = 0;
-    g->inc = (mix64(seed ^ mix64(pixel)) << 1u) | 1u;
-    pcg32(g);
-    g->state += mix64(sample ^ mix64(seed + 0x632be59bd9b4e019ull));
-    pcg32(g);
-}
-
-float ref_rng_float(ref_rng *g)
-{
-    return (float)(pcg32(g) >> 8) * (1.0f / 16777216.0f);
-}
 
 /* ---- lights -------------------------------------------------------------- */
 
@@ -98,10 +66,10 @@ static uint32_t pick(const float *cdf, uint32_t n, float u)
     return lo;
 }
 
-int ref_sample_area_light(const ref_lights *L, ref_rng *g, lm_vec3 p, ref_light_sample *out)
+int ref_sample_area_light(const ref_lights *L, lm_rng *g, lm_vec3 p, ref_light_sample *out)
 {
     const scene *s = L->s;
-    float u0 = ref_rng_float(g), u1 = ref_rng_float(g), u2 = ref_rng_float(g), u3 = ref_rng_float(g);
+    float u0 = lm_rng_float(g), u1 = lm_rng_float(g), u2 = lm_rng_float(g), u3 = lm_rng_float(g);
     uint32_t li = pick(L->light_cdf, s->area_light_count, u0);
     const scene_area_light *A = &s->area_lights[li];
     uint32_t k = pick(L->tri_cdf + A->first, A->count, u1);

@@ -1,24 +1,17 @@
 /* ref_shading.h — pieces of the reference renderer shared by its two transports:
- * a counter-based random generator, the modified Phong BRDF (Lafortune & Willems
- * 1994, the paper's eq. 5), surface records and light sampling. Private to
- * sampling/reference*.c. */
+ * the modified Phong BRDF (Lafortune & Willems
+ * 1994, the paper's eq. 5), surface records and light sampling. Private to sampling/
+ * (the reference renderer and the samplers' calibration). */
 #ifndef LUMESH_REF_SHADING_H
 #define LUMESH_REF_SHADING_H
 
 #include <stdint.h>
 
-#include "rt_scene.h"
-#include "scene.h"
-#include "vecmath.h"
+#include "src/base/rng.h"
+#include "sampling/rt_scene.h"
+#include "src/scene/scene.h"
+#include "src/base/vecmath.h"
 
-/* PCG32 (O'Neill 2014), seeded from (seed, pixel, sample) so each sample's
- * random numbers do not depend on which thread draws them. */
-typedef struct ref_rng {
-    uint64_t state, inc;
-} ref_rng;
-
-void ref_rng_seed(ref_rng *g, uint64_t seed, uint64_t pixel, uint64_t sample);
-float ref_rng_float(ref_rng *g); /* [0, 1) */
 
 /* Light selection tables built once per renderer; read-only afterwards. */
 typedef struct ref_lights {
@@ -53,7 +46,7 @@ typedef struct ref_light_sample {
 
 /* Samples one area light by power and a point on it by area. Returns 0 when the
  * point's front does not face p (no contribution). */
-int ref_sample_area_light(const ref_lights *L, ref_rng *g, lm_vec3 p, ref_light_sample *out);
+int ref_sample_area_light(const ref_lights *L, lm_rng *g, lm_vec3 p, ref_light_sample *out);
 /* Solid-angle density with which ref_sample_area_light picks the point `y` on
  * emissive triangle `tri`, seen from a point at distance `dist` along `wi`. */
 float ref_area_light_pdf(const ref_lights *L, uint32_t tri, lm_vec3 wi, float dist);

@@ -1,6 +1,6 @@
 /* reference.c — the progressive reference path tracer (see reference.h for the
  * two transports and the determinism rule). */
-#include "reference.h"
+#include "sampling/reference.h"
 
 #include <math.h>
 #include <pthread.h>
@@ -9,8 +9,8 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "ref_shading.h"
-#include "rt_scene.h"
+#include "sampling/ref_shading.h"
+#include "sampling/rt_scene.h"
 
 enum { TILE = 16, MAX_THREADS = 256, MAX_FULL_DEPTH = 256, RR_START_DEPTH = 3, RR_DEEP_DEPTH = 32 };
 #define RR_SMALL_THROUGHPUT 0.05f
@@ -47,7 +47,7 @@ struct ref_renderer {
 
 typedef struct ctx {
     ref_renderer *r;          /* workers touch only the pass counters and their own tiles */
-    ref_rng g;
+    lm_rng g;
     uint64_t rays;
 } ctx;
 
@@ -143,7 +143,7 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
         /* Lobe sampling for the specular integral (model transport only: the full
          * transport's BRDF sample does this as part of the path). */
         if (spec && mode == MIS_LOBE_ONLY) {
-            float u1 = ref_rng_float(&c->g), u2 = ref_rng_float(&c->g);
+            float u1 = lm_rng_float(&c->g), u2 = lm_rng_float(&c->g);
             lm_vec3 wi = ref_sample_phong(m->n, wo, x->ns, u1, u2);
             float cosx = v3_dot(x->ns, wi);
             rt_hit h;
@@ -181,7 +181,7 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
 static void gather(ctx *c, const ref_surface *x, int bounces_left, float out[3])
 {
     out[0] = out[1] = out[2] = 0.0f;
-    float u1 = ref_rng_float(&c->g), u2 = ref_rng_float(&c->g);
+    float u1 = lm_rng_float(&c->g), u2 = lm_rng_float(&c->g);
     lm_vec3 wi = ref_sample_cosine(x->ns, u1, u2);
     if (v3_dot(wi, x->ng) <= 0.0f) return;
     rt_hit h;
@@ -244,7 +244,7 @@ static void radiance_full(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
         /* Continue by sampling the BRDF. */
         float p_spec = spec_probability(m);
         if (avg3(m->kd) + avg3(m->ks) <= 0.0f) break;
-        float u0 = ref_rng_float(&c->g), u1 = ref_rng_float(&c->g), u2 = ref_rng_float(&c->g);
+        float u0 = lm_rng_float(&c->g), u1 = lm_rng_float(&c->g), u2 = lm_rng_float(&c->g);
         lm_vec3 wi = u0 < p_spec ? ref_sample_phong(m->n, wo, x.ns, u1, u2) : ref_sample_cosine(x.ns, u1, u2);
         float cosi = v3_dot(x.ns, wi);
         if (cosi <= 0.0f || v3_dot(x.ng, wi) <= 0.0f) break;
@@ -266,7 +266,7 @@ static void radiance_full(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
         else if (depth + 1 >= RR_DEEP_DEPTH)
             q = 0.95f;
         if (q < 1.0f) {
-            if (ref_rng_float(&c->g) >= q) break;
+            if (lm_rng_float(&c->g) >= q) break;
             for (int k = 0; k < 3; ++k) beta[k] /= q;
         }
         prev_pdf = pdf;
@@ -281,8 +281,8 @@ static void render_pixel(ctx *c, int px, int py)
 {
     const ref_renderer *r = c->r;
     ref_pixel *pix = &r->pixels[(size_t)py * (size_t)r->width + (size_t)px];
-    ref_rng_seed(&c->g, r->desc.seed, (uint64_t)py * (uint64_t)r->width + (uint64_t)px, pix->count);
-    float jx = ref_rng_float(&c->g), jy = ref_rng_float(&c->g);
+    lm_rng_seed(&c->g, r->desc.seed, (uint64_t)py * (uint64_t)r->width + (uint64_t)px, pix->count);
+    float jx = lm_rng_float(&c->g), jy = lm_rng_float(&c->g);
     float sx = 2.0f * ((float)px + jx) / (float)r->width - 1.0f;
     float sy = 1.0f - 2.0f * ((float)py + jy) / (float)r->height;
     lm_vec3 dir = v3_normalize(v3_add(r->cam_fwd, v3_add(v3_scale(r->cam_right, sx), v3_scale(r->cam_up, sy))));

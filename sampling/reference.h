@@ -33,8 +33,8 @@
 #include <signal.h>
 #include <stdint.h>
 
-#include "scene.h"
-#include "util.h"
+#include "src/scene/scene.h"
+#include "src/base/util.h"
 
 #ifdef __cplusplus
 extern "C" {

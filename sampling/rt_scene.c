@@ -1,5 +1,5 @@
 /* rt_scene.c — Embree 3 BVH over the scene triangles. */
-#include "rt_scene.h"
+#include "sampling/rt_scene.h"
 
 #include <embree3/rtcore.h>
 #include <math.h>

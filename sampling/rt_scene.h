@@ -21,8 +21,8 @@
 #ifndef LUMESH_RT_SCENE_H
 #define LUMESH_RT_SCENE_H
 
-#include "scene.h"
-#include "util.h"
+#include "src/scene/scene.h"
+#include "src/base/util.h"
 
 #ifdef __cplusplus
 extern "C" {

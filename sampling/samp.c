@@ -1,16 +1,16 @@
 /* samp.c — the sampler front end (samp.h): argument checks, point lights, call
  * statistics, and dispatch to a back end (samp_embree.c, samp_gl.c). The choice
  * SAMP_BACKEND_AUTO is made in samp_auto.c. */
-#include "samp.h"
+#include "sampling/samp.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "analytic.h"
-#include "samp_internal.h"
-#include "vecmath.h"
+#include "sampling/analytic.h"
+#include "sampling/samp_internal.h"
+#include "src/base/vecmath.h"
 
 struct samp_sampler {
     samp_desc desc;            /* defaults filled in */
@@ -30,16 +30,6 @@ const char *samp_backend_name(samp_backend b)
     }
 }
 
-const char *samp_gl_platform_name(samp_gl_platform p)
-{
-    switch (p) {
-    case SAMP_GL_DEFAULT:
-    case SAMP_GL_EGL: return "egl";
-    case SAMP_GL_OSMESA: return "osmesa";
-    default: return "?";
-    }
-}
-
 int samp_backend_from_name(const char *name, samp_backend *out)
 {
     for (int b = 0; b < SAMP_BACKEND_COUNT && name; ++b)
@@ -50,20 +40,10 @@ int samp_backend_from_name(const char *name, samp_backend *out)
     return 0;
 }
 
-int samp_gl_platform_from_name(const char *name, samp_gl_platform *out)
-{
-    for (int p = SAMP_GL_EGL; p < SAMP_GL_PLATFORM_COUNT && name; ++p)
-        if (strcmp(name, samp_gl_platform_name((samp_gl_platform)p)) == 0) {
-            *out = (samp_gl_platform)p;
-            return 1;
-        }
-    return 0;
-}
-
 samp_desc samp_desc_defaults(const samp_desc *desc)
 {
     samp_desc d = *desc;
-    if (d.gl_platform == SAMP_GL_DEFAULT) d.gl_platform = SAMP_GL_EGL;
+    if (d.gl_platform == GLCTX_DEFAULT) d.gl_platform = GLCTX_EGL;
     if (d.direct_res <= 0) d.direct_res = 64;
     if (d.direct_rays <= 0) d.direct_rays = 64;
     if (d.indirect_res <= 0) d.indirect_res = 64;
@@ -128,14 +108,14 @@ double *samp_area_cdf(const scene *s)
     return cdf;
 }
 
-samp_point samp_random_receiver(const scene *s, const double *area_cdf, ref_rng *g)
+samp_point samp_random_receiver(const scene *s, const double *area_cdf, lm_rng *g)
 {
     uint32_t t = 0;
     for (int tries = 0; tries < 1000; ++tries) { /* a scene is never only lights (scene_load) */
-        t = samp_cdf_pick(area_cdf, s->tri_count, ref_rng_float(g));
+        t = samp_cdf_pick(area_cdf, s->tri_count, lm_rng_float(g));
         if (s->tris[t].light < 0) break;
     }
-    float u = ref_rng_float(g), v = ref_rng_float(g);
+    float u = lm_rng_float(g), v = lm_rng_float(g);
     if (u + v > 1.0f) {
         u = 1.0f - u;
         v = 1.0f - v;
@@ -259,7 +239,7 @@ lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err)
 {
     *out = NULL;
     if (!desc || !desc->scene) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_create: no scene");
-    if ((unsigned)desc->backend >= SAMP_BACKEND_COUNT || (unsigned)desc->gl_platform >= SAMP_GL_PLATFORM_COUNT ||
+    if ((unsigned)desc->backend >= SAMP_BACKEND_COUNT || (unsigned)desc->gl_platform >= GLCTX_PLATFORM_COUNT ||
         (unsigned)desc->indirect_mode >= SAMP_INDIRECT_MODE_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_create: unknown back end, GL platform or indirect mode");
     if (desc->direct_res > 4096 || desc->indirect_res > 4096 || desc->direct_rays > (1 << 24) ||

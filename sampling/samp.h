@@ -51,8 +51,10 @@
 #include <math.h>
 #include <stdint.h>
 
-#include "scene.h"
-#include "util.h"
+#include "src/base/rng.h"
+#include "src/base/util.h"
+#include "src/gpu/gl_platform.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -65,13 +67,6 @@ typedef enum samp_backend {
     SAMP_BACKEND_COUNT
 } samp_backend;
 
-typedef enum samp_gl_platform {
-    SAMP_GL_DEFAULT = 0, /* EGL */
-    SAMP_GL_EGL,         /* headless EGL: surfaceless, else device platform */
-    SAMP_GL_OSMESA,      /* Mesa's off-screen software renderer */
-    SAMP_GL_PLATFORM_COUNT
-} samp_gl_platform;
-
 typedef enum samp_indirect_mode {
     SAMP_INDIRECT_HEMICUBE = 0, /* default: five faces, the whole hemisphere */
     SAMP_INDIRECT_PLANE160,     /* GL: the paper's single 160° plane (misses the grazing ring) */
@@ -81,7 +76,7 @@ typedef enum samp_indirect_mode {
 typedef struct samp_desc {
     const scene *scene;           /* must outlive the sampler */
     samp_backend backend;
-    samp_gl_platform gl_platform;
+    glctx_platform gl_platform;
     int direct_res;               /* GL: frustum pixels per side; 0 = 64 */
     int direct_rays;              /* Embree: light points per receiver (stratified); 0 = 64 */
     int direct_control_variate;   /* 0 = on (default); SAMP_OFF = raw estimate */
@@ -159,11 +154,73 @@ typedef struct samp_stats {
 void samp_get_stats(const samp_sampler *sp, samp_stats *out);
 
 const char *samp_backend_name(samp_backend b);
-const char *samp_gl_platform_name(samp_gl_platform p);
-/* The spellings of the command line: "auto", "embree", "gl"; "egl", "osmesa".
+/* The spellings of the command line: "auto", "embree", "gl" (the GL platforms'
+ * are in src/gpu/gl_platform.h).
  * Return 0 (and leave *out alone) for anything else. */
 int samp_backend_from_name(const char *name, samp_backend *out);
-int samp_gl_platform_from_name(const char *name, samp_gl_platform *out);
+
+/* ---- for the cache, calibration, tests and benches ----------------------- */
+
+/* Cumulative area fractions of the scene's triangles (malloc'd; NULL: no memory). */
+double *samp_area_cdf(const scene *s);
+/* A receiver drawn by area on the scene's non-emitting triangles: a uniform point,
+ * the triangle's front normal, tri_plus_one set. For calibration, tests, benches. */
+samp_point samp_random_receiver(const scene *s, const double *area_cdf, lm_rng *g);
+
+/* A coarse radiance mesh with no visibility, corner radiance
+ * kd·Σ_ℓ L_ℓ·G_ℓ,unoccluded/π: every scene triangle cut into the same number of
+ * dyadic sub-triangles, as many as keep the total at or under target_triangles
+ * (one each at least). Shaped like the cache's indirect source, for calibration
+ * and benchmarks. */
+typedef struct samp_coarse_mesh {
+    uint32_t *first;
+    float *bary, *radiance;
+    samp_radiance_mesh mesh;
+} samp_coarse_mesh;
+
+lm_result samp_coarse_mesh_build(const scene *s, uint32_t target_triangles, samp_coarse_mesh *out, lm_error *err);
+void samp_coarse_mesh_free(samp_coarse_mesh *m);
+
+/* The descriptor with every zero field replaced by its default. */
+samp_desc samp_desc_defaults(const samp_desc *desc);
+
+/* Unoccluded G of area light `light` at (p, n): the sum over its triangles of
+ * samp_polygon_G (double precision inside). */
+double samp_area_light_unoccluded(const scene *s, uint32_t light, const float p[3], const float n[3]);
+
+/* Where rays and frusta for receiver x start: x moved `eps` towards the centroid
+ * of its triangle (when x->tri_plus_one names one), then `eps` along x->n. Every
+ * back end uses this, so they see the same thing from the same point. */
+void samp_point_origin(const scene *s, const samp_point *x, float eps, float out[3]);
+
+/* The epsilon every back end of sp lifts receivers by (samp_point_origin). */
+float samp_origin_epsilon(const samp_sampler *sp);
+
+/* True when the radiance mesh is well formed for scene s: offsets non-decreasing,
+ * first[tri_count] == mesh->tri_count, barycentrics and radiance finite. */
+int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *mesh, lm_error *err);
+
+/* Point location in a radiance mesh. A scene triangle with more than 16
+ * sub-triangles gets a res×res grid over its barycentric square (w1, w2) ∈ [0,1]²,
+ * res = ⌈√count⌉, each cell listing the sub-triangles whose bounding box meets it;
+ * others are searched linearly. Built in time linear in the mesh; valid while the
+ * mesh is unchanged. Pure data: any thread may read a built index. */
+typedef struct samp_radiance_index {
+    uint32_t *res;        /* per scene triangle: grid cells per side, 0 = no grid */
+    uint32_t *base;       /* per scene triangle: its first cell */
+    uint32_t *cell_first; /* per cell, + 1: offsets into items */
+    uint32_t *items;      /* radiance-mesh triangle ids */
+} samp_radiance_index;
+
+/* 0 and an empty index (linear search everywhere) when memory runs out. */
+int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_radiance_index *ix);
+void samp_radiance_index_free(samp_radiance_index *ix);
+/* RGB radiance of mesh m at barycentrics (w1, w2) of scene triangle t: the
+ * sub-triangle that contains the point (or, for a point on none by rounding, the
+ * one it is least outside of), linearly interpolated. Returns that sub-triangle,
+ * UINT32_MAX (and black) when t has none. */
+uint32_t samp_radiance_at(const samp_radiance_mesh *m, const samp_radiance_index *ix, uint32_t t, float w1, float w2,
+                          float out[3]);
 
 #ifdef __cplusplus
 }

@@ -26,9 +26,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "ref_shading.h"
-#include "samp_internal.h"
-#include "vecmath.h"
+#include "sampling/ref_shading.h"
+#include "sampling/samp_internal.h"
+#include "src/base/vecmath.h"
 
 enum {
     CAL_POINTS = 24,
@@ -134,7 +134,7 @@ static lm_result compare(const calib *c, const samp_backend_ops *gl_ops, void *g
     return LM_OK;
 }
 
-static lm_result calibrate_direct(calib *c, const double *cdf, ref_rng *g, lm_error *err)
+static lm_result calibrate_direct(calib *c, const double *cdf, lm_rng *g, lm_error *err)
 {
     samp_desc probe_d = c->desc;
     probe_d.direct_rays = 256;
@@ -165,7 +165,7 @@ static lm_result calibrate_direct(calib *c, const double *cdf, ref_rng *g, lm_er
     return r;
 }
 
-static lm_result calibrate_indirect(calib *c, const double *cdf, ref_rng *g, lm_error *err)
+static lm_result calibrate_indirect(calib *c, const double *cdf, lm_rng *g, lm_error *err)
 {
     c->n = c->n_timing = CAL_INDIRECT_POINTS;
     for (uint32_t i = 0; i < c->n; ++i) {
@@ -203,8 +203,8 @@ lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choic
     verdict vd = {.gl_wins = 0, .rays = desc->direct_rays}, vi = {.gl_wins = 0, .rays = desc->indirect_rays};
     int have_direct = 0;
     if (r == LM_OK) {
-        ref_rng g;
-        ref_rng_seed(&g, 0x5eed, 0, 0);
+        lm_rng g;
+        lm_rng_seed(&g, 0x5eed, 0, 0);
         c->s = s;
         c->rt = rt;
         c->desc = *desc;

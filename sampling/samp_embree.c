@@ -27,9 +27,9 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "ref_shading.h"
-#include "samp_internal.h"
-#include "vecmath.h"
+#include "sampling/ref_shading.h"
+#include "sampling/samp_internal.h"
+#include "src/base/vecmath.h"
 
 enum { MAX_THREADS = 64, CHUNK = 16 };
 
@@ -71,9 +71,9 @@ static uint64_t hash_point(const samp_point *x)
     return h;
 }
 
-static void point_rng(const embree_impl *e, uint64_t stream, const samp_point *x, ref_rng *g)
+static void point_rng(const embree_impl *e, uint64_t stream, const samp_point *x, lm_rng *g)
 {
-    ref_rng_seed(g, e->desc.seed, hash_point(x), stream);
+    lm_rng_seed(g, e->desc.seed, hash_point(x), stream);
 }
 
 /* ---- direct ---------------------------------------------------------------- */
@@ -112,13 +112,13 @@ static float direct_one(const embree_impl *e, uint32_t li, const samp_point *x)
     float origin[3];
     samp_point_origin(s, x, e->eps, origin);
     lm_vec3 o = v3_load(origin), nx = v3_load(x->n);
-    ref_rng g;
+    lm_rng g;
     point_rng(e, 1u + li, x, &g);
     int k = e->direct_k;
     double sum_w = 0.0, sum_vis = 0.0;
     for (int j = 0; j < k; ++j)
         for (int i = 0; i < k; ++i) {
-            double u = (i + ref_rng_float(&g)) / k, v = (j + ref_rng_float(&g)) / k;
+            double u = (i + lm_rng_float(&g)) / k, v = (j + lm_rng_float(&g)) / k;
             lm_vec3 y;
             uint32_t tri = light_point(e, li, u, v, &y);
             lm_vec3 ny = v3_load(s->tri_normals + 3 * (size_t)tri);
@@ -155,13 +155,13 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     float sign = copysignf(1.0f, n.z), a = -1.0f / (sign + n.z), b = n.x * n.y * a;
     lm_vec3 t1 = v3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
     lm_vec3 t2 = v3(b, sign + n.y * n.y * a, -n.y);
-    ref_rng g;
+    lm_rng g;
     point_rng(e, 0, x, &g);
     int k = e->indirect_k;
     double sum[3] = {0, 0, 0};
     for (int j = 0; j < k; ++j)
         for (int i = 0; i < k; ++i) {
-            float u = (i + ref_rng_float(&g)) / k, v = (j + ref_rng_float(&g)) / k;
+            float u = (i + lm_rng_float(&g)) / k, v = (j + lm_rng_float(&g)) / k;
             float r = sqrtf(u), phi = 2.0f * (float)M_PI * v;
             float lx = r * cosf(phi), ly = r * sinf(phi), lz = sqrtf(fmaxf(0.0f, 1.0f - u));
             lm_vec3 d = v3_add(v3_add(v3_scale(t1, lx), v3_scale(t2, ly)), v3_scale(n, lz));

@@ -32,9 +32,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gl_program.h"
-#include "samp_gl_internal.h"
-#include "vfs.h"
+#include "src/gpu/gl_program.h"
+#include "sampling/samp_gl_internal.h"
+#include "src/base/vfs.h"
 
 enum { ATLAS_SIDE = 2048 };
 

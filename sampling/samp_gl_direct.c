@@ -30,8 +30,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "samp_gl_internal.h"
-#include "vecmath.h"
+#include "sampling/samp_gl_internal.h"
+#include "src/base/vecmath.h"
 
 #define FRUSTUM_MAX_DEG 85.0
 enum {

@@ -29,8 +29,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "analytic.h"
-#include "samp_gl_internal.h"
+#include "sampling/analytic.h"
+#include "sampling/samp_gl_internal.h"
 
 #define PLANE160_HALF_DEG 80.0
 enum { FACES_MAX = 5, RIM_SUB = 16 };

@@ -1,6 +1,6 @@
 /* samp_radiance_index.c — point location in a radiance mesh (samp_internal.h):
  * the Embree back end's gathers and the cache's source comparisons. */
-#include "samp_internal.h"
+#include "sampling/samp_internal.h"
 
 #include <math.h>
 #include <stdlib.h>

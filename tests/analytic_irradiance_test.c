@@ -15,10 +15,10 @@
  *
  * Prints a table of the largest error per case family.
  */
-#include "analytic.h"
-#include "test_util.h"
-#include "util.h"
-#include "vecmath.h"
+#include "sampling/analytic.h"
+#include "tests/test_util.h"
+#include "src/base/util.h"
+#include "src/base/vecmath.h"
 
 #include <float.h>
 #include <math.h>

@@ -24,16 +24,15 @@
 #include <string.h>
 #include <time.h>
 
-#include "analytic.h"
-#include "cache.h"
-#include "cache_internal.h"
-#include "ref_shading.h"
-#include "rt_scene.h"
-#include "samp.h"
-#include "samp_internal.h"
-#include "test_util.h"
-#include "tonemap.h"
-#include "vecmath.h"
+#include "sampling/analytic.h"
+#include "mesh/cache/cache.h"
+#include "mesh/cache/cache_internal.h"
+#include "src/base/rng.h"
+#include "sampling/rt_scene.h"
+#include "sampling/samp.h"
+#include "tests/test_util.h"
+#include "src/base/tonemap.h"
+#include "src/base/vecmath.h"
 
 #define KD 0.6f
 #define LE 5.0f
@@ -142,13 +141,13 @@ static void lab_of(float radiance, float lab[3])
 }
 
 /* Random point on the plane's central 3×3 (barycentrics in its triangle). */
-static void random_plane_point(ref_rng *g, const scene *s, uint32_t *tri, double *w1, double *w2, float p[3])
+static void random_plane_point(lm_rng *g, const scene *s, uint32_t *tri, double *w1, double *w2, float p[3])
 {
-    *tri = ref_rng_float(g) < 0.5f ? 0 : 1;
+    *tri = lm_rng_float(g) < 0.5f ? 0 : 1;
     double u, v;
     do {
-        u = ref_rng_float(g);
-        v = ref_rng_float(g);
+        u = lm_rng_float(g);
+        v = lm_rng_float(g);
     } while (u + v > 1.0);
     *w1 = u;
     *w2 = v;
@@ -168,8 +167,8 @@ static void test_lone_light(void)
     CHECK(converge(&u, 200, &tot) == LM_OK);
     cache_stats st;
     cache_get_stats(u.c, &st);
-    ref_rng g;
-    ref_rng_seed(&g, 3, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 3, 0, 0);
     const float up[3] = {0, 1, 0};
     double worst_de = 0.0, worst_g = 0.0;
     int n = 0;
@@ -220,8 +219,8 @@ static double against_embree(const run *u, const scene *s, int *n, int *above)
     lm_error err;
     CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .direct_rays = 4096}, &ref, &err) ==
           LM_OK);
-    ref_rng g;
-    ref_rng_seed(&g, 4, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 4, 0, 0);
     double sum_de = 0.0;
     *n = *above = 0;
     for (int i = 0; i < 1000 && ref; ++i) {
@@ -329,8 +328,8 @@ static void test_light_edit(void)
     cache_get_stats(a.c, &after);
     CHECK_MSG(after.lights[0].samples == s0 && after.lights[1].samples == s1, "the edit took light samples");
     for (int pass = 0; pass < 2; ++pass) {
-        ref_rng g;
-        ref_rng_seed(&g, 9, 0, 0);
+        lm_rng g;
+        lm_rng_seed(&g, 9, 0, 0);
         int n = 0, above = 0;
         double sum = 0.0, worst = 0.0;
         for (int i = 0; i < 2000; ++i) {
@@ -434,8 +433,8 @@ static void test_single_mesh(void)
     cache_stats sm, ss;
     cache_get_stats(multi.c, &sm);
     cache_get_stats(single.c, &ss);
-    ref_rng g;
-    ref_rng_seed(&g, 6, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 6, 0, 0);
     double worst = 0.0;
     lm_error err;
     for (int i = 0; i < 1000; ++i) {
@@ -561,8 +560,8 @@ static void test_specular(void)
             CHECK(after.direct.mesh.nodes == before.direct.mesh.nodes);
         }
         CHECK(converge(&u, 400, &tot) == LM_OK && tot.remaining == 0);
-        ref_rng g;
-        ref_rng_seed(&g, 12, 0, 0);
+        lm_rng g;
+        lm_rng_seed(&g, 12, 0, 0);
         double worst = 0.0, sum = 0.0;
         int n = 0, above = 0;
         for (int i = 0; i < 2000; ++i) {
@@ -614,12 +613,12 @@ static int down_polygon(const double (*xz)[2], int n, double h, double (*out)[3]
 
 /* The case generator: x above the floor, a tilted normal, and the view chosen so
  * that the mirror direction aims at `target` (a point of the light's plane). */
-static void phong_case(ref_rng *g, const double target[3], double x[3], double nx[3], double wo[3])
+static void phong_case(lm_rng *g, const double target[3], double x[3], double nx[3], double wo[3])
 {
-    x[0] = -0.9 + 1.8 * ref_rng_float(g);
-    x[1] = 0.9 * ref_rng_float(g);
-    x[2] = -0.9 + 1.8 * ref_rng_float(g);
-    lm_dvec3 N = dv3_normalize(dv3(0.6 * (ref_rng_float(g) - 0.5), 1.0, 0.6 * (ref_rng_float(g) - 0.5)));
+    x[0] = -0.9 + 1.8 * lm_rng_float(g);
+    x[1] = 0.9 * lm_rng_float(g);
+    x[2] = -0.9 + 1.8 * lm_rng_float(g);
+    lm_dvec3 N = dv3_normalize(dv3(0.6 * (lm_rng_float(g) - 0.5), 1.0, 0.6 * (lm_rng_float(g) - 0.5)));
     lm_dvec3 wi = dv3_normalize(dv3(target[0] - x[0], target[1] - x[1], target[2] - x[2]));
     lm_dvec3 W = dv3_sub(dv3_scale(N, 2.0 * dv3_dot(N, wi)), wi);
     nx[0] = N.x, nx[1] = N.y, nx[2] = N.z;
@@ -657,8 +656,8 @@ static void test_phong_integral(void)
     down_polygon(quad_xz, 4, 1.58, quad);
     down_polygon(tri_xz, 3, 1.4, tri);
     const double exps[] = {0, 1, 10, 32, 80, 200, 1000, 5000};
-    ref_rng g;
-    ref_rng_seed(&g, 77, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 77, 0, 0);
     double worst = 0.0;
     for (size_t ei = 0; ei < sizeof exps / sizeof exps[0]; ++ei) {
         double n = exps[ei], worst_n = 0.0, centroid_worst = 0.0;
@@ -669,13 +668,13 @@ static void test_phong_integral(void)
             for (int i = 0; i < 10; ++i) {
                 /* the target: a corner, an edge point, the inside, or beside it (± a few lobe widths) */
                 int k = i % np, kind = i % 4;
-                double f = ref_rng_float(&g), t[3];
+                double f = lm_rng_float(&g), t[3];
                 for (int j = 0; j < 3; ++j) t[j] = P[k][j] + (kind == 0 ? 0.0 : f) * (P[(k + 1) % np][j] - P[k][j]);
                 if (kind == 2)
                     for (int j = 0; j < 3; ++j) t[j] = 0.6 * t[j] + 0.4 * (P[0][j] + P[1][j] + P[2][j]) / 3.0;
-                double off = (kind == 3 ? 0.15 : 0.03) * (ref_rng_float(&g) - 0.5);
+                double off = (kind == 3 ? 0.15 : 0.03) * (lm_rng_float(&g) - 0.5);
                 t[0] += off;
-                t[2] += off * (ref_rng_float(&g) - 0.5);
+                t[2] += off * (lm_rng_float(&g) - 0.5);
                 double x[3], nx[3], wo[3];
                 phong_case(&g, t, x, nx, wo);
                 double got = samp_polygon_phong(P, np, x, nx, wo, n);
@@ -722,8 +721,8 @@ static void test_phong_integral(void)
         int shape = i & 1;
         double t[3] = {0, 1.5, 0}, x[3], nx[3], wo[3];
         const double *c0 = shape ? ell[i % 6] : disk[(i * 7) % 40];
-        t[0] = c0[0] + 0.03 * (ref_rng_float(&g) - 0.5) - (shape ? 0.0 : 0.05 * ref_rng_float(&g));
-        t[2] = c0[2] + 0.03 * (ref_rng_float(&g) - 0.5);
+        t[0] = c0[0] + 0.03 * (lm_rng_float(&g) - 0.5) - (shape ? 0.0 : 0.05 * lm_rng_float(&g));
+        t[2] = c0[2] + 0.03 * (lm_rng_float(&g) - 0.5);
         phong_case(&g, t, x, nx, wo);
         double want = 0.0, got;
         if (shape == 0) {
@@ -760,8 +759,8 @@ static void test_phong_integral(void)
     static double X[M][3], NX[M][3], WO[M][3];
     for (int aimed = 1; aimed >= 0; --aimed) {
         for (int i = 0; i < M; ++i) {
-            double t[3] = {-0.5 + ref_rng_float(&g), 1.58, -0.45 + 0.9 * ref_rng_float(&g)};
-            if (!aimed) t[1] = 3.0 * ref_rng_float(&g);
+            double t[3] = {-0.5 + lm_rng_float(&g), 1.58, -0.45 + 0.9 * lm_rng_float(&g)};
+            if (!aimed) t[1] = 3.0 * lm_rng_float(&g);
             phong_case(&g, t, X[i], NX[i], WO[i]);
         }
         for (size_t ei = 3; ei < sizeof exps / sizeof exps[0]; ++ei) {
@@ -887,14 +886,14 @@ static void test_sphere_indirect(int bounces)
         CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 4096}, &res, &err) == LM_OK);
         if (res.remaining == 0) break;
     }
-    ref_rng g;
-    ref_rng_seed(&g, 8, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 8, 0, 0);
     double ldd_want = I / (M_PI * R * R), ei_want = rho * I / (R * R) * (bounces == 2 ? 1.0 + rho : 1.0);
     double worst_ldd = 0.0, worst_ei = 0.0, mean_ei = 0.0;
     const int N = 2000;
     for (int i = 0; i < N && c; ++i) {
-        uint32_t tri = (uint32_t)(ref_rng_float(&g) * s->tri_count) % s->tri_count;
-        double u = ref_rng_float(&g), v = ref_rng_float(&g);
+        uint32_t tri = (uint32_t)(lm_rng_float(&g) * s->tri_count) % s->tri_count;
+        double u = lm_rng_float(&g), v = lm_rng_float(&g);
         if (u + v > 1.0) {
             u = 1.0 - u;
             v = 1.0 - v;
@@ -967,13 +966,13 @@ static void cornell_exact_Ei(const scene *s, const rt_scene *rt, samp_sampler *d
     lm_vec3 n = v3_normalize(v3_load(x->n));
     float sign = copysignf(1.0f, n.z), a = -1.0f / (sign + n.z), b = n.x * n.y * a;
     lm_vec3 t1 = v3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), t2 = v3(b, sign + n.y * n.y * a, -n.y);
-    ref_rng g;
-    ref_rng_seed(&g, 99, 7, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 99, 7, 0);
     samp_point *hits = malloc(K * K * sizeof *hits);
     uint32_t *ht = malloc(K * K * sizeof *ht), nh = 0;
     for (int j = 0; j < K && hits && ht; ++j)
         for (int i = 0; i < K; ++i) {
-            float u = (i + ref_rng_float(&g)) / K, v = (j + ref_rng_float(&g)) / K, r = sqrtf(u), phi = 2.0f * (float)M_PI * v;
+            float u = (i + lm_rng_float(&g)) / K, v = (j + lm_rng_float(&g)) / K, r = sqrtf(u), phi = 2.0f * (float)M_PI * v;
             lm_vec3 d = v3_add(v3_add(v3_scale(t1, r * cosf(phi)), v3_scale(t2, r * sinf(phi))),
                                v3_scale(n, sqrtf(fmaxf(0.0f, 1.0f - u))));
             float dir[3];

@@ -16,10 +16,10 @@
 #include <string.h>
 #include <time.h>
 
-#include "cache.h"
-#include "cache_worker.h"
-#include "samp.h"
-#include "test_util.h"
+#include "mesh/cache/cache.h"
+#include "mesh/cache/cache_worker.h"
+#include "sampling/samp.h"
+#include "tests/test_util.h"
 
 static void sleep_ms(int ms)
 {

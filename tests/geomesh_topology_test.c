@@ -2,8 +2,8 @@
  * (geomesh.h): shared edges, closed and open surfaces, non-manifold and
  * inconsistently wound edges, degenerate and duplicate triangles, creases,
  * argument checking, the empty mesh and a 100,000-triangle grid. */
-#include "geomesh.h"
-#include "test_util.h"
+#include "mesh/geomesh.h"
+#include "tests/test_util.h"
 
 #include <math.h>
 #include <stdint.h>

@@ -1,33 +1,33 @@
 /* headers_c_test — every public header compiles as plain C11 on its own (this
  * file is C with -Wstrict-prototypes), and the shared result codes are named. */
-#include "analytic.h"
-#include "cache.h"
-#include "cache_worker.h"
-#include "compare.h"
-#include "gl_context.h"
-#include "geomesh.h"
-#include "image.h"
-#include "qmesh.h"
-#include "reference.h"
-#include "rend_camera.h"
-#include "rend_debug.h"
-#include "rend_frame.h"
-#include "rend_id.h"
-#include "rt_scene.h"
-#include "samp.h"
-#include "scene.h"
-#include "tonemap.h"
-#include "util.h"
-#include "vecmath.h"
-#include "vfs.h"
-#include "view_camera.h"
-#include "view_script.h"
-#include "view_tonemap.h"
-#include "vtable.h"
+#include "sampling/analytic.h"
+#include "mesh/cache/cache.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/image/compare.h"
+#include "src/gpu/gl_context.h"
+#include "mesh/geomesh.h"
+#include "src/image/image.h"
+#include "mesh/qmesh.h"
+#include "sampling/reference.h"
+#include "src/scene/camera.h"
+#include "src/render/rend_debug.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
+#include "sampling/rt_scene.h"
+#include "sampling/samp.h"
+#include "src/scene/scene.h"
+#include "src/base/tonemap.h"
+#include "src/base/util.h"
+#include "src/base/vecmath.h"
+#include "src/base/vfs.h"
+#include "src/view/view_camera.h"
+#include "src/view/view_script.h"
+#include "src/view/view_tonemap.h"
+#include "mesh/vtable.h"
 
 #include <string.h>
 
-#include "test_util.h"
+#include "tests/test_util.h"
 
 int main(void)
 {
@@ -44,9 +44,9 @@ int main(void)
         samp_backend got = SAMP_BACKEND_COUNT;
         CHECK(samp_backend_from_name(samp_backend_name((samp_backend)b), &got) && got == (samp_backend)b);
     }
-    samp_gl_platform pl = SAMP_GL_DEFAULT;
-    CHECK(samp_gl_platform_from_name("osmesa", &pl) && pl == SAMP_GL_OSMESA);
-    CHECK(!samp_gl_platform_from_name("glx", &pl) && !samp_backend_from_name(NULL, &(samp_backend){0}));
+    glctx_platform pl = GLCTX_DEFAULT;
+    CHECK(glctx_platform_from_name("osmesa", &pl) && pl == GLCTX_OSMESA);
+    CHECK(!glctx_platform_from_name("glx", &pl) && !samp_backend_from_name(NULL, &(samp_backend){0}));
     /* lm_fail formats one line and returns the code. */
     lm_error err;
     CHECK(lm_fail(&err, LM_ERR_IO, "%s: %d\nsecond", "x.obj", 7) == LM_ERR_IO);

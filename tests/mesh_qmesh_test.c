@@ -5,8 +5,8 @@
  * triangle; interpolation returns stored values at vertices and edge averages at
  * unused midpoints; statistics match a recount; node cap and depth limit refuse a
  * split without changing anything. Real mesh: the sphere Cornell box. */
-#include "qmesh.h"
-#include "test_util.h"
+#include "mesh/qmesh.h"
+#include "tests/test_util.h"
 
 #include <math.h>
 #include <stdio.h>

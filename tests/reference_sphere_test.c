@@ -19,10 +19,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "reference.h"
-#include "scene.h"
-#include "test_util.h"
-#include "vecmath.h"
+#include "sampling/reference.h"
+#include "src/scene/scene.h"
+#include "tests/test_util.h"
+#include "src/base/vecmath.h"
 
 enum { W = 16, H = 16 };
 #define RHO 0.5

@@ -24,11 +24,11 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "cache_worker.h"
-#include "gl_context.h"
-#include "rend_debug.h"
-#include "rend_id.h"
-#include "test_util.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_debug.h"
+#include "src/render/rend_id.h"
+#include "tests/test_util.h"
 
 /* Pixels of out that differ from the dimmed background (the overlay's pixels). */
 static uint8_t *overlay_mask(const rend_debug_desc *d, const uint8_t *out)
@@ -419,7 +419,7 @@ int main(void)
     synthetic();
     glctx *ctx = NULL;
     lm_error err;
-    if (glctx_create(&(glctx_desc){.platform = SAMP_GL_EGL}, &ctx, &err) != LM_OK) {
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) {
         int rc = test_finish("rend_debug_test (synthetic part only)");
         int skip = test_no_gl(err.msg);
         return rc ? 1 : skip;

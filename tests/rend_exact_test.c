@@ -21,13 +21,13 @@
 #include <stdio.h>
 #include <stdlib.h>
 
-#include "cache_worker.h"
-#include "gl_context.h"
-#include "rend_frame.h"
-#include "rend_id.h"
-#include "test_util.h"
-#include "tonemap.h"
-#include "vecmath.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
+#include "tests/test_util.h"
+#include "src/base/tonemap.h"
+#include "src/base/vecmath.h"
 
 enum { W = 64, H = 48, SS = 3 };
 #define JND 2.0f
@@ -40,7 +40,7 @@ int main(void)
 {
     glctx *ctx = NULL;
     lm_error err;
-    if (glctx_create(&(glctx_desc){.platform = SAMP_GL_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
     const GladGLContext *gl = glctx_gl(ctx);
     scene *s = test_plane_load(&plane, "exact_plane");
     rend_id *ip = NULL;

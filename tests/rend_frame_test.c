@@ -26,14 +26,14 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cache_worker.h"
-#include "compare.h"
-#include "gl_context.h"
-#include "image.h"
-#include "reference.h"
-#include "rend_frame.h"
-#include "rend_id.h"
-#include "test_util.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/image/compare.h"
+#include "src/gpu/gl_context.h"
+#include "src/image/image.h"
+#include "sampling/reference.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
+#include "tests/test_util.h"
 
 enum { MAX_S = 4 };
 
@@ -315,7 +315,7 @@ int main(void)
 {
     glctx *ctx = NULL;
     lm_error err;
-    if (glctx_create(&(glctx_desc){.platform = SAMP_GL_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
     const GladGLContext *gl = glctx_gl(ctx);
 
     flat_case(gl);

@@ -14,12 +14,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "gl_context.h"
-#include "rend_camera.h"
-#include "rend_id.h"
-#include "rt_scene.h"
-#include "test_util.h"
-#include "vecmath.h"
+#include "src/gpu/gl_context.h"
+#include "src/scene/camera.h"
+#include "src/render/rend_id.h"
+#include "sampling/rt_scene.h"
+#include "tests/test_util.h"
+#include "src/base/vecmath.h"
 
 enum { W = 160, H = 120 };
 
@@ -141,7 +141,7 @@ int main(void)
 {
     glctx *ctx = NULL;
     lm_error err;
-    if (glctx_create(&(glctx_desc){.platform = SAMP_GL_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
     const GladGLContext *gl = glctx_gl(ctx);
     check_scene(gl, "CornellBox-Original.obj");
     check_scene(gl, "CornellBox-Water.obj");

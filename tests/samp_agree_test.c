@@ -15,10 +15,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "ref_shading.h"
-#include "samp.h"
-#include "samp_internal.h"
-#include "test_util.h"
+#include "src/base/rng.h"
+#include "sampling/samp.h"
+#include "tests/test_util.h"
 
 enum { N = 24, RES = 64, RAYS = 4096 };
 
@@ -36,13 +35,13 @@ static samp_sampler *make(const scene *s, samp_backend b, int rays)
  * although it is above their horizon. */
 static uint32_t shadowed_points(const scene *s, samp_sampler *probe, samp_point *pts)
 {
-    ref_rng g;
-    ref_rng_seed(&g, 11, 0, 0);
+    lm_rng g;
+    lm_rng_seed(&g, 11, 0, 0);
     uint32_t n = 0, umbra = 0;
     for (int tries = 0; tries < 200000 && n < N; ++tries) {
-        uint32_t t = (uint32_t)(ref_rng_float(&g) * s->tri_count) % s->tri_count;
+        uint32_t t = (uint32_t)(lm_rng_float(&g) * s->tri_count) % s->tri_count;
         if (s->tris[t].light >= 0) continue;
-        float u = ref_rng_float(&g), v = ref_rng_float(&g);
+        float u = lm_rng_float(&g), v = lm_rng_float(&g);
         if (u + v > 1.0f) {
             u = 1.0f - u;
             v = 1.0f - v;

@@ -19,12 +19,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "analytic.h"
-#include "samp.h"
-#include "samp_internal.h"
-#include "scene.h"
-#include "test_util.h"
-#include "vecmath.h"
+#include "sampling/analytic.h"
+#include "sampling/samp.h"
+#include "src/scene/scene.h"
+#include "tests/test_util.h"
+#include "src/base/vecmath.h"
 
 /* A closed unit room [0,1]³, faces wound to face inwards, as OBJ text. */
 static const char room_obj[] =

@@ -22,12 +22,11 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "analytic.h"
-#include "samp.h"
-#include "samp_internal.h"
-#include "scene.h"
-#include "test_util.h"
-#include "vecmath.h"
+#include "sampling/analytic.h"
+#include "sampling/samp.h"
+#include "src/scene/scene.h"
+#include "tests/test_util.h"
+#include "src/base/vecmath.h"
 
 enum { SKIP = 77 };
 
@@ -95,7 +94,7 @@ static scene *load_box(void)
     return s;
 }
 
-static samp_sampler *make(const scene *s, samp_gl_platform platform, int cv, int res, samp_indirect_mode mode,
+static samp_sampler *make(const scene *s, glctx_platform platform, int cv, int res, samp_indirect_mode mode,
                           lm_error *err)
 {
     samp_desc d = {.scene = s, .backend = SAMP_BACKEND_GL, .gl_platform = platform, .direct_control_variate = cv,
@@ -135,7 +134,7 @@ static uint32_t unoccluded_points(samp_point *p)
     return n;
 }
 
-static void test_direct_unoccluded(const scene *s, samp_gl_platform platform)
+static void test_direct_unoccluded(const scene *s, glctx_platform platform)
 {
     samp_point p[UNOCC_MAX];
     uint32_t n = unoccluded_points(p);
@@ -166,7 +165,7 @@ static void test_direct_unoccluded(const scene *s, samp_gl_platform platform)
         worst_cv = fmax(worst_cv, ecv);
     }
     printf("%s direct 64², unoccluded, %u points: raw mean rel error %.3f%%, max %.3f%%; control variate max %.1e\n",
-           samp_gl_platform_name(platform), n, 100.0 * sum / n, 100.0 * worst, worst_cv);
+           glctx_platform_name(platform), n, 100.0 * sum / n, 100.0 * worst, worst_cv);
     samp_destroy(a);
     samp_destroy(b);
     /* The raw error at other resolutions: printed, not asserted. */
@@ -184,13 +183,13 @@ static void test_direct_unoccluded(const scene *s, samp_gl_platform platform)
             mean += e / n;
             max = fmax(max, e);
         }
-        printf("%s direct %d², unoccluded, raw: mean rel error %.3f%%, max %.3f%%\n", samp_gl_platform_name(platform),
+        printf("%s direct %d², unoccluded, raw: mean rel error %.3f%%, max %.3f%%\n", glctx_platform_name(platform),
                other[r], 100.0 * mean, 100.0 * max);
         samp_destroy(c);
     }
 }
 
-static void test_direct_half_blocked(samp_gl_platform platform)
+static void test_direct_half_blocked(glctx_platform platform)
 {
     scene *s = load_plane(1);
     if (!s) return;
@@ -218,14 +217,14 @@ static void test_direct_half_blocked(samp_gl_platform platform)
             if (getenv("LUMESH_TEST_VERBOSE")) printf("  point %u: G/G_unocc = %.7f\n", i, G[i] / un);
         }
         printf("%s direct half-blocked (%s): max |G/G_unocc - 1/2| = %.2e (stated bound %.2e)\n",
-               samp_gl_platform_name(platform), pass ? "control variate" : "raw", worst,
+               glctx_platform_name(platform), pass ? "control variate" : "raw", worst,
                1.0 / res + (pass ? 0.0 : 0.01));
         samp_destroy(sp);
     }
     scene_destroy(s);
 }
 
-static void test_direct_zero_and_edges(const scene *s, samp_gl_platform platform)
+static void test_direct_zero_and_edges(const scene *s, glctx_platform platform)
 {
     lm_error err;
     samp_sampler *sp = make(s, platform, 0, 64, SAMP_INDIRECT_HEMICUBE, &err);
@@ -260,7 +259,7 @@ static void test_direct_zero_and_edges(const scene *s, samp_gl_platform platform
  * at interior points, on edges and at corners of the mesh (the near plane and
  * the receiver offset must not open the walls). With the light inside, just
  * under the ceiling, the same corner and edge points see it whole. */
-static void test_direct_room(samp_gl_platform platform)
+static void test_direct_room(glctx_platform platform)
 {
     samp_point p[10] = {pt(1, 0, 0.75f, 0, 1, 0, 1),   pt(0, 0, 0, 0, 1, 0, 1),      pt(2, 0, 1.5f, 0, 1, 0, 2),
                         pt(0, 0, 0.7f, 0, 1, 0, 1),   pt(0, 0.5f, 0, 1, 0, 0, 9),   pt(0, 0, 0, 1, 0, 0, 9),
@@ -295,9 +294,9 @@ static void test_platforms_agree(const scene *s)
     samp_point p[UNOCC_MAX];
     uint32_t n = unoccluded_points(p);
     lm_error err;
-    samp_sampler *a = make(s, SAMP_GL_EGL, SAMP_OFF, 64, SAMP_INDIRECT_HEMICUBE, &err);
+    samp_sampler *a = make(s, GLCTX_EGL, SAMP_OFF, 64, SAMP_INDIRECT_HEMICUBE, &err);
     if (!a) printf("EGL not available (%s): platform comparison skipped\n", err.msg);
-    samp_sampler *b = make(s, SAMP_GL_OSMESA, SAMP_OFF, 64, SAMP_INDIRECT_HEMICUBE, &err);
+    samp_sampler *b = make(s, GLCTX_OSMESA, SAMP_OFF, 64, SAMP_INDIRECT_HEMICUBE, &err);
     if (!b) printf("OSMesa not available (%s): platform comparison skipped\n", err.msg);
     if (a && b) {
         float ga[UNOCC_MAX], gb[UNOCC_MAX], ga2[UNOCC_MAX];
@@ -345,7 +344,7 @@ static void box_radiance(const scene *s, box_mesh *b, const float L[3], const fl
     b->m = (samp_radiance_mesh){.tri_count = s->tri_count, .first = b->first, .bary = b->bary, .radiance = b->rad};
 }
 
-static void test_indirect(samp_gl_platform platform)
+static void test_indirect(glctx_platform platform)
 {
     scene *s = load_box();
     if (!s) return;
@@ -374,7 +373,7 @@ static void test_indirect(samp_gl_platform platform)
                 CHECK_MSG(e <= 0.005, "%s point %u channel %d: E = %.6g, want %.6g", mode ? "plane160" : "hemicube",
                           i, k, E[3 * i + (uint32_t)k], want);
             }
-        printf("%s indirect %s 64², constant radiance: max relative error %.2e\n", samp_gl_platform_name(platform),
+        printf("%s indirect %s 64², constant radiance: max relative error %.2e\n", glctx_platform_name(platform),
                mode ? "160° plane" : "hemicube", worst);
         samp_destroy(sp);
     }
@@ -396,7 +395,7 @@ static void test_indirect(samp_gl_platform platform)
             worst = fmax(worst, e);
             CHECK_MSG(e <= 0.02, "ceiling-lit point %u: E = %.6g, want %.6g", i, E[3 * i + 1], want);
         }
-        printf("%s indirect hemicube 64², ceiling only: max relative error %.2e\n", samp_gl_platform_name(platform),
+        printf("%s indirect hemicube 64², ceiling only: max relative error %.2e\n", glctx_platform_name(platform),
                worst);
         samp_destroy(sp);
     }
@@ -409,10 +408,10 @@ int main(void)
     if (!plane) return test_finish("samp_gl_test");
     /* Skip only when neither platform gives a context. */
     lm_error egl_err, osm_err;
-    samp_sampler *probe = make(plane, SAMP_GL_EGL, 0, 16, SAMP_INDIRECT_HEMICUBE, &egl_err);
+    samp_sampler *probe = make(plane, GLCTX_EGL, 0, 16, SAMP_INDIRECT_HEMICUBE, &egl_err);
     int have_egl = probe != NULL;
     samp_destroy(probe);
-    probe = make(plane, SAMP_GL_OSMESA, 0, 16, SAMP_INDIRECT_HEMICUBE, &osm_err);
+    probe = make(plane, GLCTX_OSMESA, 0, 16, SAMP_INDIRECT_HEMICUBE, &osm_err);
     int have_osmesa = probe != NULL;
     samp_destroy(probe);
     if (!have_egl && !have_osmesa) {
@@ -428,7 +427,7 @@ int main(void)
     }
     if (!have_egl) printf("EGL unavailable: %s\n", egl_err.msg);
     if (!have_osmesa) printf("OSMesa unavailable: %s\n", osm_err.msg);
-    samp_gl_platform platforms[2] = {SAMP_GL_EGL, SAMP_GL_OSMESA};
+    glctx_platform platforms[2] = {GLCTX_EGL, GLCTX_OSMESA};
     for (int i = 0; i < 2; ++i) {
         if (!(i ? have_osmesa : have_egl)) continue;
         test_direct_unoccluded(plane, platforms[i]);

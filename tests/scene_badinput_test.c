@@ -6,8 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "scene.h"
-#include "test_util.h"
+#include "src/scene/scene.h"
+#include "tests/test_util.h"
 
 static void run_case(const char *file, const char *command, const char *fragment, const char *name)
 {

@@ -7,9 +7,9 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "scene.h"
-#include "vecmath.h"
-#include "test_util.h"
+#include "src/scene/scene.h"
+#include "src/base/vecmath.h"
+#include "tests/test_util.h"
 
 typedef struct expect {
     const char *file;

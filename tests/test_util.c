@@ -1,15 +1,15 @@
 #define _POSIX_C_SOURCE 200809L /* nanosleep */
-#include "test_util.h"
+#include "tests/test_util.h"
 
 #include <math.h>
 #include <time.h>
 #include <stdlib.h>
 #include <string.h>
 
-#include "analytic.h"
-#include "cache_worker.h"
-#include "scene.h"
-#include "vecmath.h"
+#include "sampling/analytic.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/scene/scene.h"
+#include "src/base/vecmath.h"
 
 int test_failures = 0;
 int test_checks = 0;

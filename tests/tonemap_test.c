@@ -1,6 +1,6 @@
 /* tonemap_test.c — sRGB transfer function, exposure and clamp, CIELAB and ΔE. */
-#include "tonemap.h"
-#include "test_util.h"
+#include "src/base/tonemap.h"
+#include "tests/test_util.h"
 
 #include <math.h>
 

@@ -5,7 +5,7 @@
 #include <math.h>
 #include <stdio.h>
 
-#include "image.h"
+#include "src/image/image.h"
 
 int main(int argc, char **argv)
 {

@@ -5,10 +5,10 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "gl_context.h"
-#include "test_util.h"
-#include "tonemap.h"
-#include "view_tonemap.h"
+#include "src/gpu/gl_context.h"
+#include "tests/test_util.h"
+#include "src/base/tonemap.h"
+#include "src/view/view_tonemap.h"
 
 enum { W = 256, H = 3 };
 
@@ -16,7 +16,7 @@ int main(void)
 {
     glctx *ctx;
     lm_error err;
-    if (glctx_create(&(glctx_desc){.platform = SAMP_GL_EGL}, &ctx, &err) != LM_OK) {
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) {
         fprintf(stderr, "skipped: %s\n", err.msg);
         return 77;
     }

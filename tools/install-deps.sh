@@ -11,6 +11,7 @@ packages=(
   libstb-dev                         # stb_easy_font: text in plots and the viewer's HUD (header only)
   libembree-dev                      # CPU ray tracing: reference renderer, Embree sampler
   python3-glad                       # generates the OpenGL 4.5 loader at build time (glad 2, MX)
+  python3                            # the layers test (tests/layers.py)
   libegl-dev libosmesa6-dev          # headless GL for the GL sampler: EGL, OSMesa
   libegl-mesa0 libgl1-mesa-dri       # Mesa's EGL vendor and llvmpipe (run time; no GPU needed)
   libgl-dev                          # GL headers (osmesa.h includes GL/gl.h); libGL is not linked

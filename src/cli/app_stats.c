@@ -1,6 +1,6 @@
 /* app_stats.c — the statistics JSON (app_stats.h; fields in docs/stats.md). */
 #define _POSIX_C_SOURCE 200809L
-#include "app_stats.h"
+#include "src/cli/app_stats.h"
 
 #include <errno.h>
 #include <stdio.h>
@@ -8,7 +8,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-#include "scene.h"
+#include "src/scene/scene.h"
 
 static cJSON *mesh_json(const char *name, const char *kind, int light, const cache_mesh_stats *m)
 {

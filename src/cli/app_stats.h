@@ -14,9 +14,9 @@
 
 #include <cjson/cJSON.h>
 
-#include "cache_worker.h"
-#include "rend_frame.h"
-#include "util.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/render/rend_frame.h"
+#include "src/base/util.h"
 
 typedef struct app_stats_desc {
     const char *command;          /* "render", "converge", "view" */

@@ -5,7 +5,7 @@
 #ifndef LUMESH_CLI_H
 #define LUMESH_CLI_H
 
-#include "util.h"
+#include "src/base/util.h"
 
 enum {
     APP_EXIT_OK = 0,

@@ -6,8 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "cli.h"
-#include "samp.h"
+#include "src/cli/cli.h"
+#include "sampling/samp.h"
 
 int app_exit_for(lm_result r)
 {
@@ -115,10 +115,10 @@ int app_parse_options(const app_command *cmd, int argc, char **argv, app_opt *op
 int app_check_sampler_options(const app_command *cmd, const char *sampler, const char *gl)
 {
     samp_backend b;
-    samp_gl_platform p;
+    glctx_platform p;
     if (sampler && !samp_backend_from_name(sampler, &b))
         return app_usage_error(cmd, "--sampler must be gl, embree or auto, not '%s'", sampler);
-    if (gl && !samp_gl_platform_from_name(gl, &p))
+    if (gl && !glctx_platform_from_name(gl, &p))
         return app_usage_error(cmd, "--gl must be egl or osmesa, not '%s'", gl);
     return APP_EXIT_OK;
 }

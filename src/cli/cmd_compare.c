@@ -13,9 +13,9 @@
 
 #include <cjson/cJSON.h>
 
-#include "cli.h"
-#include "compare.h"
-#include "image.h"
+#include "src/cli/cli.h"
+#include "src/image/compare.h"
+#include "src/image/image.h"
 
 static const char *const k_rgb_names[3] = {"R", "G", "B"};
 

@@ -29,18 +29,18 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "app_stats.h"
-#include "cache_worker.h"
-#include "cli.h"
-#include "compare.h"
-#include "gl_context.h"
-#include "image.h"
-#include "plot.h"
-#include "reference.h"
-#include "rend_frame.h"
-#include "rend_id.h"
-#include "scene.h"
-#include "tonemap.h"
+#include "src/cli/app_stats.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/cli/cli.h"
+#include "src/image/compare.h"
+#include "src/gpu/gl_context.h"
+#include "src/image/image.h"
+#include "src/cli/plot.h"
+#include "sampling/reference.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
+#include "src/scene/scene.h"
+#include "src/base/tonemap.h"
 
 enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64 };
 
@@ -200,13 +200,13 @@ static void keep_final(conv_ctx *c, const cache_snapshot *snap)
  * measurement come after, so they cannot delay it. (Compiling the shaders
  * beforehand on a stand-in triangle measured no faster: the worker and the
  * compiler then share the 2 cores.) */
-static lm_result first_image(conv_ctx *c, cache_worker *wk, const GladGLContext *gl, double t0, float *rgb,
+static lm_result first_image(conv_ctx *c, cache_worker *wk, glctx *ctx, double t0, float *rgb,
                              lm_error *err)
 {
     rend_frame *preview = NULL;
     const scene_camera *cam = &c->s->cameras[c->cam];
-    lm_result r = rend_frame_create(gl, &(rend_frame_desc){.scene = c->s, .width = c->w, .height = c->h,
-                                                           .supersample = 1},
+    lm_result r = rend_frame_create(glctx_gl(ctx), &(rend_frame_desc){.scene = c->s, .width = c->w, .height = c->h,
+                                                                      .supersample = 1},
                                     &preview, err);
     const cache_snapshot *snap = NULL;
     while (r == LM_OK && !interrupted && !(snap = cache_worker_acquire(wk))) nap_ms(1);
@@ -230,7 +230,7 @@ static lm_result first_image(conv_ctx *c, cache_worker *wk, const GladGLContext 
 }
 
 /* The previewer: worker, GL context, ID pass, renderer; snapshots at c->times. */
-static lm_result run_lumesh(conv_ctx *c, const samp_desc *sd, samp_gl_platform platform, int single_mesh,
+static lm_result run_lumesh(conv_ctx *c, const samp_desc *sd, glctx_platform platform, int single_mesh,
                             double t0, conv_run *run, lm_error *err)
 {
     glctx *ctx = NULL;
@@ -249,7 +249,7 @@ static lm_result run_lumesh(conv_ctx *c, const samp_desc *sd, samp_gl_platform p
                                                      .cache = {.single_mesh = single_mesh}},
                                 &wk, err);
     if (r == LM_OK) r = glctx_create(&(glctx_desc){.platform = platform}, &ctx, err);
-    if (r == LM_OK) r = first_image(c, wk, glctx_gl(ctx), t0, rgb, err);
+    if (r == LM_OK) r = first_image(c, wk, ctx, t0, rgb, err);
     if (r == LM_OK)
         r = rend_id_create(glctx_gl(ctx), &(rend_id_desc){.scene = c->s, .width = c->w, .height = c->h}, &ip, err);
     if (r == LM_OK) r = rend_id_render(ip, cam, &ids, err);
@@ -582,8 +582,8 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     if (r == LM_OK) r = app_make_dir(dir, &err);
     samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
     if (sampler) samp_backend_from_name(sampler, &sd.backend);
-    samp_gl_platform platform = SAMP_GL_EGL;
-    if (gl_name) samp_gl_platform_from_name(gl_name, &platform);
+    glctx_platform platform = GLCTX_EGL;
+    if (gl_name) glctx_platform_from_name(gl_name, &platform);
     sd.gl_platform = platform;
     c.tty = isatty(STDERR_FILENO);
 

@@ -3,8 +3,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "cli.h"
-#include "scene.h"
+#include "src/cli/cli.h"
+#include "src/scene/scene.h"
 
 /* "-Y (down)" style name of the axis closest to n. */
 static const char *facing_name(const float n[3])

@@ -10,10 +10,10 @@
 #include <string.h>
 #include <unistd.h>
 
-#include "cli.h"
-#include "image.h"
-#include "reference.h"
-#include "scene.h"
+#include "src/cli/cli.h"
+#include "src/image/image.h"
+#include "sampling/reference.h"
+#include "src/scene/scene.h"
 
 /* Written by the SIGINT handler, read by the render loop and the workers. */
 static volatile sig_atomic_t interrupted = 0;

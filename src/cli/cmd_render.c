@@ -13,16 +13,16 @@
 #include <string.h>
 #include <time.h>
 
-#include "app_stats.h"
-#include "cache_worker.h"
-#include "cli.h"
-#include "gl_context.h"
-#include "image.h"
-#include "rend_debug.h"
-#include "rend_frame.h"
-#include "rend_id.h"
-#include "scene.h"
-#include "tonemap.h"
+#include "src/cli/app_stats.h"
+#include "mesh/cache/cache_worker.h"
+#include "src/cli/cli.h"
+#include "src/gpu/gl_context.h"
+#include "src/image/image.h"
+#include "src/render/rend_debug.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
+#include "src/scene/scene.h"
+#include "src/base/tonemap.h"
 
 enum { DEFAULT_SECONDS_LIMIT = 600 }; /* without --seconds or --samples: until converged, at most this */
 
@@ -121,8 +121,8 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
     if (sampler) samp_backend_from_name(sampler, &sd.backend);
     if (deterministic && !sampler) sd.backend = SAMP_BACKEND_EMBREE;
-    samp_gl_platform platform = SAMP_GL_EGL;
-    if (gl_name) samp_gl_platform_from_name(gl_name, &platform);
+    glctx_platform platform = GLCTX_EGL;
+    if (gl_name) glctx_platform_from_name(gl_name, &platform);
     sd.gl_platform = platform;
 
     double t0 = lm_now_seconds();

@@ -8,12 +8,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "app_stats.h"
-#include "cli.h"
-#include "samp.h"
-#include "scene.h"
-#include "view_app.h"
-#include "view_script.h"
+#include "src/cli/app_stats.h"
+#include "src/cli/cli.h"
+#include "sampling/samp.h"
+#include "src/scene/scene.h"
+#include "src/view/view_app.h"
+#include "src/view/view_script.h"
 
 typedef struct view_cli {
     const char *path;        /* the scene file (NULL: the built-in scene), for R */
@@ -123,8 +123,8 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
         /* As render: the 2% tolerance, the sampler chosen by --sampler (auto by default). */
         samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
         if (sampler) samp_backend_from_name(sampler, &sd.backend);
-        sd.gl_platform = SAMP_GL_EGL;
-        if (gl_name) samp_gl_platform_from_name(gl_name, &sd.gl_platform);
+        sd.gl_platform = GLCTX_EGL;
+        if (gl_name) glctx_platform_from_name(gl_name, &sd.gl_platform);
         view_cli c = {.path = npos ? pos[0] : NULL, .current = s, .stats = stats, .t_loaded = t_loaded};
         r = view_app_run(&(view_app_desc){.scene = s, .camera = ci, .width = (int)width, .height = (int)height,
                                           .sampler = sd, .script = script ? cmds : NULL, .script_count = ncmds,

@@ -2,7 +2,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "cli.h"
+#include "src/cli/cli.h"
 
 /* The sampler options of render, converge and view. */
 #define SAMPLER_HELP                                                                          \

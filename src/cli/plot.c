@@ -1,5 +1,5 @@
 /* plot.c — log-log line charts into an RGB8 image (plot.h). */
-#include "plot.h"
+#include "src/cli/plot.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -20,7 +20,7 @@
 
 #include <stdint.h>
 
-#include "util.h"
+#include "src/base/util.h"
 
 enum { PLOT_SUPERSAMPLE = 3, PLOT_MAX_HLINES = 4 };
 

@@ -1,0 +1,180 @@
+/* cache.h — the multi-mesh cache (paper §4; DESIGN.md "Caches"): per-light
+ * direct irradiance meshes, the indirect irradiance mesh and the direct diffuse
+ * radiance mesh over one shared vertex table, and the values at their vertices.
+ *
+ * Meshes (quadtree forests over the scene's triangles, qmesh.h):
+ *   light[ℓ]   per light, 1 channel: the VISIBLE FRACTION V_ℓ = G_ℓ / G_ℓ,unoccluded
+ *              at each vertex. The cache serves G_ℓ(x) = V_ℓ(x)·G_ℓ,unocc(x), the
+ *              second factor from Lambert's formula (analytic.c) at x itself. Where
+ *              a light is wholly visible (V = 1) or hidden (V = 0) the cache is then
+ *              exact without samples inside; only penumbra needs samples (DESIGN's
+ *              control variate, carried into the mesh). Roots: the triangles that
+ *              can see the light at all (not behind it, light not below them).
+ *   direct     direct diffuse radiance per unit albedo, RGB: L_dd = (1/π)·Σ L_ℓ·G_ℓ
+ *              (eq. 4). View-independent: kept across camera moves.
+ *   indirect   indirect irradiance E_i, RGB (eq. 7), gathered from kd·L_dd over a
+ *              cut of the direct mesh (at most 8,192 triangles, opened where its
+ *              linear interpolation is worst); the back of a surface sends
+ *              nothing. When a rebuilt source may have moved a gathered value by
+ *              more than the JND (a bound: the changed source triangles' largest
+ *              change × their cosine-weighted solid angle), it is gathered again.
+ *   specular   direct specular radiance per unit ks, RGB, over the triangles whose
+ *              material has ks > 0 only (none: no mesh): eq. 5 with V_ℓ out of
+ *              the integral, Σ_ℓ V_ℓ·L_ℓ·∫_{A_ℓ} (n+2)/(2π)·cosⁿα·cosθ_x·cosθ_y/r² dA
+ *              (the integral exact: samp_polygon_phong; a point light's lobe·G);
+ *              it depends on the eye, so cache_set_camera rebuilds it.
+ *
+ * A radiance vertex's value fetches V_ℓ from each light mesh (§4.3.4): read by
+ * interpolation where the light mesh can do so confidently (the enclosing light
+ * leaf has V uniformly 1 or uniformly 0 at its corners and is at most
+ * CACHE_LIGHT_LAG levels coarser than the radiance leaf asking), else the light
+ * mesh is split down to the asking vertex and sampled. It never goes deeper than
+ * the radiance refinement asks. A uniform light leaf that is later split (for a
+ * deeper site) and finds a midpoint that disagrees was wrong wherever it had
+ * answered: the radiance values inside it are fetched again from the finer light
+ * mesh and their leaves tested again (cache_stats.falsified, .revised).
+ *
+ * Usage (worker thread):
+ *     cache *c; lm_error err;
+ *     cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err);
+ *     cache_init(c, &err);                         // coarse: every scene vertex sampled
+ *     cache_refine(c, &(cache_refine_desc){.pixels = ids.pixels, .budget = 1000}, &err);
+ *     float rgb[3]; cache_eval_direct(c, tri, w1, w2, rgb, &err);
+ *     cache_destroy(c);
+ *
+ * Threads: a cache, its meshes and its sampler belong to one thread (the
+ * refinement worker); nothing here is thread safe.
+ * Does NOT do: publishing to the display (cache_worker.h), the exact specular
+ * integral (eq. 5; the reference renderer does).
+ */
+#ifndef LUMESH_CACHE_H
+#define LUMESH_CACHE_H
+
+#include <stdint.h>
+
+#include "mesh/qmesh.h"
+#include "sampling/samp.h"
+#include "src/scene/scene.h"
+#include "src/base/util.h"
+#include "mesh/vtable.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum {
+    CACHE_LIGHT_LAG = 2 /* a light leaf may be this many levels coarser than the radiance leaf and still interpolate */
+};
+
+typedef enum cache_scheduler {
+    CACHE_SCHED_HEAP = 0,  /* default: the highest-priority leaves first, from a max-heap */
+    CACHE_SCHED_RANDOM,    /* the paper's §4.3.3: keep refining the current triangle until a random pick beats it */
+    CACHE_SCHED_COUNT
+} cache_scheduler;
+
+typedef struct cache_desc {
+    const scene *scene;       /* must outlive the cache */
+    samp_sampler *sampler;    /* samples G and E_i; owned by the caller, same thread */
+    float jnd;                /* CIELAB ΔE (CIE76) a viewer notices; 0 = 2.0 */
+    float exposure_offset;    /* stops added to the scene's exposure for the JND test; 0 = none */
+    int bounces;              /* indirect gathers kd·L_dd (1, default) or kd·(L_dd + L_id) (2) */
+    float min_leaf_pixels;    /* size criterion: leaves above this many pixels split anyway; 0 = 16 */
+    uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
+    cache_scheduler scheduler;
+    uint32_t seed;            /* the random scheduler's picks */
+    int single_mesh;          /* ablation: one combined radiance mesh (Tole et al. 2002): no
+                                 per-light meshes (every new vertex samples every light), and
+                                 indirect gathered at every new vertex, split for split with
+                                 direct, judged together by one edge test */
+} cache_desc;
+
+typedef struct cache cache;
+
+lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err);
+void cache_destroy(cache *c); /* NULL is a no-op */
+
+/* Samples every root corner of every mesh: the coarse cache (a constant ambient
+ * stands in for indirect until the coarse direct mesh exists; it exists after this). */
+lm_result cache_init(cache *c, lm_error *err);
+
+typedef struct cache_refine_desc {
+    const uint32_t *pixels;   /* per scene triangle, pixels it covers (rend_id); NULL: all 1e6 */
+    uint32_t budget;          /* leaves to test in this call; 0 = 256 */
+} cache_refine_desc;
+
+typedef struct cache_refine_result {
+    uint32_t tested, split, undone;  /* leaves tested; splits kept; splits undone (found nothing) */
+    uint32_t remaining;              /* leaves still waiting to be tested */
+} cache_refine_result;
+
+/* Tests the edges of the highest-priority leaves of the direct and indirect
+ * meshes (§4.3): splits where the tone-mapped fresh value differs from the
+ * interpolated one by more than the JND, or where a leaf covers more than
+ * min_leaf_pixels; undoes splits that found nothing. */
+lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
+
+/* The viewpoint of the specular mesh (scene units). A new eye resets that mesh
+ * to its roots and samples them again; the view-independent meshes are kept.
+ * At creation the eye is the scene's first camera. */
+lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err);
+
+/* Another sampler from now on (same thread; the caller owns both). The refinement
+ * worker makes the coarse cache with a quick sampler and then switches. */
+void cache_set_sampler(cache *c, samp_sampler *sp);
+/* Gathers every vertex of the indirect mesh(es) again with the current sampler
+ * (after cache_set_sampler: the coarse cache's quick gathers replaced). */
+lm_result cache_regather_indirect(cache *c, lm_error *err);
+/* The pixel counts given to cache_refine changed (a new view): every mesh's
+ * leaves are scheduled again by the new priorities at the next cache_refine. */
+lm_result cache_requeue(cache *c, lm_error *err);
+lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err);
+
+/* Changes light `light`'s radiance (area light, W·m⁻²·sr⁻¹) or intensity (point
+ * light, W·sr⁻¹): the direct mesh is recomputed from the G_ℓ it keeps per vertex,
+ * with no new light sample (that is why G_ℓ is stored per light); the indirect
+ * mesh is gathered again at its vertices from the updated source; the specular
+ * mesh is rebuilt from its roots (the light meshes answer without new samples
+ * where they are sure). */
+lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err);
+
+/* Priority of a node of the direct (0), indirect (1) or specular (2) mesh under the random
+ * scheduler: a leaf's own, an inner node's the maximum of its children's. */
+float cache_node_priority(const cache *c, int mesh, uint32_t node);
+
+/* Values at barycentric point (1−w1−w2, w1, w2) of scene triangle tri,
+ * interpolated from the leaves: L_dd (RGB, per unit albedo), E_i (RGB), G_ℓ. */
+lm_result cache_eval_direct(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err);
+lm_result cache_eval_indirect(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err);
+lm_result cache_eval_G(const cache *c, uint32_t light, uint32_t tri, double w1, double w2, double *G, lm_error *err);
+
+typedef struct cache_mesh_stats {
+    mesh_qmesh_stats mesh;
+    uint64_t samples;           /* fresh samples taken for this mesh */
+    uint64_t interpolated;      /* values served by interpolation instead of a sample */
+} cache_mesh_stats;
+
+typedef struct cache_stats {
+    uint32_t light_count;
+    cache_mesh_stats direct, indirect, specular; /* specular: all zero when there is no specular mesh */
+    cache_mesh_stats *lights;   /* light_count entries, owned by the cache */
+    uint64_t undone;            /* splits undone */
+    uint64_t falsified;         /* light leaves that had answered as uniform and proved not to be */
+    uint64_t revised;           /* radiance values recomputed inside those (cache_refine) */
+    uint64_t regathered;        /* indirect values gathered again: the source had moved them (counted in
+                                   indirect.samples too) */
+    size_t bytes;               /* everything: meshes, vertex table, bookkeeping */
+} cache_stats;
+
+void cache_get_stats(cache *c, cache_stats *out);
+
+/* The meshes themselves, read-only, for tests and the renderer. */
+const mesh_qmesh *cache_direct_mesh(const cache *c);
+const mesh_qmesh *cache_indirect_mesh(const cache *c);
+const mesh_qmesh *cache_specular_mesh(const cache *c); /* NULL: no glossy material */
+const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light);
+const mesh_vtable *cache_vtable(const cache *c);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

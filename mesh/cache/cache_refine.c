@@ -1,0 +1,570 @@
+/* cache_refine.c — the refinement scheduler of the multi-mesh cache (paper
+ * §4.3): which leaves to test, the edge test, keep or undo.
+ *
+ * A round takes the highest-priority leaves of one radiance mesh (direct or
+ * indirect) from a max-heap, splits each tentatively, computes the values at the
+ * new edge midpoints in one batch (direct: visible fractions from the light
+ * meshes, sampling them only where they cannot interpolate, cache.c; indirect:
+ * one samp_indirect batch), and compares at every midpoint the colour the viewer
+ * would see with the fresh value and with the value interpolated from the edge's
+ * ends, after tone mapping (tonemap.c, the display's own function), as CIELAB
+ * ΔE against the JND (§4.3.1–4.3.2). A split is kept when an edge differs
+ * noticeably or the leaf still covers more than min_leaf_pixels (the size
+ * criterion, so small discontinuities are not missed); otherwise it is undone
+ * and the leaf is marked done. A leaf of one pixel or less is never split.
+ * Priority (§4.3.3): pixels the leaf covers × (1 + the largest ΔE between its
+ * corners' colours). After each round, values that changed under the
+ * refinement's feet — radiance values inside a light leaf that answered as
+ * uniform and proved not to be, indirect values a rebuilt source moved by more
+ * than the JND — are recomputed (cache.c, cache_source.c) and the leaves around them tested
+ * again. Two schedulers pick the leaves (cache_desc.scheduler): a max-heap of
+ * leaves, or the paper's randomized rule over node priorities kept as the
+ * maximum of the children's (measured against each other in
+ * bench/bench_cache.c, docs/cache.md).
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh/cache/cache_internal.h"
+#include "src/base/vecmath.h"
+
+enum { ROUND_LEAVES = 64 };
+#define INDIRECT_SIZE_FACTOR 16.0f
+
+typedef cache_kind refine_kind;
+#define KIND_DIRECT CACHE_KIND_DIRECT
+#define KIND_INDIRECT CACHE_KIND_INDIRECT
+#define KIND_SPECULAR CACHE_KIND_SPECULAR
+
+/* ---- heap -------------------------------------------------------------------- */
+
+static lm_result queue_push(cache_queue *q, float priority, uint32_t node, uint32_t v0, lm_error *err)
+{
+    if (q->n == q->cap) {
+        size_t nc = q->cap ? 2 * q->cap : 1024;
+        cache_queue_entry *e = realloc(q->e, nc * sizeof *e);
+        if (!e) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory growing the refinement queue");
+        q->e = e;
+        q->cap = nc;
+    }
+    size_t i = q->n++;
+    while (i > 0) {
+        size_t p = (i - 1) / 2;
+        if (q->e[p].priority >= priority) break;
+        q->e[i] = q->e[p];
+        i = p;
+    }
+    q->e[i] = (cache_queue_entry){priority, node, v0};
+    return LM_OK;
+}
+
+static cache_queue_entry queue_pop(cache_queue *q)
+{
+    cache_queue_entry top = q->e[0], last = q->e[--q->n];
+    size_t i = 0;
+    for (;;) {
+        size_t l = 2 * i + 1, r = l + 1, m = i;
+        float pm = last.priority;
+        if (l < q->n && q->e[l].priority > pm) {
+            m = l;
+            pm = q->e[l].priority;
+        }
+        if (r < q->n && q->e[r].priority > pm) m = r;
+        if (m == i) break;
+        q->e[i] = q->e[m];
+        i = m;
+    }
+    if (q->n) q->e[i] = last;
+    return top;
+}
+
+/* ---- per-node "done" flags ------------------------------------------------------ */
+
+static lm_result set_done(uint8_t **flags, size_t *cap, uint32_t node, uint8_t v, lm_error *err)
+{
+    if (node >= *cap) {
+        size_t nc = *cap ? *cap : 1024;
+        while (nc <= node) nc *= 2;
+        uint8_t *f = realloc(*flags, nc);
+        if (!f) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for refinement flags");
+        memset(f + *cap, 0, nc - *cap);
+        *flags = f;
+        *cap = nc;
+    }
+    (*flags)[node] = v;
+    return LM_OK;
+}
+
+/* ---- colours ----------------------------------------------------------------- */
+
+static void seen_lab(const cache *c, refine_kind kind, uint32_t tri, double w1, double w2, const float value[3],
+                     float lab[3])
+{
+    /* What the viewer sees at (tri, w1, w2) when the refined quantity has `value`
+     * there and the others are interpolated: Le + kd·(L_dd + E_i/π) + ks·L_ds. */
+    const scene_material *m = &c->s->materials[c->s->tris[tri].material];
+    float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, rgb[3], disp[3];
+    lm_error ignore;
+    for (int k = 0; k < CACHE_KINDS; ++k) {
+        if (k == (int)kind) {
+            memcpy(term[k], value, sizeof term[k]);
+            continue;
+        }
+        const mesh_qmesh *mk = cache_kind_mesh(c, (cache_kind)k);
+        if (mk && mesh_qmesh_root(mk, tri) != MESH_QMESH_NONE) mesh_qmesh_interpolate(mk, tri, w1, w2, term[k], &ignore);
+    }
+    for (int k = 0; k < 3; ++k)
+        rgb[k] = m->le[k] + m->kd[k] * (term[KIND_DIRECT][k] + term[KIND_INDIRECT][k] * (float)(1.0 / M_PI)) +
+                 m->ks[k] * term[KIND_SPECULAR][k];
+    tm_to_display(&c->tm, rgb, disp);
+    tm_display_to_lab(disp, lab);
+}
+
+/* The same with L_dd and E_i given (the single-mesh ablation's combined test). */
+static void seen_lab_of(const cache *c, uint32_t tri, const float ldd[3], const float ei[3], float lab[3])
+{
+    const scene_material *m = &c->s->materials[c->s->tris[tri].material];
+    float rgb[3], disp[3];
+    for (int k = 0; k < 3; ++k) rgb[k] = m->le[k] + m->kd[k] * (ldd[k] + ei[k] * (float)(1.0 / M_PI));
+    tm_to_display(&c->tm, rgb, disp);
+    tm_display_to_lab(disp, lab);
+}
+
+static float leaf_pixels(const uint32_t *pixels, const mesh_qnode *n)
+{
+    float p = pixels ? (float)pixels[n->tri] : 1e6f;
+    return ldexpf(p, -2 * (int)n->depth);
+}
+
+/* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners). */
+static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind, const mesh_qnode *n,
+                           const uint32_t *pixels)
+{
+    float lab[3][3];
+    for (int k = 0; k < 3; ++k) {
+        double w1, w2;
+        float v[3];
+        cache_node_corner_bary(n, k, &w1, &w2);
+        mesh_qmesh_get_value(m, n->v[k], v);
+        seen_lab(c, kind, n->tri, w1, w2, v, lab[k]);
+    }
+    float contrast = fmaxf(tm_delta_e(lab[0], lab[1]), fmaxf(tm_delta_e(lab[1], lab[2]), tm_delta_e(lab[2], lab[0])));
+    return leaf_pixels(pixels, n) * (1.0f + contrast);
+}
+
+/* ---- scheduling ---------------------------------------------------------------- */
+
+static const mesh_qmesh *mesh_of(const cache *c, refine_kind kind) { return cache_kind_mesh(c, kind); }
+
+static lm_result grow_prio(cache *c, int kind, uint32_t node, lm_error *err)
+{
+    if (node < c->prio_cap[kind]) return LM_OK;
+    size_t nc = c->prio_cap[kind] ? c->prio_cap[kind] : 1024;
+    while (nc <= node) nc *= 2;
+    float *p = realloc(c->prio[kind], nc * sizeof *p);
+    if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for node priorities");
+    memset(p + c->prio_cap[kind], 0, (nc - c->prio_cap[kind]) * sizeof *p);
+    c->prio[kind] = p;
+    c->prio_cap[kind] = nc;
+    return LM_OK;
+}
+
+/* Sets a leaf's own priority (> 0 waiting, 0 done, < 0 being tested) and carries
+ * the change up: an inner node's priority is the maximum of its four children's
+ * (§4.3.3). Keeps the count of waiting leaves. */
+static lm_result set_leaf_priority(cache *c, refine_kind kind, uint32_t node, float p, lm_error *err)
+{
+    const mesh_qmesh *m = mesh_of(c, kind);
+    lm_result r = grow_prio(c, kind, node, err);
+    if (r != LM_OK) return r;
+    float *prio = c->prio[kind];
+    if (prio[node] > 0.0f) c->waiting[kind]--;
+    if (p > 0.0f) c->waiting[kind]++;
+    prio[node] = p;
+    for (uint32_t up = mesh_qmesh_node(m, node)->parent; up != MESH_QMESH_NONE; up = mesh_qmesh_node(m, up)->parent) {
+        uint32_t ch = mesh_qmesh_node(m, up)->child;
+        float mx = prio[ch];
+        for (uint32_t k = 1; k < 4; ++k) mx = fmaxf(mx, prio[ch + k]);
+        if (prio[up] == mx) break;
+        prio[up] = mx;
+    }
+    return LM_OK;
+}
+
+/* A new, or newly rescheduled, leaf with priority p (0: nothing to do there). */
+static lm_result sched_add(cache *c, refine_kind kind, uint32_t node, float p, lm_error *err)
+{
+    lm_result r = set_done(&c->done[kind], &c->done_cap[kind], node, p > 0.0f ? 0 : 1, err);
+    if (r != LM_OK) return r;
+    if (c->desc.scheduler == CACHE_SCHED_RANDOM) return set_leaf_priority(c, kind, node, p, err);
+    if (!(p > 0.0f)) return LM_OK;
+    c->waiting[kind]++;
+    return queue_push(&c->q[kind], p, node, mesh_qmesh_node(mesh_of(c, kind), node)->v[0], err);
+}
+
+/* A leaf whose test found nothing (its split undone). */
+static lm_result sched_done(cache *c, refine_kind kind, uint32_t node, lm_error *err)
+{
+    lm_result r = set_done(&c->done[kind], &c->done_cap[kind], node, 1, err);
+    if (r == LM_OK && c->desc.scheduler == CACHE_SCHED_RANDOM) r = set_leaf_priority(c, kind, node, 0.0f, err);
+    return r;
+}
+
+/* The next leaf to test; 0 when none is waiting. */
+static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t *out)
+{
+    const mesh_qmesh *m = mesh_of(c, kind);
+    if (c->desc.scheduler != CACHE_SCHED_RANDOM) {
+        cache_queue *q = &c->q[kind];
+        while (q->n) {
+            cache_queue_entry e = queue_pop(q);
+            c->waiting[kind]--;
+            const mesh_qnode *n = mesh_qmesh_node(m, e.node);
+            if (!n || n->child != MESH_QMESH_NONE || n->v[0] != e.v0) continue;
+            if (e.node < c->done_cap[kind] && c->done[kind][e.node]) continue;
+            if (leaf_pixels(pixels, n) <= 1.0f) continue; /* a one-pixel leaf never splits */
+            *out = e.node;
+            return 1;
+        }
+        c->waiting[kind] = 0;
+        return 0;
+    }
+    /* Random (§4.3.3): keep to the current root while its priority beats a
+     * random pick; descend to its highest-priority leaf. */
+    const float *prio = c->prio[kind];
+    uint32_t nroots = c->root_count[kind];
+    lm_error ignore;
+    while (c->waiting[kind] > 0 && nroots > 0) {
+        uint32_t cur = c->cur_root[kind];
+        uint32_t pick = c->roots[kind][(uint32_t)(lm_rng_float(&c->rng) * (float)nroots) % nroots];
+        if (cur == MESH_QMESH_NONE || prio[pick] > prio[cur]) cur = pick;
+        if (!(prio[cur] > 0.0f)) { /* a finished root: find one still waiting */
+            cur = MESH_QMESH_NONE;
+            for (uint32_t i = 0; i < nroots && cur == MESH_QMESH_NONE; ++i)
+                if (prio[c->roots[kind][i]] > 0.0f) cur = c->roots[kind][i];
+            if (cur == MESH_QMESH_NONE) {
+                c->waiting[kind] = 0;
+                return 0;
+            }
+        }
+        c->cur_root[kind] = cur;
+        uint32_t node = cur;
+        for (const mesh_qnode *n = mesh_qmesh_node(m, node); n->child != MESH_QMESH_NONE;
+             n = mesh_qmesh_node(m, node)) {
+            uint32_t best = n->child;
+            for (uint32_t k = 1; k < 4; ++k)
+                if (prio[n->child + k] > prio[best]) best = n->child + k;
+            node = best;
+        }
+        const mesh_qnode *leaf = mesh_qmesh_node(m, node);
+        if (set_leaf_priority(c, kind, node, -1.0f, &ignore) != LM_OK) return 0; /* being tested */
+        if (leaf_pixels(pixels, leaf) <= 1.0f) continue;
+        *out = node;
+        return 1;
+    }
+    return 0;
+}
+
+float cache_node_priority(const cache *c, int mesh, uint32_t node)
+{
+    if (mesh < 0 || mesh > 1 || node >= c->prio_cap[mesh]) return 0.0f;
+    return c->prio[mesh][node];
+}
+
+/* ---- one round ---------------------------------------------------------------- */
+
+typedef struct round_leaf {
+    uint32_t node;
+    uint32_t mirror;            /* single mesh: the indirect node split along with it */
+    uint32_t mid[3];            /* vtable ids of the midpoints of edges 01, 12, 20 */
+    double mw1[3], mw2[3];      /* their barycentrics */
+} round_leaf;
+
+static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t max_leaves,
+                              cache_refine_result *res, lm_error *err)
+{
+    mesh_qmesh *m = cache_kind_mesh(c, kind);
+    round_leaf leaves[ROUND_LEAVES];
+    uint32_t nl = 0;
+    lm_result r = LM_OK;
+    /* The size criterion is there to find small discontinuities (shadow edges);
+     * indirect irradiance is smooth, so its leaves stop INDIRECT_SIZE_FACTOR
+     * times larger unless the ΔE test asks for more (measured on the built-in
+     * Cornell box: with the same floor, indirect samples were 28% of all and took
+     * 98% of the sampler time). */
+    float min_pixels = c->desc.min_leaf_pixels * (kind == KIND_INDIRECT ? INDIRECT_SIZE_FACTOR : 1.0f);
+
+    /* Pick and split tentatively. */
+    uint32_t node;
+    while (nl < max_leaves && nl < ROUND_LEAVES && r == LM_OK && pick_leaf(c, kind, pixels, &node)) {
+        const mesh_qnode *n = mesh_qmesh_node(m, node);
+        double cw1[3], cw2[3];
+        for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &cw1[k], &cw2[k]);
+        r = mesh_qmesh_split(m, node, err);
+        if (r == LM_ERR_NO_MEMORY || r == LM_ERR_UNSUPPORTED) {
+            res->remaining = (uint32_t)(c->waiting[0] + c->waiting[1] + c->waiting[2]);
+            return r; /* cap or depth: refinement stops here, the cache stays valid */
+        }
+        if (r != LM_OK) break;
+        n = mesh_qmesh_node(m, node);
+        if (c->desc.scheduler == CACHE_SCHED_RANDOM) {
+            /* Child ids are recycled: clear what earlier nodes left there, so no
+             * stale priority leads a descent into this node while it is tested. */
+            r = grow_prio(c, kind, n->child + 3, err);
+            if (r != LM_OK) break;
+            for (uint32_t k = 0; k < 4; ++k) c->prio[kind][n->child + k] = 0.0f;
+        }
+        const mesh_qnode *centre = mesh_qmesh_node(m, n->child + 3); /* (m01, m12, m20) */
+        round_leaf *rl = &leaves[nl++];
+        rl->node = node;
+        rl->mirror = MESH_QMESH_NONE;
+        if (kind == KIND_DIRECT && c->desc.single_mesh) {
+            /* One combined mesh: the indirect mesh follows the direct one split for
+             * split (same addresses, so the same vertices). */
+            double cx = (cw1[0] + cw1[1] + cw1[2]) / 3.0, cy = (cw2[0] + cw2[1] + cw2[2]) / 3.0;
+            uint32_t mir = cache_find_leaf(c->indirect, n->tri, cx, cy);
+            if (mir != MESH_QMESH_NONE && mesh_qmesh_node(c->indirect, mir)->depth == n->depth &&
+                mesh_qmesh_split(c->indirect, mir, err) == LM_OK)
+                rl->mirror = mir;
+        }
+        for (int k = 0; k < 3; ++k) {
+            rl->mid[k] = centre->v[k];
+            rl->mw1[k] = 0.5 * (cw1[k] + cw1[(k + 1) % 3]);
+            rl->mw2[k] = 0.5 * (cw2[k] + cw2[(k + 1) % 3]);
+        }
+    }
+    if (r != LM_OK || nl == 0) return r;
+    /* Values at the midpoints that have none yet, in one batch. */
+    cache_site sites[3 * ROUND_LEAVES];
+    uint32_t ns = 0;
+    for (uint32_t i = 0; i < nl; ++i) {
+        const mesh_qnode *n = mesh_qmesh_node(m, leaves[i].node);
+        for (int k = 0; k < 3; ++k) {
+            float tmp[3];
+            if (mesh_qmesh_get_value(m, leaves[i].mid[k], tmp) == 1) continue;
+            int dup = 0;
+            for (uint32_t j = 0; j < ns && !dup; ++j) dup = sites[j].vid == leaves[i].mid[k];
+            if (!dup)
+                sites[ns++] = (cache_site){leaves[i].mid[k], n->tri, leaves[i].mw1[k], leaves[i].mw2[k], n->depth};
+        }
+    }
+    float *vals = malloc(3 * (size_t)(ns ? ns : 1) * sizeof *vals);
+    int from_lights = kind != KIND_INDIRECT;
+    float *V = from_lights ? malloc(((size_t)ns * c->light_count + 1) * sizeof *V) : NULL;
+    uint32_t *vids = malloc((ns ? ns : 1) * sizeof *vids);
+    if (!vals || !vids || (from_lights && !V)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
+    for (uint32_t i = 0; r == LM_OK && i < ns; ++i) vids[i] = sites[i].vid;
+    if (r == LM_OK && from_lights) {
+        r = cache_fetch_visibility(c, sites, ns, V, err);
+        for (uint32_t i = 0; r == LM_OK && i < ns; ++i) {
+            const float *Vi = V + (size_t)i * c->light_count;
+            if (kind == KIND_DIRECT)
+                r = cache_direct_from_visibility(c, sites[i].vid, Vi, vals + 3 * (size_t)i, err);
+            else
+                cache_specular_from_visibility(c, sites[i].vid, Vi, vals + 3 * (size_t)i);
+        }
+        if (r == LM_OK) (kind == KIND_DIRECT ? &c->direct_stats : &c->specular_stats)->samples += ns;
+        if (r == LM_OK && kind == KIND_DIRECT && c->desc.single_mesh) {
+            /* The combined mesh gathers indirect light at every new vertex. */
+            float *E = malloc(3 * (size_t)(ns ? ns : 1) * sizeof *E);
+            uint32_t *need = malloc((ns ? ns : 1) * sizeof *need), nn = 0;
+            float tmp[3];
+            for (uint32_t i = 0; i < ns && need; ++i)
+                if (mesh_qmesh_vertex_use(c->indirect, vids[i]) && mesh_qmesh_get_value(c->indirect, vids[i], tmp) != 1)
+                    need[nn++] = vids[i];
+            r = E && need ? cache_sample_indirect(c, need, nn, E, err)
+                          : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
+            for (uint32_t i = 0; r == LM_OK && i < nn; ++i)
+                r = mesh_qmesh_set_value(c->indirect, need[i], E + 3 * (size_t)i, err);
+            free(E);
+            free(need);
+        }
+    } else if (r == LM_OK) {
+        r = cache_sample_indirect(c, vids, ns, vals, err);
+    }
+    for (uint32_t i = 0; r == LM_OK && i < ns; ++i) r = mesh_qmesh_set_value(m, vids[i], vals + 3 * (size_t)i, err);
+    free(vals);
+    free(V);
+    free(vids);
+
+    /* Edge tests: keep or undo. */
+    for (uint32_t i = 0; r == LM_OK && i < nl; ++i) {
+        const mesh_qnode *n = mesh_qmesh_node(m, leaves[i].node);
+        uint32_t tri = n->tri, corner[3] = {n->v[0], n->v[1], n->v[2]}, child = n->child;
+        float px = leaf_pixels(pixels, n);
+        int found = 0;
+        int combined = leaves[i].mirror != MESH_QMESH_NONE;
+        for (int k = 0; k < 3 && !found; ++k) {
+            float a[3], b[3], fresh[3], interp[3], lf[3], li[3];
+            mesh_qmesh_get_value(m, corner[k], a);
+            mesh_qmesh_get_value(m, corner[(k + 1) % 3], b);
+            mesh_qmesh_get_value(m, leaves[i].mid[k], fresh);
+            for (int ch = 0; ch < 3; ++ch) interp[ch] = 0.5f * (a[ch] + b[ch]);
+            if (combined) {
+                /* One mesh holds everything: fresh direct and indirect against both
+                 * interpolated from the edge's ends. */
+                float ea[3], eb[3], ef[3], ei[3];
+                mesh_qmesh_get_value(c->indirect, corner[k], ea);
+                mesh_qmesh_get_value(c->indirect, corner[(k + 1) % 3], eb);
+                mesh_qmesh_get_value(c->indirect, leaves[i].mid[k], ef);
+                for (int ch = 0; ch < 3; ++ch) ei[ch] = 0.5f * (ea[ch] + eb[ch]);
+                seen_lab_of(c, tri, fresh, ef, lf);
+                seen_lab_of(c, tri, interp, ei, li);
+            } else {
+                seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
+                seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
+            }
+            found = tm_delta_e(lf, li) > c->desc.jnd;
+        }
+        res->tested++;
+        if (found || px > min_pixels) {
+            res->split++;
+            for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
+                const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
+                r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, ch, pixels), err);
+            }
+        } else {
+            r = mesh_qmesh_merge(m, leaves[i].node, err);
+            if (r == LM_OK && combined) r = mesh_qmesh_merge(c->indirect, leaves[i].mirror, err);
+            if (r == LM_OK) r = sched_done(c, kind, leaves[i].node, err);
+            res->undone++;
+            c->undone++;
+        }
+    }
+    return r;
+}
+
+/* ---- revised values: falsified light leaves, outdated indirect values --------- */
+
+typedef struct requeue_ctx {
+    cache *c;
+    cache_kind kind;
+    const uint32_t *pixels;
+    const uint32_t *vids; /* changed, sorted */
+    uint32_t n;
+} requeue_ctx;
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+/* A leaf with a changed corner is tested again (also one found done before: what
+ * it was compared with has changed). */
+static lm_result requeue_visit(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user, lm_error *err)
+{
+    requeue_ctx *q = user;
+    if (n->child != MESH_QMESH_NONE) return LM_OK;
+    int hit = 0;
+    for (int k = 0; k < 3 && !hit; ++k) hit = bsearch(&n->v[k], q->vids, q->n, sizeof *q->vids, cmp_u32) != NULL;
+    if (!hit || (q->pixels && q->pixels[n->tri] == 0)) return LM_OK;
+    return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, n, q->pixels), err);
+}
+
+/* regions NULL: anywhere in the mesh. The single-mesh ablation schedules the
+ * combined (direct) mesh only. */
+static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
+                                 const uint32_t *vids, uint32_t n, void *user, lm_error *err)
+{
+    if (kind == KIND_INDIRECT && c->desc.single_mesh) kind = KIND_DIRECT;
+    requeue_ctx q = {c, kind, user, vids, n};
+    const mesh_qmesh *m = cache_kind_mesh(c, kind);
+    lm_result r = LM_OK;
+    for (uint32_t i = 0; r == LM_OK && i < region_count; ++i) r = cache_region_walk(m, &regions[i], requeue_visit, &q, err);
+    for (uint32_t t = 0; r == LM_OK && !regions && t < c->s->tri_count; ++t) {
+        if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE) continue;
+        const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
+        r = cache_region_walk(m, &whole, requeue_visit, &q, err);
+    }
+    return r;
+}
+
+/* What changed under the refinement's feet: values inside falsified light leaves
+ * (cache.c) and indirect values the source has moved (cache_source.c); their leaves are tested again. */
+static lm_result revise(cache *c, const uint32_t *pixels, lm_error *err)
+{
+    lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
+    return r == LM_OK ? cache_regather_outdated(c, requeue_changed, (void *)pixels, err) : r;
+}
+
+/* Schedules every leaf of one mesh afresh (at the start; after a light changed;
+ * for the specular mesh after the camera moved): heap, done flags and priorities
+ * are rebuilt. */
+static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pixels, lm_error *err)
+{
+    mesh_qmesh *m = cache_kind_mesh(c, kind);
+    c->q[kind].n = 0;
+    if (c->done[kind]) memset(c->done[kind], 0, c->done_cap[kind]);
+    if (c->prio[kind]) memset(c->prio[kind], 0, c->prio_cap[kind] * sizeof *c->prio[kind]);
+    c->waiting[kind] = 0;
+    c->root_count[kind] = 0;
+    c->cur_root[kind] = MESH_QMESH_NONE;
+    c->requeue[kind] = 0;
+    if (!m || (kind == KIND_INDIRECT && c->desc.single_mesh)) return LM_OK; /* single mesh: it follows direct */
+    free(c->roots[kind]);
+    c->roots[kind] = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *c->roots[kind]);
+    if (!c->roots[kind]) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");
+    for (uint32_t t = 0; t < c->s->tri_count; ++t) {
+        uint32_t root = mesh_qmesh_root(m, t);
+        if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0)) c->roots[kind][c->root_count[kind]++] = root;
+    }
+    size_t count = 0;
+    lm_result r = mesh_qmesh_leaf_triangles(m, &c->leaf_buf, &c->leaf_cap, &count, err);
+    uint32_t last = MESH_QMESH_NONE;
+    for (size_t i = 0; r == LM_OK && i < count; ++i) {
+        uint32_t leaf = c->leaf_buf[i].leaf;
+        if (leaf == last) continue; /* a fan emits several triangles per leaf */
+        last = leaf;
+        const mesh_qnode *n = mesh_qmesh_node(m, leaf);
+        float p = pixels && pixels[n->tri] == 0 ? 0.0f : leaf_priority(c, m, kind, n, pixels);
+        r = sched_add(c, kind, leaf, p, err);
+    }
+    return r;
+}
+
+lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err)
+{
+    cache_refine_result res = {0};
+    if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
+    lm_result r = c->initialised ? LM_OK : cache_init(c, err);
+    for (int k = 0; r == LM_OK && k < CACHE_KINDS; ++k)
+        if (!c->queues_seeded || c->requeue[k]) r = schedule_leaves(c, (refine_kind)k, desc->pixels, err);
+    c->queues_seeded = 1;
+    uint32_t budget = desc->budget ? desc->budget : 256;
+    /* Direct light first; indirect (smoother, dearer samples) and specular get a
+     * fifth of the leaves each; what a missing mesh would get goes to direct. */
+    uint32_t fifth = budget / 5 ? budget / 5 : 1;
+    uint32_t left[CACHE_KINDS] = {0, fifth, c->specular ? fifth : 0};
+    left[KIND_DIRECT] = budget > left[1] + left[2] ? budget - left[1] - left[2] : 1;
+    /* Changes made outside refinement (coarse cache, a camera move). */
+    if (r == LM_OK) r = revise(c, desc->pixels, err);
+    int settled = 0;
+    while (r == LM_OK) {
+        int kind = -1;
+        for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
+            if (left[k] && c->waiting[k]) kind = k;
+        if (kind < 0) {
+            /* Nothing left to test (not just out of budget): bring the indirect
+             * source up to date with the direct mesh; indirect values it moves are
+             * gathered again and their leaves tested. */
+            if (settled || c->waiting[0] + c->waiting[1] + c->waiting[2] > 0) break;
+            settled = 1;
+            r = cache_settle_source(c, err);
+            if (r == LM_OK) r = revise(c, desc->pixels, err);
+            continue;
+        }
+        uint32_t before = res.tested;
+        r = refine_round(c, (refine_kind)kind, desc->pixels, left[kind], &res, err);
+        /* The round's light fetches may have found uniform light leaves that were
+         * not, and its gathers a rebuilt source that moved older indirect values:
+         * recompute those values (cache.c) and test their leaves again. */
+        if (r == LM_OK) r = revise(c, desc->pixels, err);
+        uint32_t used = res.tested - before;
+        left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
+    }
+    res.remaining = (uint32_t)(c->waiting[0] + c->waiting[1] + c->waiting[2]);
+    if (out) *out = res;
+    return r;
+}

@@ -1,0 +1,79 @@
+/* cache_snapshot.h — what the refinement worker publishes (cache_worker.h) and the
+ * renderer draws (src/render/): plain arrays, no cache pointers, so that the
+ * display side reads a snapshot without touching the cache or taking a lock.
+ *
+ * A snapshot holds the crack-free leaf triangles of the direct, indirect and
+ * specular meshes with, per corner, its position and value and, per triangle, its
+ * scene triangle (for the material) — what the radiance passes draw — and the
+ * cache statistics when it was made. With publish_debug it also holds each light's
+ * visibility mesh and, for every mesh, per-corner vertex ids and flags (sampled
+ * vertex, leaf-boundary edge): what the debug overlays draw (rend_debug.h). Off,
+ * nothing of that is made or copied.
+ *
+ * Threads: written only by the worker thread into a slot the display does not
+ * hold; after cache_worker_acquire returns it, read-only for the display thread
+ * until its next acquire (cache_worker.h).
+ * Units: positions in scene units; values as each mesh stores them (below).
+ * Does NOT do: own memory (the worker's slots do), keep a cache alive.
+ */
+#ifndef LUMESH_CACHE_SNAPSHOT_H
+#define LUMESH_CACHE_SNAPSHOT_H
+
+#include <stdint.h>
+
+#include "mesh/cache/cache.h"
+#include "sampling/samp.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* One corner of a published triangle. */
+typedef struct cache_snapshot_vertex {
+    float position[3];           /* scene units */
+    float value[3];              /* direct: L_dd per unit albedo; indirect: E_i (W·m⁻²); specular: L_ds per unit ks */
+} cache_snapshot_vertex;
+
+/* Per-corner flags of cache_snapshot_corner. */
+enum {
+    CACHE_CORNER_SAMPLED = 1u << 0,  /* the vertex's value was set in this mesh (mesh_qmesh_get_value
+                                        returned 1): a light mesh's are sampler calls, all of them */
+    CACHE_CORNER_LEAF_EDGE = 1u << 1 /* the edge from this corner to the next (k -> k+1 mod 3) lies on
+                                        its leaf's boundary; clear: a diagonal of the fan tiling the leaf */
+};
+
+/* One corner's debug data (cache_worker_desc.publish_debug), parallel to vertices. */
+typedef struct cache_snapshot_corner {
+    uint32_t vertex;             /* vertex-table id: corners with the same id are one vertex of the mesh */
+    uint32_t flags;              /* CACHE_CORNER_* */
+} cache_snapshot_corner;
+
+typedef struct cache_snapshot_mesh {
+    const cache_snapshot_vertex *vertices; /* 3 per triangle */
+    const uint32_t *tri;         /* scene triangle of each triangle (its material) */
+    const cache_snapshot_corner *corners;  /* 3 per triangle with publish_debug; else NULL */
+    uint32_t triangle_count;
+} cache_snapshot_mesh;
+
+typedef struct cache_snapshot {
+    uint64_t generation;         /* 1, 2, ... per commit */
+    cache_snapshot_mesh direct, indirect, specular; /* specular: empty without glossy materials */
+    const cache_snapshot_mesh *lights; /* publish_debug: light_mesh_count visibility meshes, value[0] = V_ℓ
+                                          (visible fraction), value[1] = value[2] = 0; else NULL */
+    uint32_t light_mesh_count;   /* publish_debug: the scene's lights (a light nothing can see: an
+                                    empty mesh); else 0 */
+    cache_stats stats;           /* stats.lights points into the snapshot */
+    samp_stats sampler;          /* the worker's sampler when it was made: back ends, samples, seconds */
+    samp_stats quick_sampler;    /* the quick start's sampler (the coarse cache); zero without one */
+    double published_at;         /* lm_now_seconds() when it was committed */
+    uint64_t tested;             /* leaves tested so far */
+    int converged;               /* nothing was left to test when it was made */
+    int finished;                /* converged, or max_tested reached: no newer snapshot without an edit */
+    int failed;                  /* the worker stopped on an error (message in error) */
+    char error[256];
+} cache_snapshot;
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,670 @@
+/* cache_source.c — indirect light in the cache (cache.h, eq. 7): the radiance
+ * source that indirect samples gather from (a cut of the direct mesh), the gathers
+ * themselves, indirect values the source's rebuilds have outdated, and gathering
+ * everything again after a light edit. Worker thread, like the rest of the cache. */
+#include "mesh/cache/cache_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sampling/analytic.h"
+#include "sampling/samp.h"
+#include "src/base/vecmath.h"
+
+/* The source is a cut of the direct mesh of at most this many triangles: indirect
+ * irradiance is smooth, and every indirect sample draws or searches the whole
+ * source (the paper gathers from a coarse direct mesh, §5). With the full leaf set
+ * of the built-in Cornell box (31,000 triangles) a GL hemicube sample cost 6 ms. */
+#define CACHE_RMESH_TRIANGLES 8192u
+/* Rebuild the source when the direct mesh has changed, since the last build, by a
+ * quarter of its nodes then (kept splits and revised values), at least 16 and at
+ * most this many; always before the first indirect samples, and when refinement
+ * has nothing left to test (cache_settle_source). */
+#define CACHE_RMESH_STALE 256u
+
+/* ---- the cut ------------------------------------------------------------------
+ *
+ * Opened where linear interpolation over a node is worst: from the roots, the node
+ * with the largest bound on |fine mesh − the node's own plane| (of kd·L_dd) times
+ * its area is replaced by its four children while the budget allows. The bound is
+ * built bottom-up: 0 at a leaf; at an inner node, the largest of its children's
+ * plus the largest deviation of the values at its edge midpoints from the mean of
+ * the edge's ends (the children's planes differ from the parent's by at most that). */
+
+struct source_pick {
+    float key;
+    uint32_t node;
+};
+
+static float source_error(cache *c, uint32_t node)
+{
+    const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
+    if (n->child == MESH_QMESH_NONE) return c->src_err[node] = 0.0f;
+    const uint32_t child = n->child, tri = n->tri, corner[3] = {n->v[0], n->v[1], n->v[2]};
+    const float *kd = c->s->materials[c->s->tris[tri].material].kd;
+    float worst = 0.0f;
+    for (uint32_t k = 0; k < 4; ++k) worst = fmaxf(worst, source_error(c, child + k));
+    /* The centre child's corners are the midpoints of edges 01, 12, 20. */
+    const mesh_qnode *centre = mesh_qmesh_node(c->direct, child + 3);
+    float dev = 0.0f;
+    for (int j = 0; j < 3; ++j) {
+        float a[3], b[3], m[3];
+        if (mesh_qmesh_get_value(c->direct, corner[j], a) != 1 || mesh_qmesh_get_value(c->direct, corner[(j + 1) % 3], b) != 1 ||
+            mesh_qmesh_get_value(c->direct, centre->v[j], m) != 1)
+            continue;
+        for (int ch = 0; ch < 3; ++ch) dev = fmaxf(dev, kd[ch] * fabsf(m[ch] - 0.5f * (a[ch] + b[ch])));
+    }
+    return c->src_err[node] = worst + dev;
+}
+
+static void heap_push(struct source_pick *h, uint32_t *n, struct source_pick e)
+{
+    uint32_t i = (*n)++;
+    while (i > 0 && h[(i - 1) / 2].key < e.key) {
+        h[i] = h[(i - 1) / 2];
+        i = (i - 1) / 2;
+    }
+    h[i] = e;
+}
+
+static struct source_pick heap_pop(struct source_pick *h, uint32_t *n)
+{
+    struct source_pick top = h[0], last = h[--*n];
+    uint32_t i = 0;
+    for (;;) {
+        uint32_t l = 2 * i + 1, r = l + 1, big = i;
+        float kb = last.key;
+        if (l < *n && h[l].key > kb) big = l, kb = h[l].key;
+        if (r < *n && h[r].key > kb) big = r;
+        if (big == i) break;
+        h[i] = h[big];
+        i = big;
+    }
+    if (*n) h[i] = last;
+    return top;
+}
+
+/* Marks in c->src_open the nodes the cut opens. */
+static lm_result choose_cut(cache *c, lm_error *err)
+{
+    const scene *s = c->s;
+    uint32_t limit = mesh_qmesh_node_limit(c->direct);
+    if (limit > c->src_cap) {
+        float *e = realloc(c->src_err, limit * sizeof *e);
+        if (e) c->src_err = e;
+        uint8_t *o = e ? realloc(c->src_open, limit) : NULL;
+        if (o) c->src_open = o;
+        struct source_pick *h = o ? realloc(c->src_heap, limit * sizeof *h) : NULL;
+        if (h) c->src_heap = h;
+        if (!h) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+        c->src_cap = limit;
+    }
+    memset(c->src_open, 0, limit);
+    uint32_t hn = 0, count = 0;
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        uint32_t root = mesh_qmesh_root(c->direct, t);
+        if (root == MESH_QMESH_NONE) continue;
+        count++;
+        float e = source_error(c, root);
+        if (e > 0.0f) heap_push(c->src_heap, &hn, (struct source_pick){e * s->tri_areas[t], root});
+    }
+    while (hn && count + 3 <= CACHE_RMESH_TRIANGLES) {
+        struct source_pick p = heap_pop(c->src_heap, &hn);
+        const mesh_qnode *n = mesh_qmesh_node(c->direct, p.node);
+        c->src_open[p.node] = 1;
+        count += 3;
+        double area = s->tri_areas[n->tri] * ldexp(1.0, -2 * ((int)n->depth + 1));
+        for (uint32_t k = 0; k < 4; ++k) {
+            float e = c->src_err[n->child + k];
+            if (e > 0.0f) heap_push(c->src_heap, &hn, (struct source_pick){e * (float)area, n->child + k});
+        }
+    }
+    return LM_OK;
+}
+
+/* Appends the cut's triangles under `node` to c->leaf_buf. */
+static lm_result collect_source(cache *c, uint32_t node, size_t *count, lm_error *err)
+{
+    const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
+    if (n->child != MESH_QMESH_NONE && c->src_open[node]) {
+        uint32_t child = n->child;
+        for (uint32_t k = 0; k < 4; ++k) {
+            lm_result r = collect_source(c, child + k, count, err);
+            if (r != LM_OK) return r;
+        }
+        return LM_OK;
+    }
+    if (*count == c->leaf_cap) {
+        size_t nc = c->leaf_cap ? 2 * c->leaf_cap : 1024;
+        mesh_qmesh_tri *b = realloc(c->leaf_buf, nc * sizeof *b);
+        if (!b) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+        c->leaf_buf = b;
+        c->leaf_cap = nc;
+    }
+    mesh_qmesh_tri *t = &c->leaf_buf[(*count)++];
+    t->tri = n->tri;
+    t->leaf = node;
+    for (int k = 0; k < 3; ++k) {
+        t->v[k] = n->v[k];
+        t->bary[k] = mesh_qmesh_node_corner(n, k);
+    }
+    return LM_OK;
+}
+
+/* ---- outdated indirect values -------------------------------------------------
+ *
+ * A gather is only as good as the source of its time. Each rebuild of the source
+ * the displayed indirect gathers from adds to every indirect value's drift a bound
+ * on how far the rebuild moved it: over the source triangles that changed, their
+ * largest change (at the corners of either source, which are nested cuts of one
+ * tree: the difference is linear between them) times the cosine-weighted solid
+ * angle of their front from the value's vertex (occlusion ignored: a bound). A
+ * value whose drift could change what the viewer sees there by more than the JND
+ * is flagged, and cache_regather_outdated gathers it again. */
+
+static lm_result grow_drift(cache *c, uint32_t limit, lm_error *err)
+{
+    if (limit <= c->drift_cap) return LM_OK;
+    size_t cap = c->drift_cap ? c->drift_cap : 1024;
+    while (cap < limit) cap *= 2;
+    float *d = realloc(c->drift, 3 * cap * sizeof *d);
+    if (d) c->drift = d;
+    uint8_t *o = d ? realloc(c->outdated, cap) : NULL;
+    if (o) c->outdated = o;
+    if (!o) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
+    memset(c->drift + 3 * c->drift_cap, 0, 3 * (cap - c->drift_cap) * sizeof *d);
+    memset(c->outdated + c->drift_cap, 0, cap - c->drift_cap);
+    c->drift_cap = cap;
+    return LM_OK;
+}
+
+static lm_result push_outdated(cache *c, uint32_t vid, lm_error *err)
+{
+    if (c->outdated[vid]) return LM_OK;
+    if (c->outdated_n == c->outdated_cap) {
+        size_t nc = c->outdated_cap ? 2 * c->outdated_cap : 256;
+        uint32_t *p = realloc(c->outdated_list, nc * sizeof *p);
+        if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
+        c->outdated_list = p;
+        c->outdated_cap = nc;
+    }
+    c->outdated_list[c->outdated_n++] = vid;
+    c->outdated[vid] = 1;
+    return LM_OK;
+}
+
+/* A changed source triangle: corners in scene space, its front normal, the bound
+ * on its change (RGB), and a bounding sphere for the far-field estimate. */
+typedef struct changed_tri {
+    double p[3][3];
+    lm_dvec3 centre, normal;
+    double radius, area;
+    float d[3];
+} changed_tri;
+
+static void bary_point(const scene *s, uint32_t t, double w1, double w2, double out[3])
+{
+    const uint32_t *v = s->tris[t].v;
+    for (int k = 0; k < 3; ++k)
+        out[k] = (1.0 - w1 - w2) * s->positions[3 * (size_t)v[0] + (size_t)k] + w1 * s->positions[3 * (size_t)v[1] + (size_t)k] +
+                 w2 * s->positions[3 * (size_t)v[2] + (size_t)k];
+}
+
+/* The changed triangles as the far-field loop reads them (structure of arrays:
+ * the loop over them runs for every indirect value and vectorises): centre,
+ * front normal, 16·radius² (nearer than four radii: exact), area × change. */
+typedef struct far_field {
+    float *cx, *cy, *cz, *nx, *ny, *nz, *lim, *ad0, *ad1, *ad2;
+    uint32_t *near;
+} far_field;
+
+static int far_field_make(far_field *f, const changed_tri *ch, uint32_t n)
+{
+    float *block = malloc((size_t)(n ? n : 1) * 10 * sizeof *block);
+    f->near = malloc((n ? n : 1) * sizeof *f->near);
+    if (!block || !f->near) {
+        free(block);
+        free(f->near);
+        return 0;
+    }
+    float **cols[10] = {&f->cx, &f->cy, &f->cz, &f->nx, &f->ny, &f->nz, &f->lim, &f->ad0, &f->ad1, &f->ad2};
+    for (int k = 0; k < 10; ++k) *cols[k] = block + (size_t)k * (n ? n : 1);
+    for (uint32_t j = 0; j < n; ++j) {
+        const changed_tri *ct = &ch[j];
+        f->cx[j] = (float)ct->centre.x;
+        f->cy[j] = (float)ct->centre.y;
+        f->cz[j] = (float)ct->centre.z;
+        f->nx[j] = (float)ct->normal.x;
+        f->ny[j] = (float)ct->normal.y;
+        f->nz[j] = (float)ct->normal.z;
+        f->lim[j] = (float)(16.0 * ct->radius * ct->radius);
+        f->ad0[j] = (float)(ct->area * ct->d[0]);
+        f->ad1[j] = (float)(ct->area * ct->d[1]);
+        f->ad2[j] = (float)(ct->area * ct->d[2]);
+    }
+    return 1;
+}
+
+static void far_field_free(far_field *f)
+{
+    free(f->cx);
+    free(f->near);
+}
+
+/* Σ_j d_j·∫ over changed triangle j's front of cosθ_x dω from (x, nx), into add:
+ * by area and cosines over distance² beyond four radii, exactly
+ * (samp_polygon_G) nearer. */
+static void drift_bound(const far_field *f, const changed_tri *ch, uint32_t n, const double x[3], const double nx[3],
+                        double add[3])
+{
+    const float X = (float)x[0], Y = (float)x[1], Z = (float)x[2], NX = (float)nx[0], NY = (float)nx[1],
+                NZ = (float)nx[2];
+    float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f;
+    uint32_t nn = 0;
+    for (uint32_t j = 0; j < n; ++j) {
+        float dx = f->cx[j] - X, dy = f->cy[j] - Y, dz = f->cz[j] - Z;
+        float r2 = dx * dx + dy * dy + dz * dz;
+        float px = dx * NX + dy * NY + dz * NZ, py = -(dx * f->nx[j] + dy * f->ny[j] + dz * f->nz[j]);
+        int far = r2 > f->lim[j];
+        float w = far && px > 0.0f && py > 0.0f ? px * py / (r2 * r2) : 0.0f; /* A·cosθx·cosθy/r² over A */
+        a0 += w * f->ad0[j];
+        a1 += w * f->ad1[j];
+        a2 += w * f->ad2[j];
+        f->near[nn] = j;
+        nn += (uint32_t)!far;
+    }
+    add[0] += a0;
+    add[1] += a1;
+    add[2] += a2;
+    for (uint32_t i = 0; i < nn; ++i) {
+        const changed_tri *ct = &ch[f->near[i]];
+        double w = samp_polygon_G(ct->p, 3, x, nx);
+        for (int k = 0; k < 3; ++k) add[k] += w * ct->d[k];
+    }
+}
+
+/* The value at vertex vid as the viewer sees it, with E replaced by `e`. */
+static void seen_indirect_lab(const cache *c, uint32_t vid, const float ldd[3], const float e[3], float lab[3])
+{
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    const scene_material *m = &c->s->materials[c->s->tris[mv->tri].material];
+    float rgb[3], disp[3];
+    for (int k = 0; k < 3; ++k) rgb[k] = m->le[k] + m->kd[k] * (ldd[k] + fmaxf(e[k], 0.0f) * (float)(1.0 / M_PI));
+    tm_to_display(&c->tm, rgb, disp);
+    tm_display_to_lab(disp, lab);
+}
+
+/* Compares the new source (c->rmesh) with the previous one (c->rp_*), adds the
+ * bounds to the drift of every displayed indirect value and flags those that may
+ * have moved by more than the JND. */
+static lm_result mark_outdated(cache *c, lm_error *err)
+{
+    const scene *s = c->s;
+    const samp_radiance_mesh old = {.tri_count = (uint32_t)c->rp_count, .first = c->rp_first, .bary = c->rp_bary,
+                                    .radiance = c->rp_rad};
+    const samp_radiance_mesh *cur = &c->rmesh;
+    samp_radiance_index ix_old, ix_new;
+    samp_radiance_index_build(s, &old, &ix_old);
+    samp_radiance_index_build(s, cur, &ix_new);
+    float *d = calloc(3 * (size_t)(cur->tri_count ? cur->tri_count : 1), sizeof *d);
+    changed_tri *ch = NULL;
+    lm_result r = d ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
+    /* The change over each new triangle: at its corners, and at the old corners
+     * that fall inside it. */
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t)
+        for (uint32_t i = cur->first[t]; i < cur->first[t + 1]; ++i)
+            for (int k = 0; k < 3; ++k) {
+                const float *b = cur->bary + 6 * (size_t)i, *rad = cur->radiance + 9 * (size_t)i;
+                float was[3];
+                samp_radiance_at(&old, &ix_old, t, b[2 * k], b[2 * k + 1], was);
+                for (int chn = 0; chn < 3; ++chn)
+                    d[3 * i + (uint32_t)chn] = fmaxf(d[3 * i + (uint32_t)chn], fabsf(rad[3 * k + chn] - was[chn]));
+            }
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t)
+        for (uint32_t i = old.first[t]; i < old.first[t + 1]; ++i)
+            for (int k = 0; k < 3; ++k) {
+                const float *b = old.bary + 6 * (size_t)i, *rad = old.radiance + 9 * (size_t)i;
+                float now[3];
+                uint32_t at = samp_radiance_at(cur, &ix_new, t, b[2 * k], b[2 * k + 1], now);
+                if (at == UINT32_MAX) continue;
+                for (int chn = 0; chn < 3; ++chn)
+                    d[3 * at + (uint32_t)chn] = fmaxf(d[3 * at + (uint32_t)chn], fabsf(rad[3 * k + chn] - now[chn]));
+            }
+    /* Old triangles of a scene triangle that has none now (or the reverse) sent
+     * light that is gone: counted through the corners above only where both exist;
+     * a scene triangle that lost its whole source cannot happen (roots stay). */
+    /* Triangles whose change is under a thousandth of the largest are not looked at
+     * one by one: their largest change times π (all the cosine-weighted solid angle
+     * there is) is added to every value instead, which keeps the bound. A cut that
+     * moved by round-off everywhere costs one pass then. */
+    float dmax = 0.0f, small[3] = {0, 0, 0};
+    for (uint32_t i = 0; r == LM_OK && i < cur->tri_count; ++i)
+        dmax = fmaxf(dmax, fmaxf(d[3 * i], fmaxf(d[3 * i + 1], d[3 * i + 2])));
+    uint32_t nch = 0;
+    if (r == LM_OK) {
+        ch = malloc((cur->tri_count ? cur->tri_count : 1) * sizeof *ch);
+        if (!ch) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
+    }
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t)
+        for (uint32_t i = cur->first[t]; i < cur->first[t + 1]; ++i) {
+            const float *di = d + 3 * (size_t)i;
+            float dm = fmaxf(di[0], fmaxf(di[1], di[2]));
+            if (!(dm > 0.0f)) continue;
+            if (dm < 1e-3f * dmax) {
+                for (int k = 0; k < 3; ++k) small[k] = fmaxf(small[k], di[k]);
+                continue;
+            }
+            changed_tri *ct = &ch[nch++];
+            const float *b = cur->bary + 6 * (size_t)i;
+            for (int k = 0; k < 3; ++k) bary_point(s, t, b[2 * k], b[2 * k + 1], ct->p[k]);
+            lm_dvec3 a = dv3(ct->p[0][0], ct->p[0][1], ct->p[0][2]), bb = dv3(ct->p[1][0], ct->p[1][1], ct->p[1][2]),
+                     cc = dv3(ct->p[2][0], ct->p[2][1], ct->p[2][2]);
+            ct->centre = dv3_scale(dv3_add(dv3_add(a, bb), cc), 1.0 / 3.0);
+            ct->area = 0.5 * dv3_length(dv3_cross(dv3_sub(bb, a), dv3_sub(cc, a)));
+            ct->normal = dv3_load(s->tri_normals + 3 * (size_t)t);
+            ct->radius = fmax(dv3_length(dv3_sub(a, ct->centre)),
+                              fmax(dv3_length(dv3_sub(bb, ct->centre)), dv3_length(dv3_sub(cc, ct->centre))));
+            memcpy(ct->d, di, sizeof ct->d);
+        }
+    /* Every displayed indirect value: its drift grows by Σ d·weight. */
+    mesh_vtable_stats vs;
+    mesh_vtable_get_stats(c->vt, &vs);
+    int any = nch || small[0] > 0.0f || small[1] > 0.0f || small[2] > 0.0f;
+    if (r == LM_OK && any) r = grow_drift(c, vs.id_limit, err);
+    far_field ff = {0};
+    if (r == LM_OK && any && !far_field_make(&ff, ch, nch))
+        r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
+    const float eps = samp_origin_epsilon(c->sp);
+    for (uint32_t vid = 0; r == LM_OK && any && vid < vs.id_limit; ++vid) {
+        float e[3];
+        if (c->outdated[vid] || mesh_qmesh_get_value(c->indirect, vid, e) != 1) continue;
+        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+        /* From where the gather looks (a point on a surface's plane sees none of it). */
+        samp_point sp = cache_vertex_point(c, vid);
+        float o[3];
+        samp_point_origin(s, &sp, eps, o);
+        const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
+        double add[3] = {M_PI * small[0], M_PI * small[1], M_PI * small[2]};
+        drift_bound(&ff, ch, nch, x, nx, add);
+        float *dr = c->drift + 3 * (size_t)vid;
+        for (int k = 0; k < 3; ++k) dr[k] += (float)fmin(add[k], 3e38);
+        /* Could the drift be seen? E ± drift against E, through the tone map. */
+        float ldd[3] = {0, 0, 0}, lab0[3], lab1[3], up[3], down[3];
+        if (mesh_qmesh_get_value(c->direct, vid, ldd) != 1) {
+            double scale = ldexp(1.0, -(int)mv->bary.depth);
+            lm_error ignore;
+            if (mesh_qmesh_interpolate(c->direct, mv->tri, mv->bary.w[1] * scale, mv->bary.w[2] * scale, ldd, &ignore) !=
+                LM_OK)
+                ldd[0] = ldd[1] = ldd[2] = 0.0f;
+        }
+        for (int k = 0; k < 3; ++k) {
+            up[k] = e[k] + dr[k];
+            down[k] = e[k] - dr[k];
+        }
+        seen_indirect_lab(c, vid, ldd, e, lab0);
+        seen_indirect_lab(c, vid, ldd, up, lab1);
+        int seen = tm_delta_e(lab0, lab1) > c->desc.jnd;
+        if (!seen) {
+            seen_indirect_lab(c, vid, ldd, down, lab1);
+            seen = tm_delta_e(lab0, lab1) > c->desc.jnd;
+        }
+        if (seen) r = push_outdated(c, vid, err);
+    }
+    far_field_free(&ff);
+    free(ch);
+    free(d);
+    samp_radiance_index_free(&ix_old);
+    samp_radiance_index_free(&ix_new);
+    return r;
+}
+
+/* Room for a source of n triangles in (first, bary, rad) (the layout of
+ * samp_radiance_mesh); cap counts triangles. */
+static lm_result grow_source(const scene *s, uint32_t **first, float **bary, float **rad, size_t *cap, size_t n,
+                             lm_error *err)
+{
+    if (!*first) {
+        *first = calloc((size_t)s->tri_count + 1, sizeof **first);
+        if (!*first) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+    }
+    if (n <= *cap) return LM_OK;
+    float *b = realloc(*bary, n * 6 * sizeof *b);
+    if (b) *bary = b;
+    float *rd = b ? realloc(*rad, n * 9 * sizeof *rd) : NULL;
+    if (rd) *rad = rd;
+    if (!rd) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+    *cap = n;
+    return LM_OK;
+}
+
+/* Keeps the source just built as the previous one. */
+static lm_result keep_previous(cache *c, lm_error *err)
+{
+    const scene *s = c->s;
+    size_t n = c->rmesh.tri_count;
+    lm_result r = grow_source(s, &c->rp_first, &c->rp_bary, &c->rp_rad, &c->rp_cap, n, err);
+    if (r != LM_OK) return r;
+    memcpy(c->rp_first, c->rm_first, ((size_t)s->tri_count + 1) * sizeof *c->rp_first);
+    memcpy(c->rp_bary, c->rm_bary, n * 6 * sizeof *c->rp_bary);
+    memcpy(c->rp_rad, c->rm_rad, n * 9 * sizeof *c->rp_rad);
+    c->rp_count = n;
+    c->rp_valid = 1;
+    c->rp_with_e1 = c->rm_with_e1;
+    return LM_OK;
+}
+
+/* ---- the source ----------------------------------------------------------------- */
+
+static int64_t direct_changes(const cache *c)
+{
+    mesh_qmesh_stats st;
+    mesh_qmesh_get_stats(c->direct, &st);
+    return (int64_t)st.splits - (int64_t)st.merges + (int64_t)c->revised;
+}
+
+/* Builds the source of the kind asked; track: compare it with the previous
+ * displayed source and flag the values it moved. */
+static lm_result build_source(cache *c, int with_e1, int track, lm_error *err)
+{
+    const scene *s = c->s;
+    with_e1 = with_e1 && c->indirect1;
+    lm_result r = choose_cut(c, err);
+    size_t count = 0;
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
+        uint32_t root = mesh_qmesh_root(c->direct, t);
+        if (root != MESH_QMESH_NONE) r = collect_source(c, root, &count, err);
+    }
+    if (r != LM_OK) return r;
+    r = grow_source(s, &c->rm_first, &c->rm_bary, &c->rm_rad, &c->rm_cap, count, err);
+    if (r != LM_OK) return r;
+    /* Counting sort by scene triangle (the cut is collected in scene order already,
+     * so this keeps the order: leaf_buf[i] is source triangle i). */
+    memset(c->rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->rm_first);
+    for (size_t i = 0; i < count; ++i) c->rm_first[c->leaf_buf[i].tri + 1]++;
+    for (uint32_t t = 0; t < s->tri_count; ++t) c->rm_first[t + 1] += c->rm_first[t];
+    for (size_t i = 0; i < count; ++i) {
+        const mesh_qmesh_tri *lt = &c->leaf_buf[i];
+        const float *kd = s->materials[s->tris[lt->tri].material].kd;
+        for (int k = 0; k < 3; ++k) {
+            double scale = ldexp(1.0, -(int)lt->bary[k].depth), w1 = lt->bary[k].w[1] * scale,
+                   w2 = lt->bary[k].w[2] * scale;
+            c->rm_bary[6 * i + 2 * (size_t)k] = (float)w1;
+            c->rm_bary[6 * i + 2 * (size_t)k + 1] = (float)w2;
+            float L[3] = {0, 0, 0}, Ei[3] = {0, 0, 0};
+            mesh_qmesh_get_value(c->direct, lt->v[k], L);
+            lm_error ignore;
+            if (with_e1 && mesh_qmesh_root(c->indirect1, lt->tri) != MESH_QMESH_NONE &&
+                mesh_qmesh_interpolate(c->indirect1, lt->tri, w1, w2, Ei, &ignore) != LM_OK)
+                Ei[0] = Ei[1] = Ei[2] = 0;
+            for (int ch = 0; ch < 3; ++ch)
+                c->rm_rad[9 * i + 3 * (size_t)k + (size_t)ch] = kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
+        }
+    }
+    mesh_qmesh_stats st;
+    mesh_qmesh_get_stats(c->direct, &st);
+    c->rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->rm_first, .bary = c->rm_bary,
+                                    .radiance = c->rm_rad};
+    c->rm_built_at = (uint64_t)direct_changes(c);
+    c->rm_nodes = st.nodes;
+    c->rm_stale = 0;
+    c->rm_with_e1 = with_e1;
+    /* The displayed indirect gathers from kd·(L_dd + E_1/π) with two bounces, from
+     * kd·L_dd with one; the first bounce's source is not tracked (E_1 lives at the
+     * coarse vertices only). The single-mesh ablation keeps what it gathered. */
+    int displayed = with_e1 == (c->indirect1 != NULL);
+    if (!displayed) return LM_OK;
+    if (track && !c->desc.single_mesh && c->initialised && c->rp_valid && c->rp_with_e1 == with_e1)
+        r = mark_outdated(c, err);
+    return r == LM_OK ? keep_previous(c, err) : r;
+}
+
+lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err)
+{
+    with_e1 = with_e1 && c->indirect1;
+    int64_t changed = direct_changes(c) - (int64_t)c->rm_built_at;
+    if (changed < 0) changed = -changed;
+    uint32_t stale = c->rm_nodes / 4;
+    stale = stale < 16 ? 16 : stale > CACHE_RMESH_STALE ? CACHE_RMESH_STALE : stale;
+    int fresh = c->rmesh.first && c->rm_with_e1 == with_e1 && !c->rm_stale &&
+                (c->rm_settle ? changed == 0 : changed < (int64_t)stale);
+    if (!force && fresh) return LM_OK;
+    return build_source(c, with_e1, 1, err);
+}
+
+lm_result cache_settle_source(cache *c, lm_error *err)
+{
+    c->rm_settle = 1;
+    lm_result r = cache_update_radiance_source(c, 0, c->indirect1 != NULL, err);
+    c->rm_settle = 0;
+    return r;
+}
+
+/* ---- gathers ---------------------------------------------------------------------- */
+
+lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+{
+    if (n == 0) return LM_OK;
+    lm_result r = cache_update_radiance_source(c, 0, !first_bounce, err);
+    if (r != LM_OK) return r;
+    samp_point *pts = malloc(n * sizeof *pts);
+    if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
+    for (uint32_t i = 0; i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
+    r = samp_indirect(c->sp, &c->rmesh, pts, n, E, err);
+    free(pts);
+    if (r == LM_OK) c->indirect_stats.samples += n;
+    /* A value gathered from the current source has not drifted. */
+    if (r == LM_OK && !first_bounce && c->drift)
+        for (uint32_t i = 0; i < n; ++i)
+            if (vids[i] < c->drift_cap) {
+                memset(c->drift + 3 * (size_t)vids[i], 0, 3 * sizeof *c->drift);
+                c->outdated[vids[i]] = 0;
+            }
+    return r;
+}
+
+lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+{
+    return cache_gather(c, 0, vids, n, E, err);
+}
+
+static int cmp_vid(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, lm_error *err)
+{
+    enum { BATCH = 1024 };
+    lm_result r = LM_OK;
+    uint32_t *ids = NULL, *moved = NULL;
+    float *E = NULL;
+    /* Gathering may rebuild the source and flag more: until none is left. */
+    while (r == LM_OK && c->outdated_n) {
+        uint32_t n = 0;
+        if (!ids) {
+            ids = malloc(BATCH * sizeof *ids);
+            moved = malloc(BATCH * sizeof *moved);
+            E = malloc(3 * BATCH * sizeof *E);
+            if (!ids || !moved || !E) {
+                r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory gathering indirect light again");
+                break;
+            }
+        }
+        /* Take up to a batch from the end of the list (still flagged, still in the mesh). */
+        while (n < BATCH && c->outdated_n) {
+            uint32_t vid = c->outdated_list[--c->outdated_n];
+            float tmp[3];
+            if (!c->outdated[vid]) continue; /* gathered meanwhile */
+            c->outdated[vid] = 0;
+            if (mesh_qmesh_get_value(c->indirect, vid, tmp) == 1) ids[n++] = vid;
+        }
+        if (n == 0) continue;
+        r = cache_gather(c, 0, ids, n, E, err);
+        uint32_t nm = 0;
+        for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+            float old[3];
+            mesh_qmesh_get_value(c->indirect, ids[i], old);
+            const float *e = E + 3 * (size_t)i;
+            if (old[0] == e[0] && old[1] == e[1] && old[2] == e[2]) continue;
+            r = mesh_qmesh_set_value(c->indirect, ids[i], e, err);
+            moved[nm++] = ids[i];
+        }
+        c->regathered += n;
+        if (r == LM_OK && nm && changed) {
+            qsort(moved, nm, sizeof *moved, cmp_vid);
+            r = changed(c, CACHE_KIND_INDIRECT, NULL, 0, moved, nm, user, err);
+        }
+    }
+    free(ids);
+    free(moved);
+    free(E);
+    return r;
+}
+
+/* ---- after a light edit or a sampler change ----------------------------------------
+ *
+ * Every vertex of the indirect mesh(es) gathered again from a rebuilt source, in
+ * batches (one-bounce indirect is linear in each light, but a per-light indirect
+ * mesh would multiply memory and samples by the number of lights for every
+ * refinement, for the rare edit; docs/cache.md has the numbers). */
+
+static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err)
+{
+    enum { BATCH = 4096 };
+    mesh_vtable_stats vs;
+    mesh_vtable_get_stats(c->vt, &vs);
+    lm_result r = build_source(c, !first_bounce, 0, err);
+    uint32_t *ids = malloc(BATCH * sizeof *ids);
+    float *E = malloc(3 * BATCH * sizeof *E), tmp[3];
+    if (r == LM_OK && (!ids || !E)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory re-gathering indirect light");
+    uint32_t n = 0;
+    for (uint32_t id = 0; r == LM_OK && id <= vs.id_limit; ++id) {
+        if (id < vs.id_limit && mesh_qmesh_get_value(m, id, tmp) == 1) ids[n++] = id;
+        if (n == BATCH || (id == vs.id_limit && n)) {
+            r = cache_gather(c, first_bounce, ids, n, E, err);
+            for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(m, ids[i], E + 3 * (size_t)i, err);
+            n = 0;
+        }
+    }
+    free(ids);
+    free(E);
+    return r;
+}
+
+/* The first bounce (two bounces) first: the second gathers from it. Nothing is
+ * outdated afterwards. */
+lm_result cache_regather_all(cache *c, lm_error *err)
+{
+    lm_result r = c->indirect1 ? regather_mesh(c, c->indirect1, 1, err) : LM_OK;
+    if (r == LM_OK) r = regather_mesh(c, c->indirect, 0, err);
+    if (r == LM_OK) {
+        if (c->drift) {
+            memset(c->drift, 0, 3 * c->drift_cap * sizeof *c->drift);
+            memset(c->outdated, 0, c->drift_cap);
+        }
+        c->outdated_n = 0;
+    }
+    return r;
+}

@@ -1,0 +1,258 @@
+/* cache_specular.c — the values of the direct specular mesh (cache.h, eq. 5 of the
+ * paper with V_ℓ out of the integral): the area lights' outlines, built once per
+ * cache, and the Phong lobe integrated over them (samp_polygon_phong). Worker
+ * thread, like the rest of the cache. */
+#include "mesh/cache/cache_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sampling/analytic.h"
+#include "sampling/samp.h"
+#include "src/base/vecmath.h"
+
+/* ---- outlines ----------------------------------------------------------------
+ *
+ * A light's triangles are wound counter-clockwise seen from their front (scene.h),
+ * so an edge inside the light appears once in each direction and cancels; what is
+ * left is the boundary: outer loops counter-clockwise seen from the front, holes
+ * clockwise. A quad light integrates four edges instead of six, and a lamp of many
+ * triangles a handful. The scene model guarantees what this needs: corners welded
+ * by exact position (scene_build.c), and each area light one connected group of
+ * coplanar triangles facing one way (scene_lights.c), so every loop is planar. */
+
+static lm_dvec3 dv3_of(const double *p) { return dv3(p[0], p[1], p[2]); }
+
+typedef struct outline_edge {
+    uint64_t key;  /* min << 32 | max (scene vertex ids) */
+    int32_t count; /* net multiplicity, from → to positive */
+} outline_edge;
+
+/* Growing arrays of the outline being built. */
+typedef struct outline_buf {
+    double *xyz;
+    uint32_t *loop;
+    int8_t *sign;
+    uint32_t *light_loop;
+    size_t xyz_n, xyz_cap, loop_n, loop_cap;
+} outline_buf;
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return (x > y) - (x < y);
+}
+
+static int cmp_edge(const void *a, const void *b) { return cmp_u64(&((const outline_edge *)a)->key, &((const outline_edge *)b)->key); }
+
+static int push_point(outline_buf *b, const float p[3])
+{
+    if (b->xyz_n == b->xyz_cap) {
+        size_t nc = b->xyz_cap ? 2 * b->xyz_cap : 64;
+        double *q = realloc(b->xyz, 3 * nc * sizeof *q);
+        if (!q) return 0;
+        b->xyz = q;
+        b->xyz_cap = nc;
+    }
+    for (int k = 0; k < 3; ++k) b->xyz[3 * b->xyz_n + (size_t)k] = p[k];
+    b->xyz_n++;
+    return 1;
+}
+
+/* Closes the loop that started at point `start`: drops vertices where the outline
+ * goes straight on, orients it (sign −1 and reversed when it turns clockwise about
+ * `front`), and records it. A loop with fewer than three corners left is dropped. */
+static int close_loop(outline_buf *b, size_t start, const float front[3])
+{
+    size_t n = b->xyz_n - start, m = 0;
+    double *P = b->xyz + 3 * start;
+    /* Straight-through vertices: the cross product of the two edges is tiny
+     * against their lengths. Kept in place, in order. */
+    for (size_t i = 0; i < n; ++i) {
+        const double *a = P + 3 * ((i + n - 1) % n), *c = P + 3 * i, *d = P + 3 * ((i + 1) % n);
+        lm_dvec3 e0 = dv3_sub(dv3_of(c), dv3_of(a)), e1 = dv3_sub(dv3_of(d), dv3_of(c));
+        double cr = dv3_length(dv3_cross(e0, e1)), scale = dv3_length(e0) * dv3_length(e1);
+        if (cr <= 1e-9 * scale && dv3_dot(e0, e1) > 0.0) continue;
+        if (m != i) memmove(P + 3 * m, c, 3 * sizeof *P);
+        m++;
+    }
+    b->xyz_n = start + m;
+    if (m < 3) {
+        b->xyz_n = start;
+        return 1;
+    }
+    /* Newell normal against the light's front. */
+    lm_dvec3 nn = {0, 0, 0};
+    for (size_t i = 0; i < m; ++i) {
+        const double *a = P + 3 * i, *c = P + 3 * ((i + 1) % m);
+        nn.x += (a[1] - c[1]) * (a[2] + c[2]);
+        nn.y += (a[2] - c[2]) * (a[0] + c[0]);
+        nn.z += (a[0] - c[0]) * (a[1] + c[1]);
+    }
+    int8_t sign = nn.x * front[0] + nn.y * front[1] + nn.z * front[2] >= 0.0 ? 1 : -1;
+    if (sign < 0) /* a hole: stored counter-clockwise, subtracted */
+        for (size_t i = 0; i < m / 2; ++i)
+            for (int k = 0; k < 3; ++k) {
+                double t = P[3 * i + (size_t)k];
+                P[3 * i + (size_t)k] = P[3 * (m - 1 - i) + (size_t)k];
+                P[3 * (m - 1 - i) + (size_t)k] = t;
+            }
+    if (b->loop_n + 2 > b->loop_cap) {
+        size_t nc = b->loop_cap ? 2 * b->loop_cap : 16;
+        uint32_t *q = realloc(b->loop, nc * sizeof *q);
+        if (q) b->loop = q;
+        int8_t *sg = q ? realloc(b->sign, nc * sizeof *sg) : NULL;
+        if (sg) b->sign = sg;
+        if (!q || !sg) return 0;
+        b->loop_cap = nc;
+    }
+    b->sign[b->loop_n] = sign;
+    b->loop[++b->loop_n] = (uint32_t)b->xyz_n;
+    return 1;
+}
+
+/* The boundary loops of one light. */
+static int outline_light(const scene *s, const scene_area_light *L, outline_buf *b)
+{
+    const uint32_t nv = 3 * L->count;
+    outline_edge *e = malloc((nv ? nv : 1) * sizeof *e);
+    uint64_t *out = malloc((nv ? nv : 1) * sizeof *out);
+    uint8_t *used = calloc(nv ? nv : 1, 1);
+    int ok = e && out && used;
+    /* Edges by (min, max) vertex id with a sign: +1 going up, −1 going down. */
+    size_t ne = 0;
+    for (uint32_t i = 0; ok && i < L->count; ++i) {
+        const uint32_t *v = s->tris[s->light_tris[L->first + i]].v;
+        for (uint32_t k = 0; k < 3; ++k) {
+            uint32_t a = v[k], c = v[(k + 1) % 3];
+            if (a == c) continue; /* degenerate */
+            uint32_t lo = a < c ? a : c, hi = a < c ? c : a;
+            e[ne].key = (uint64_t)lo << 32 | hi;
+            e[ne++].count = a < c ? 1 : -1;
+        }
+    }
+    if (ok) qsort(e, ne, sizeof *e, cmp_edge);
+    /* Net edges, as directed keys from << 32 | to, sorted for the chaining. */
+    size_t no = 0;
+    for (size_t i = 0; ok && i < ne;) {
+        size_t j = i;
+        int32_t net = 0;
+        for (; j < ne && e[j].key == e[i].key; ++j) net += e[j].count;
+        uint32_t lo = (uint32_t)(e[i].key >> 32), hi = (uint32_t)e[i].key;
+        for (int32_t m = 0; m < (net < 0 ? -net : net); ++m)
+            out[no++] = net > 0 ? e[i].key : (uint64_t)hi << 32 | lo;
+        i = j;
+    }
+    if (ok) qsort(out, no, sizeof *out, cmp_u64);
+    /* Chain: from an unused edge, follow an unused edge leaving its end. */
+    for (size_t first = 0; ok && first < no; ++first) {
+        if (used[first]) continue;
+        size_t start = b->xyz_n, cur = first;
+        const uint32_t loop_from = (uint32_t)(out[first] >> 32);
+        for (size_t steps = 0; ok && steps <= no; ++steps) {
+            used[cur] = 1;
+            uint32_t from = (uint32_t)(out[cur] >> 32), to = (uint32_t)out[cur];
+            ok = push_point(b, s->positions + 3 * (size_t)from);
+            if (to == loop_from) break; /* closed (a vertex two loops touch ends each) */
+            /* the edges leaving `to` start at the lower bound of to << 32 */
+            size_t lo = 0, hi = no;
+            uint64_t want = (uint64_t)to << 32;
+            while (lo < hi) {
+                size_t mid = (lo + hi) / 2;
+                if (out[mid] < want) lo = mid + 1; else hi = mid;
+            }
+            size_t next = no;
+            for (size_t j = lo; j < no && (uint32_t)(out[j] >> 32) == to; ++j)
+                if (!used[j]) {
+                    next = j;
+                    break;
+                }
+            if (next == no) break; /* an open chain (cannot happen for net edges): closed here */
+            cur = next;
+        }
+        if (ok) ok = close_loop(b, start, L->normal);
+    }
+    free(e);
+    free(out);
+    free(used);
+    return ok;
+}
+
+int cache_build_outlines(cache *c)
+{
+    const scene *s = c->s;
+    outline_buf b = {0};
+    b.light_loop = calloc((size_t)c->light_count + 1, sizeof *b.light_loop);
+    b.loop = calloc(16, sizeof *b.loop);
+    b.sign = calloc(16, sizeof *b.sign);
+    b.loop_cap = 16;
+    int ok = b.light_loop && b.loop && b.sign;
+    for (uint32_t l = 0; ok && l < c->light_count; ++l) {
+        b.light_loop[l] = (uint32_t)b.loop_n;
+        if (l < s->area_light_count) ok = outline_light(s, &s->area_lights[l], &b);
+    }
+    if (ok) b.light_loop[c->light_count] = (uint32_t)b.loop_n;
+    if (!ok) {
+        free(b.xyz);
+        free(b.loop);
+        free(b.sign);
+        free(b.light_loop);
+        return 0;
+    }
+    c->spec_outline = b.xyz;
+    c->spec_loop = b.loop;
+    c->spec_loop_sign = b.sign;
+    c->spec_light_loop = b.light_loop;
+    c->spec_outline_bytes = b.xyz_cap * 3 * sizeof(double) + b.loop_cap * (sizeof(uint32_t) + 1) +
+                            ((size_t)c->light_count + 1) * sizeof(uint32_t);
+    return 1;
+}
+
+/* ---- values ------------------------------------------------------------------- */
+
+/* S_ℓ(x, ωo): the lobe integrated over light l (area: its loops, holes
+ * subtracted), or for a point light its lobe towards the point times G. */
+static double light_phong(const cache *c, uint32_t l, const double x[3], const double nx[3], const double wo[3],
+                          double n)
+{
+    const scene *s = c->s;
+    if (l >= s->area_light_count) {
+        const float *q = s->point_lights[l - s->area_light_count].position;
+        const double Q[3] = {q[0], q[1], q[2]};
+        double g = samp_point_G(Q, x, nx);
+        if (!(g > 0.0)) return 0.0;
+        lm_dvec3 ns = dv3_normalize(dv3_of(nx)), w = dv3_normalize(dv3_of(wo));
+        lm_dvec3 wi = dv3_normalize(dv3_sub(dv3_of(Q), dv3_of(x)));
+        lm_dvec3 mirror = dv3_sub(dv3_scale(ns, 2.0 * dv3_dot(ns, wi)), wi);
+        double cosa = dv3_dot(mirror, w);
+        return cosa > 0.0 ? (n + 2.0) / (2.0 * M_PI) * pow(cosa, n) * g : 0.0;
+    }
+    double sum = 0.0;
+    for (uint32_t k = c->spec_light_loop[l]; k < c->spec_light_loop[l + 1]; ++k) {
+        const double(*P)[3] = (const double(*)[3])(c->spec_outline + 3 * (size_t)c->spec_loop[k]);
+        int np = (int)(c->spec_loop[k + 1] - c->spec_loop[k]);
+        sum += c->spec_loop_sign[k] * samp_polygon_phong(P, np, x, nx, wo, n);
+    }
+    return sum > 0.0 ? sum : 0.0; /* a hole's round-off cannot make light negative */
+}
+
+void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3])
+{
+    const scene *s = c->s;
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    /* The exponent of the triangle the vertex was made from (a vertex shared by two
+     * glossy materials takes the first's; shared vertices need equal normals). */
+    double n = s->materials[s->tris[mv->tri].material].n;
+    const double x[3] = {mv->position[0], mv->position[1], mv->position[2]},
+                 nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]},
+                 wo[3] = {c->eye[0] - x[0], c->eye[1] - x[1], c->eye[2] - x[2]};
+    double e[3] = {0, 0, 0};
+    for (uint32_t l = 0; l < c->light_count; ++l) {
+        if (!(V[l] > 0.0f)) continue;
+        double S = light_phong(c, l, x, nx, wo, n);
+        if (!(S > 0.0)) continue;
+        for (int k = 0; k < 3; ++k) e[k] += (double)V[l] * c->light_le[3 * l + (uint32_t)k] * S;
+    }
+    for (int k = 0; k < 3; ++k) rgb[k] = e[k] < 3e38 ? (float)e[k] : 3e38f;
+}

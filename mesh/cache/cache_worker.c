@@ -1,0 +1,518 @@
+/* cache_worker.c — the refinement worker and its publication (cache_worker.h). */
+#define _POSIX_C_SOURCE 200809L /* pthread_cond_timedwait, clock_gettime */
+#include "mesh/cache/cache_worker.h"
+
+#include <math.h>
+#include <pthread.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+enum { MAX_EDITS = 64 };
+
+typedef struct light_edit {
+    uint32_t light;
+    float value[3];
+} light_edit;
+
+/* Arrays behind one published mesh. */
+typedef struct mesh_store {
+    cache_snapshot_vertex *verts;
+    uint32_t *tris;
+    cache_snapshot_corner *corners;   /* publish_debug only */
+    size_t cap;                       /* triangles */
+} mesh_store;
+
+/* Buffers behind one snapshot; owned by whichever side holds the slot. */
+typedef struct snapshot_store {
+    cache_snapshot snap;
+    mesh_store mesh[3];               /* direct, indirect, specular */
+    mesh_store *light_mesh;           /* publish_debug only: one per light ... */
+    cache_snapshot_mesh *light_snap;  /* ... and what snap.lights points to */
+    uint32_t light_mesh_cap;
+    cache_mesh_stats *lights;
+    size_t lights_cap;
+} snapshot_store;
+
+struct cache_worker {
+    cache_worker_desc desc;           /* immutable after create */
+    const scene *s;
+    uint32_t *pixels;                 /* owned copy; the worker's (set_pixels hands over a new one) */
+    pthread_t thread;
+    int started;
+
+    pthread_mutex_t lock;             /* guards every field below */
+    pthread_cond_t cond;              /* signalled on any change of them */
+    int cancel, paused, parked, finished;
+    snapshot_store *front, *ready, *back; /* display's / latest committed / worker's own */
+    int ready_new;
+    light_edit edits[MAX_EDITS];
+    uint32_t edit_count;
+    uint32_t *new_pixels;             /* set_pixels: a copy waiting for the worker to take it */
+    int debug_wanted;                 /* snapshots carry the debug data (desc.publish_debug, then
+                                         cache_worker_set_publish_debug) */
+    int republish;                    /* debug_wanted changed: publish once even when idle or paused */
+    float new_eye[3];                 /* set_view: the eye that comes with new_pixels ... */
+    int new_eye_set;                  /* ... when this is non-zero */
+    samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
+};
+
+/* ---- snapshots (worker side) ---------------------------------------------------- */
+
+/* Debug data of the triangles buf[0..count): vertex ids, sampled flags, and which
+ * edges lie on their leaf's boundary. mesh_qmesh_leaf_triangles emits each leaf's
+ * triangles consecutively; an edge inside the leaf (a fan diagonal) is shared,
+ * reversed, by two of them, a boundary edge by none. */
+static void fill_corners(cache_snapshot_corner *out, const mesh_qmesh *m, const mesh_qmesh_tri *buf, size_t count)
+{
+    for (size_t i = 0; i < 3 * count; ++i) {
+        uint32_t id = buf[i / 3].v[i % 3];
+        out[i] = (cache_snapshot_corner){.vertex = id, .flags = CACHE_CORNER_LEAF_EDGE};
+        float scratch[MESH_QMESH_CHANNELS_MAX];
+        if (mesh_qmesh_get_value(m, id, scratch) == 1) out[i].flags |= CACHE_CORNER_SAMPLED;
+    }
+    for (size_t g = 0, e; g < count; g = e) {
+        for (e = g + 1; e < count && buf[e].leaf == buf[g].leaf;) ++e;
+        for (size_t i = g; i < e; ++i)
+            for (size_t j = i + 1; j < e; ++j)
+                for (int a = 0; a < 3; ++a)
+                    for (int b = 0; b < 3; ++b)
+                        if (buf[i].v[a] == buf[j].v[(b + 1) % 3] && buf[i].v[(a + 1) % 3] == buf[j].v[b]) {
+                            out[3 * i + (size_t)a].flags &= ~(uint32_t)CACHE_CORNER_LEAF_EDGE;
+                            out[3 * j + (size_t)b].flags &= ~(uint32_t)CACHE_CORNER_LEAF_EDGE;
+                        }
+    }
+}
+
+/* Publishes mesh m (NULL: empty) into ms and *sm. Without debug it does exactly
+ * what the renderer needs: positions, values, scene triangles. */
+static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, const cache *c, const mesh_qmesh *m,
+                           mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
+{
+    size_t count = 0;
+    lm_result r = m ? mesh_qmesh_leaf_triangles(m, buf, buf_cap, &count, err) : LM_OK;
+    if (r != LM_OK) return r;
+    if (count > ms->cap || (debug && count && !ms->corners)) {
+        cache_snapshot_vertex *v = realloc(ms->verts, 3 * count * sizeof *v);
+        if (v) ms->verts = v;
+        uint32_t *t = v ? realloc(ms->tris, count * sizeof *t) : NULL;
+        if (t) ms->tris = t;
+        cache_snapshot_corner *k = t && debug ? realloc(ms->corners, 3 * count * sizeof *k) : NULL;
+        if (k) ms->corners = k;
+        if (!v || !t || (debug && !k)) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        ms->cap = count;
+    }
+    const mesh_vtable *vt = cache_vtable(c);
+    const int pad = m && mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
+    for (size_t i = 0; i < count; ++i) {
+        ms->tris[i] = (*buf)[i].tri;
+        for (int k = 0; k < 3; ++k) {
+            cache_snapshot_vertex *out = &ms->verts[3 * i + (size_t)k];
+            memcpy(out->position, mesh_vtable_vertex(vt, (*buf)[i].v[k])->position, sizeof out->position);
+            if (pad) memset(out->value, 0, sizeof out->value);
+            if (mesh_qmesh_get_value(m, (*buf)[i].v[k], out->value) < 0) memset(out->value, 0, sizeof out->value);
+        }
+    }
+    if (debug && count) fill_corners(ms->corners, m, *buf, count);
+    *sm = (cache_snapshot_mesh){.vertices = ms->verts, .tri = ms->tris, .corners = debug && count ? ms->corners : NULL,
+                                .triangle_count = (uint32_t)count};
+    return LM_OK;
+}
+
+/* publish_debug: every light's visibility mesh into snap.lights. */
+static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t light_count, mesh_qmesh_tri **buf,
+                                   size_t *buf_cap, lm_error *err)
+{
+    if (light_count > st->light_mesh_cap) {
+        mesh_store *m = realloc(st->light_mesh, light_count * sizeof *m);
+        if (m) st->light_mesh = m;
+        cache_snapshot_mesh *sm = m ? realloc(st->light_snap, light_count * sizeof *sm) : NULL;
+        if (sm) st->light_snap = sm;
+        if (!m || !sm) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        memset(st->light_mesh + st->light_mesh_cap, 0, (light_count - st->light_mesh_cap) * sizeof *m);
+        st->light_mesh_cap = light_count;
+    }
+    for (uint32_t l = 0; l < light_count; ++l) {
+        lm_result r =
+            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, c, cache_light_mesh(c, l), buf, buf_cap, err);
+        if (r != LM_OK) return r;
+    }
+    st->snap.lights = st->light_snap;
+    st->snap.light_mesh_count = light_count;
+    return LM_OK;
+}
+
+static lm_result fill_snapshot(snapshot_store *st, cache *c, int debug, uint64_t generation, uint64_t tested,
+                               int converged, mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
+{
+    lm_result r = fill_mesh(&st->mesh[0], &st->snap.direct, debug, c, cache_direct_mesh(c), buf, buf_cap, err);
+    if (r == LM_OK)
+        r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), buf, buf_cap, err);
+    if (r == LM_OK && cache_specular_mesh(c))
+        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, c, cache_specular_mesh(c), buf, buf_cap, err);
+    if (!cache_specular_mesh(c)) st->snap.specular = (cache_snapshot_mesh){0};
+    if (r != LM_OK) return r;
+    cache_get_stats(c, &st->snap.stats);
+    if (debug) r = fill_light_meshes(st, c, st->snap.stats.light_count, buf, buf_cap, err);
+    if (r != LM_OK) return r;
+    if (st->snap.stats.light_count > st->lights_cap) {
+        cache_mesh_stats *l = realloc(st->lights, st->snap.stats.light_count * sizeof *l);
+        if (!l) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        st->lights = l;
+        st->lights_cap = st->snap.stats.light_count;
+    }
+    if (st->snap.stats.light_count)
+        memcpy(st->lights, st->snap.stats.lights, st->snap.stats.light_count * sizeof *st->lights);
+    st->snap.stats.lights = st->lights;
+    st->snap.generation = generation;
+    st->snap.tested = tested;
+    st->snap.converged = converged;
+    st->snap.failed = 0;
+    st->snap.error[0] = 0;
+    return LM_OK;
+}
+
+/* Commits the worker's snapshot: a pointer swap under the lock. */
+static void commit(cache_worker *w)
+{
+    w->back->snap.published_at = lm_now_seconds();
+    pthread_mutex_lock(&w->lock);
+    snapshot_store *t = w->ready;
+    w->ready = w->back;
+    w->back = t;
+    w->ready_new = 1;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+}
+
+static void publish_failure(cache_worker *w, uint64_t generation, const char *msg)
+{
+    w->back->snap.generation = generation;
+    w->back->snap.failed = 1;
+    lm_strlcpy(w->back->snap.error, msg, sizeof w->back->snap.error);
+    commit(w);
+}
+
+/* ---- the worker thread ---------------------------------------------------------- */
+
+/* The first snapshot as early as possible: the coarse cache is made with a quick
+ * Embree sampler (no calibration, few gather rays), published, and only then is
+ * the sampler the client asked for made (AUTO calibrates: hundreds of ms) and the
+ * coarse indirect gathered again with it. The display has its first image
+ * (full geometry, coarse light) while the worker calibrates. */
+static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint64_t *generation, mesh_qmesh_tri **buf,
+                             size_t *buf_cap, lm_error *err)
+{
+    samp_desc sd = w->desc.sampler;
+    sd.scene = w->s;
+    samp_desc quick = {.scene = w->s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = CACHE_WORKER_QUICK_RAYS,
+                       .threads = sd.threads, .seed = sd.seed};
+    if (sd.backend == SAMP_BACKEND_EMBREE) { /* the same direct estimate: light samples are kept */
+        quick.direct_rays = sd.direct_rays;
+        quick.direct_control_variate = sd.direct_control_variate;
+    }
+    /* The sampler (and a GL context, if any) is made here: it belongs to this thread. */
+    samp_sampler *first = NULL;
+    lm_result r = samp_create(w->desc.no_quick_start ? &sd : &quick, &first, err);
+    if (r == LM_OK) {
+        cache_desc cd = w->desc.cache;
+        cd.scene = w->s;
+        cd.sampler = first;
+        r = cache_create(&cd, c, err);
+    }
+    if (r == LM_OK) r = cache_init(*c, err);
+    pthread_mutex_lock(&w->lock);
+    int debug = w->debug_wanted;
+    pthread_mutex_unlock(&w->lock);
+    if (r == LM_OK) r = fill_snapshot(w->back, *c, debug, ++*generation, 0, 0, buf, buf_cap, err);
+    if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
+    if (r == LM_OK) commit(w);
+    if (r == LM_OK && !w->desc.no_quick_start) samp_get_stats(first, &w->quick_stats);
+    if (w->desc.no_quick_start) {
+        *sp = first;
+        return r;
+    }
+    if (r == LM_OK) r = samp_create(&sd, sp, err);
+    if (r == LM_OK) cache_set_sampler(*c, *sp);
+    if (r == LM_OK) r = cache_regather_indirect(*c, err);
+    if (*c && r != LM_OK) cache_set_sampler(*c, NULL);
+    samp_destroy(first);
+    return r;
+}
+
+/* Takes the pixels set_pixels or set_view left, if any: the priorities follow
+ * them, and the specular mesh the eye. */
+static lm_result take_pixels(cache_worker *w, cache *c, int *taken, lm_error *err)
+{
+    pthread_mutex_lock(&w->lock);
+    uint32_t *p = w->new_pixels;
+    float eye[3];
+    int eye_set = w->new_eye_set;
+    memcpy(eye, w->new_eye, sizeof eye);
+    w->new_pixels = NULL;
+    w->new_eye_set = 0;
+    pthread_mutex_unlock(&w->lock);
+    *taken = p != NULL;
+    if (!p) return LM_OK;
+    free(w->pixels);
+    w->pixels = p;
+    lm_result r = eye_set ? cache_set_camera(c, eye, err) : LM_OK;
+    return r == LM_OK ? cache_requeue(c, err) : r;
+}
+
+static void *worker_main(void *arg)
+{
+    cache_worker *w = arg;
+    lm_error err = {{0}};
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    mesh_qmesh_tri *buf = NULL;
+    size_t buf_cap = 0;
+    uint64_t generation = 0, tested = 0;
+    lm_result r = start_cache(w, &sp, &c, &generation, &buf, &buf_cap, &err);
+    int idle = 0; /* converged or max_tested reached: wait for an edit */
+    while (r == LM_OK) {
+        light_edit edits[MAX_EDITS];
+        uint32_t nedit = 0;
+        pthread_mutex_lock(&w->lock);
+        for (;;) {
+            if (w->cancel) break;
+            nedit = w->edit_count;
+            /* pixels_later: refinement waits for the first set_pixels (the coarse cache does not). */
+            int no_pixels = w->desc.pixels_later && !w->pixels && !w->new_pixels;
+            /* Paused or idle, an edit, a new view or a change of the debug data still
+             * wakes the worker: it is applied and published without a refinement
+             * step (a paused viewer shows it); idle, refinement then goes on for it. */
+            if (((w->paused || idle) && nedit == 0 && !w->new_pixels && !w->republish) || no_pixels) {
+                w->parked = 1;
+                pthread_cond_broadcast(&w->cond);
+                if (w->paused) {
+                    pthread_cond_wait(&w->cond, &w->lock);
+                } else { /* idle: wake now and then; edits and cancel signal too */
+                    struct timespec until;
+                    clock_gettime(CLOCK_REALTIME, &until);
+                    until.tv_nsec += 50000000;
+                    if (until.tv_nsec >= 1000000000) {
+                        until.tv_sec++;
+                        until.tv_nsec -= 1000000000;
+                    }
+                    pthread_cond_timedwait(&w->cond, &w->lock, &until);
+                }
+                w->parked = 0;
+                continue;
+            }
+            break;
+        }
+        int cancel = w->cancel, paused = w->paused, debug = w->debug_wanted;
+        w->republish = 0;
+        if (!cancel && nedit) {
+            memcpy(edits, w->edits, nedit * sizeof *edits);
+            w->edit_count = 0;
+        }
+        pthread_mutex_unlock(&w->lock);
+        if (cancel) break;
+        /* An edit sets a light's value outright: of several queued for one light only
+         * the last counts (each costs a gather of the indirect mesh). */
+        for (uint32_t i = 0; r == LM_OK && i < nedit; ++i) {
+            int later = 0;
+            for (uint32_t j = i + 1; j < nedit && !later; ++j) later = edits[j].light == edits[i].light;
+            if (!later) r = cache_set_light(c, edits[i].light, edits[i].value, &err);
+        }
+        int new_view = 0;
+        if (r == LM_OK) r = take_pixels(w, c, &new_view, &err);
+        if (r != LM_OK) break;
+        if (nedit || new_view) idle = 0;
+        cache_refine_result res = {0};
+        uint32_t budget = w->desc.step_budget ? w->desc.step_budget : 512;
+        if (w->desc.max_tested && tested + budget > w->desc.max_tested) budget = (uint32_t)(w->desc.max_tested - tested);
+        if (paused) budget = 0; /* an edit while paused: applied and published, nothing refined */
+        if (budget) r = cache_refine(c, &(cache_refine_desc){.pixels = w->pixels, .budget = budget}, &res, &err);
+        if (r != LM_OK) break;
+        tested += res.tested;
+        /* After an edit while paused nothing was tested: every leaf is queued again (not converged). */
+        int converged = !paused && res.remaining == 0;
+        idle = converged || (w->desc.max_tested && tested >= w->desc.max_tested);
+        r = fill_snapshot(w->back, c, debug, ++generation, tested, converged, &buf, &buf_cap, &err);
+        w->back->snap.finished = idle;
+        if (r == LM_OK) samp_get_stats(sp, &w->back->snap.sampler);
+        w->back->snap.quick_sampler = w->quick_stats;
+        if (r == LM_OK) commit(w);
+    }
+    if (r != LM_OK) publish_failure(w, ++generation, err.msg);
+    free(buf);
+    cache_destroy(c);
+    samp_destroy(sp);
+    pthread_mutex_lock(&w->lock);
+    w->finished = 1;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+    return NULL;
+}
+
+/* ---- display side ------------------------------------------------------------------ */
+
+static void store_free(snapshot_store *st)
+{
+    if (!st) return;
+    for (uint32_t k = 0; k < 3 + st->light_mesh_cap; ++k) {
+        mesh_store *ms = k < 3 ? &st->mesh[k] : &st->light_mesh[k - 3];
+        free(ms->verts);
+        free(ms->tris);
+        free(ms->corners);
+    }
+    free(st->light_mesh);
+    free(st->light_snap);
+    free(st->lights);
+    free(st);
+}
+
+void cache_worker_destroy(cache_worker *w)
+{
+    if (!w) return;
+    if (w->started) {
+        pthread_mutex_lock(&w->lock);
+        w->cancel = 1;
+        pthread_cond_broadcast(&w->cond);
+        pthread_mutex_unlock(&w->lock);
+        pthread_join(w->thread, NULL);
+        pthread_mutex_destroy(&w->lock);
+        pthread_cond_destroy(&w->cond);
+    }
+    store_free(w->front);
+    store_free(w->ready);
+    store_free(w->back);
+    free(w->pixels);
+    free(w->new_pixels);
+    free(w);
+}
+
+lm_result cache_worker_create(const cache_worker_desc *desc, cache_worker **out, lm_error *err)
+{
+    *out = NULL;
+    if (!desc || !desc->scene) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker: needs a scene");
+    cache_worker *w = calloc(1, sizeof *w);
+    if (!w) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the refinement worker");
+    w->desc = *desc;
+    w->debug_wanted = desc->publish_debug != 0;
+    w->s = desc->scene;
+    w->front = calloc(1, sizeof *w->front);
+    w->ready = calloc(1, sizeof *w->ready);
+    w->back = calloc(1, sizeof *w->back);
+    if (desc->pixels) {
+        w->pixels = malloc(w->s->tri_count * sizeof *w->pixels);
+        if (w->pixels) memcpy(w->pixels, desc->pixels, w->s->tri_count * sizeof *w->pixels);
+    }
+    if (!w->front || !w->ready || !w->back || (desc->pixels && !w->pixels)) {
+        cache_worker_destroy(w);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the refinement worker");
+    }
+    pthread_mutex_init(&w->lock, NULL);
+    pthread_cond_init(&w->cond, NULL);
+    if (pthread_create(&w->thread, NULL, worker_main, w) != 0) {
+        pthread_mutex_destroy(&w->lock);
+        pthread_cond_destroy(&w->cond);
+        cache_worker_destroy(w);
+        return lm_fail(err, LM_ERR_RUNTIME, "cannot start the refinement worker thread");
+    }
+    w->started = 1;
+    *out = w;
+    return LM_OK;
+}
+
+const cache_snapshot *cache_worker_acquire(cache_worker *w)
+{
+    pthread_mutex_lock(&w->lock);
+    if (w->ready_new) {
+        snapshot_store *t = w->front;
+        w->front = w->ready;
+        w->ready = t;
+        w->ready_new = 0;
+    }
+    const cache_snapshot *s = w->front->snap.generation ? &w->front->snap : NULL;
+    pthread_mutex_unlock(&w->lock);
+    return s;
+}
+
+void cache_worker_pause(cache_worker *w)
+{
+    pthread_mutex_lock(&w->lock);
+    w->paused = 1;
+    pthread_cond_broadcast(&w->cond);
+    while (!w->parked && !w->finished) pthread_cond_wait(&w->cond, &w->lock);
+    pthread_mutex_unlock(&w->lock);
+}
+
+void cache_worker_set_publish_debug(cache_worker *w, int on)
+{
+    pthread_mutex_lock(&w->lock);
+    if (w->debug_wanted != (on != 0)) {
+        w->debug_wanted = on != 0;
+        w->republish = 1;
+        pthread_cond_broadcast(&w->cond);
+    }
+    pthread_mutex_unlock(&w->lock);
+}
+
+void cache_worker_request_pause(cache_worker *w)
+{
+    pthread_mutex_lock(&w->lock);
+    w->paused = 1;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+}
+
+void cache_worker_resume(cache_worker *w)
+{
+    pthread_mutex_lock(&w->lock);
+    w->paused = 0;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+}
+
+lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float value[3], lm_error *err)
+{
+    if (light >= scene_light_count(w->s))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker_set_light: light %u does not exist", light);
+    pthread_mutex_lock(&w->lock);
+    lm_result r = LM_OK;
+    uint32_t pending = 0; /* a waiting edit of the same light is replaced (held keys, slow steps) */
+    while (pending < w->edit_count && w->edits[pending].light != light) ++pending;
+    if (pending < w->edit_count) {
+        memcpy(w->edits[pending].value, value, sizeof w->edits[0].value);
+        pthread_cond_broadcast(&w->cond);
+    } else if (w->edit_count == MAX_EDITS) {
+        r = lm_fail(err, LM_ERR_RUNTIME, "cache_worker_set_light: %d edits are waiting already", MAX_EDITS);
+    } else {
+        w->edits[w->edit_count].light = light;
+        memcpy(w->edits[w->edit_count].value, value, sizeof w->edits[0].value);
+        w->edit_count++;
+        pthread_cond_broadcast(&w->cond);
+    }
+    pthread_mutex_unlock(&w->lock);
+    return r;
+}
+
+lm_result cache_worker_set_pixels(cache_worker *w, const uint32_t *pixels, lm_error *err)
+{
+    return cache_worker_set_view(w, pixels, NULL, err);
+}
+
+lm_result cache_worker_set_view(cache_worker *w, const uint32_t *pixels, const float eye[3], lm_error *err)
+{
+    if (eye && (!isfinite(eye[0]) || !isfinite(eye[1]) || !isfinite(eye[2])))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker_set_view: the eye must be a finite point");
+    uint32_t *p = malloc((w->s->tri_count ? w->s->tri_count : 1) * sizeof *p);
+    if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the pixel counts");
+    memcpy(p, pixels, w->s->tri_count * sizeof *p);
+    pthread_mutex_lock(&w->lock);
+    free(w->new_pixels); /* a newer view replaces one the worker has not taken */
+    w->new_pixels = p;
+    if (eye) { /* an eye not taken yet stays when pixels alone follow */
+        memcpy(w->new_eye, eye, sizeof w->new_eye);
+        w->new_eye_set = 1;
+    }
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+    return LM_OK;
+}

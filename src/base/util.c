@@ -1,0 +1,151 @@
+/* util.c — result codes, error formatting, file reading and path helpers. */
+#define _POSIX_C_SOURCE 200809L
+#include "src/base/util.h"
+
+#include <errno.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+lm_result lm_fail(lm_error *err, lm_result code, const char *fmt, ...)
+{
+    if (err) {
+        va_list ap;
+        va_start(ap, fmt);
+        vsnprintf(err->msg, sizeof err->msg, fmt, ap);
+        va_end(ap);
+        /* One line: a message never carries a newline (some come from libraries). */
+        for (char *p = err->msg; *p; ++p)
+            if (*p == '\n' || *p == '\r') *p = ' ';
+    }
+    return code;
+}
+
+const char *lm_result_name(lm_result r)
+{
+    switch (r) {
+    case LM_OK: return "ok";
+    case LM_ERR_INVALID_ARG: return "invalid argument";
+    case LM_ERR_IO: return "input/output error";
+    case LM_ERR_BAD_INPUT: return "bad input";
+    case LM_ERR_NO_MEMORY: return "out of memory";
+    case LM_ERR_UNSUPPORTED: return "unsupported";
+    case LM_ERR_RUNTIME: return "runtime failure";
+    case LM_RESULT_COUNT: break;
+    }
+    return "unknown result";
+}
+
+double lm_now_seconds(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+lm_result lm_read_file(const char *path, size_t max_bytes, char **out_data, size_t *out_size,
+                       lm_error *err)
+{
+    *out_data = NULL;
+    *out_size = 0;
+    if (max_bytes == 0) max_bytes = (size_t)1 << 30;
+    struct stat st;
+    if (stat(path, &st) != 0)
+        return lm_fail(err, LM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    if (S_ISDIR(st.st_mode))
+        return lm_fail(err, LM_ERR_IO, "%s: is a directory, not a file", path);
+    FILE *f = fopen(path, "rb");
+    if (!f) return lm_fail(err, LM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
+    size_t cap = S_ISREG(st.st_mode) && st.st_size > 0 ? (size_t)st.st_size + 1 : 4096;
+    if (cap > max_bytes + 1) {
+        fclose(f);
+        return lm_fail(err, LM_ERR_BAD_INPUT, "%s: file is larger than %zu bytes", path, max_bytes);
+    }
+    char *buf = malloc(cap);
+    size_t len = 0;
+    if (!buf) {
+        fclose(f);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory reading the file", path);
+    }
+    for (;;) {
+        if (len + 1 >= cap) {
+            if (cap > max_bytes) {
+                free(buf);
+                fclose(f);
+                return lm_fail(err, LM_ERR_BAD_INPUT, "%s: file is larger than %zu bytes", path,
+                               max_bytes);
+            }
+            size_t ncap = cap * 2;
+            char *nb = realloc(buf, ncap);
+            if (!nb) {
+                free(buf);
+                fclose(f);
+                return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory reading the file", path);
+            }
+            buf = nb;
+            cap = ncap;
+        }
+        size_t got = fread(buf + len, 1, cap - 1 - len, f);
+        len += got;
+        if (got == 0) break;
+    }
+    int bad = ferror(f);
+    fclose(f);
+    if (bad) {
+        free(buf);
+        return lm_fail(err, LM_ERR_IO, "%s: read error", path);
+    }
+    buf[len] = '\0';
+    *out_data = buf;
+    *out_size = len;
+    return LM_OK;
+}
+
+void lm_strlcpy(char *dst, const char *src, size_t n)
+{
+    if (n == 0) return;
+    size_t i = 0;
+    for (; src && src[i] && i + 1 < n; ++i) dst[i] = src[i];
+    dst[i] = '\0';
+}
+
+void lm_path_dir(const char *path, char *out, size_t out_size)
+{
+    const char *slash = strrchr(path, '/');
+    if (!slash) {
+        lm_strlcpy(out, ".", out_size);
+        return;
+    }
+    size_t n = (size_t)(slash - path);
+    if (n == 0) n = 1; /* "/file" -> "/" */
+    if (n + 1 > out_size) n = out_size - 1;
+    memcpy(out, path, n);
+    out[n] = '\0';
+}
+
+int lm_path_join(const char *dir, const char *rel, char *out, size_t out_size)
+{
+    int n;
+    if (rel[0] == '/' || !dir || !dir[0])
+        n = snprintf(out, out_size, "%s", rel);
+    else if (dir[strlen(dir) - 1] == '/')
+        n = snprintf(out, out_size, "%s%s", dir, rel);
+    else
+        n = snprintf(out, out_size, "%s/%s", dir, rel);
+    return n >= 0 && (size_t)n < out_size;
+}
+
+void lm_path_ext(const char *path, char *out, size_t out_size)
+{
+    const char *slash = strrchr(path, '/');
+    const char *dot = strrchr(path, '.');
+    out[0] = '\0';
+    if (!dot || (slash && dot < slash) || out_size == 0) return;
+    size_t i = 0;
+    for (const char *p = dot + 1; *p && i + 1 < out_size; ++p, ++i)
+        out[i] = (char)((*p >= 'A' && *p <= 'Z') ? *p - 'A' + 'a' : *p);
+    out[i] = '\0';
+}

@@ -1,0 +1,648 @@
+/* rend_frame.c — material, radiance and composite passes (rend_frame.h). */
+#include "src/render/rend_frame.h"
+
+#include <math.h>
+#include <stddef.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "src/gpu/gl_program.h"
+#include "src/scene/camera.h"
+
+enum { TERMS = 3 }; /* direct, indirect, specular */
+
+/* One material in the composite's table (std430: three vec4). */
+typedef struct material_entry {
+    float kd[4], ks[4], le[4];
+} material_entry;
+
+/* A scene triangle's corner for the material pass. */
+typedef struct material_vertex {
+    float position[3];
+    uint32_t code; /* 2·(material + 1); the fragment shader adds the facing bit */
+} material_vertex;
+
+/* A rectangle of the sample images, GL rows (bottom up), half-open; empty when x0 >= x1. */
+typedef struct rect {
+    int x0, y0, x1, y1;
+} rect;
+
+/* One radiance term: its snapshot mesh on the GPU, a CPU copy of it (to find
+ * what the next snapshot changed) and its image with its own depth. */
+typedef struct term_state {
+    GLuint vbo, vao, fbo, tex, depth;
+    size_t vbo_cap;                /* bytes allocated in vbo */
+    cache_snapshot_vertex *copy;   /* what vbo holds, 3 per triangle */
+    uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
+    uint32_t tris, copy_cap;       /* triangles in vbo and copy; allocated in copy and hash */
+    int hash_valid;
+    const cache_snapshot_vertex *src; /* the snapshot array it came from */
+    int drawn;                     /* tex and depth hold the copy drawn with val_vp */
+} term_state;
+
+struct rend_frame {
+    rend_frame_desc desc;            /* supersample resolved */
+    const GladGLContext *gl;
+    int sw, sh;                      /* sample images: s·width × s·height */
+    GLuint prog_material, prog_value, prog_composite;
+    GLint loc_mat_vp, loc_val_vp, loc_comp_terms;
+    GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
+    GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
+    unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
+    int comp_valid;                  /* the output holds the composite of the current inputs ... */
+    unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
+    GLuint mat_fbo, mat_tex, mat_depth; /* R32UI material codes */
+    GLuint out_fbo, out_tex;
+    GLuint empty_vao;
+    term_state term[TERMS];          /* L_dd, E_i, L_ds */
+    float *readback;                 /* width·height·4 */
+    /* Change detection: a hash table of the old triangles (index + 1, 0 = empty)
+     * and the new triangles' hashes. */
+    uint64_t *hash_key;
+    uint32_t *hash_tri;
+    uint8_t *seen;
+    size_t hash_cap;                 /* slots, a power of two */
+    uint64_t *new_hash;
+    uint32_t new_hash_cap;           /* entries allocated in new_hash */
+    /* What the images hold (rend_frame_invalidate clears it). */
+    int mat_valid, val_valid, snap_valid;
+    float mat_vp[16], val_vp[16];    /* camera of the material / radiance images */
+    uint64_t snap_generation;        /* snapshot the copies came from, when snap_valid */
+    rend_frame_times times;
+};
+
+static const char *const material_names[] = {"rend_material.vert", "rend_material.frag", NULL};
+static const char *const value_names[] = {"rend_value.vert", "rend_value.frag", NULL};
+static const char *const composite_names[] = {"rend_composite.vert", "rend_composite.frag", NULL};
+
+void rend_frame_destroy(rend_frame *f)
+{
+    if (!f) return;
+    const GladGLContext *gl = f->gl;
+    if (gl) {
+        GLuint progs[3] = {f->prog_material, f->prog_value, f->prog_composite};
+        for (int i = 0; i < 3; ++i)
+            if (progs[i]) gl->DeleteProgram(progs[i]);
+        GLuint bufs[2] = {f->scene_vbo, f->material_ssbo}, vaos[2] = {f->scene_vao, f->empty_vao};
+        GLuint texs[2] = {f->mat_tex, f->out_tex}, fbos[2] = {f->mat_fbo, f->out_fbo};
+        gl->DeleteBuffers(2, bufs);
+        gl->DeleteVertexArrays(2, vaos);
+        gl->DeleteTextures(2, texs);
+        gl->DeleteRenderbuffers(1, &f->mat_depth);
+        gl->DeleteFramebuffers(2, fbos);
+        for (int t = 0; t < TERMS; ++t) {
+            term_state *ts = &f->term[t];
+            gl->DeleteBuffers(1, &ts->vbo);
+            gl->DeleteVertexArrays(1, &ts->vao);
+            gl->DeleteTextures(1, &ts->tex);
+            gl->DeleteRenderbuffers(1, &ts->depth);
+            gl->DeleteFramebuffers(1, &ts->fbo);
+        }
+    }
+    for (int t = 0; t < TERMS; ++t) {
+        free(f->term[t].copy);
+        free(f->term[t].hash);
+    }
+    free(f->new_hash);
+    free(f->hash_key);
+    free(f->hash_tri);
+    free(f->seen);
+    free(f->readback);
+    free(f);
+}
+
+static GLuint color_target(const GladGLContext *gl, GLenum format, int w, int h)
+{
+    GLuint t;
+    gl->CreateTextures(GL_TEXTURE_2D, 1, &t);
+    gl->TextureStorage2D(t, 1, format, w, h);
+    /* Read with texelFetch only; NEAREST also keeps an integer texture complete. */
+    gl->TextureParameteri(t, GL_TEXTURE_MIN_FILTER, GL_NEAREST);
+    gl->TextureParameteri(t, GL_TEXTURE_MAG_FILTER, GL_NEAREST);
+    return t;
+}
+
+static GLuint depth_target(const GladGLContext *gl, int w, int h)
+{
+    GLuint rb;
+    gl->CreateRenderbuffers(1, &rb);
+    gl->NamedRenderbufferStorage(rb, GL_DEPTH_COMPONENT32F, w, h);
+    return rb;
+}
+
+/* The scene's triangles (unwelded, with their material codes) and material table. */
+static lm_result upload_scene(rend_frame *f, lm_error *err)
+{
+    const GladGLContext *gl = f->gl;
+    const scene *s = f->desc.scene;
+    size_t nv = 3 * (size_t)s->tri_count, nm = s->material_count;
+    material_vertex *verts = malloc((nv ? nv : 1) * sizeof *verts);
+    material_entry *mats = calloc(nm ? nm : 1, sizeof *mats);
+    if (!verts || !mats) {
+        free(verts);
+        free(mats);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
+    }
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (int c = 0; c < 3; ++c) {
+            material_vertex *v = verts + 3 * (size_t)t + (size_t)c;
+            memcpy(v->position, s->positions + 3 * (size_t)s->tris[t].v[c], sizeof v->position);
+            v->code = 2u * (s->tris[t].material + 1u);
+        }
+    for (size_t m = 0; m < nm; ++m) {
+        memcpy(mats[m].kd, s->materials[m].kd, 3 * sizeof(float));
+        memcpy(mats[m].ks, s->materials[m].ks, 3 * sizeof(float));
+        memcpy(mats[m].le, s->materials[m].le, 3 * sizeof(float));
+    }
+    gl->CreateBuffers(1, &f->scene_vbo);
+    gl->NamedBufferStorage(f->scene_vbo, (GLsizeiptr)((nv ? nv : 1) * sizeof *verts), verts, 0);
+    gl->CreateBuffers(1, &f->material_ssbo);
+    gl->NamedBufferStorage(f->material_ssbo, (GLsizeiptr)((nm ? nm : 1) * sizeof *mats), mats,
+                           GL_DYNAMIC_STORAGE_BIT);
+    free(verts);
+    free(mats);
+    gl->CreateVertexArrays(1, &f->scene_vao);
+    gl->VertexArrayVertexBuffer(f->scene_vao, 0, f->scene_vbo, 0, sizeof(material_vertex));
+    gl->EnableVertexArrayAttrib(f->scene_vao, 0);
+    gl->VertexArrayAttribFormat(f->scene_vao, 0, 3, GL_FLOAT, GL_FALSE, (GLuint)offsetof(material_vertex, position));
+    gl->VertexArrayAttribBinding(f->scene_vao, 0, 0);
+    gl->EnableVertexArrayAttrib(f->scene_vao, 1);
+    gl->VertexArrayAttribIFormat(f->scene_vao, 1, 1, GL_UNSIGNED_INT, (GLuint)offsetof(material_vertex, code));
+    gl->VertexArrayAttribBinding(f->scene_vao, 1, 0);
+    return LM_OK;
+}
+
+lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc, rend_frame **out, lm_error *err)
+{
+    *out = NULL;
+    int ss = desc ? desc->supersample : 0;
+    if (desc && ss == 0) { /* the default, lowered where its images would be large */
+        ss = REND_FRAME_SUPERSAMPLE_DEFAULT;
+        while (ss > 1 && (double)ss * ss * desc->width * desc->height > REND_FRAME_DEFAULT_SAMPLES_MAX) --ss;
+    }
+    if (!gl || !desc || !desc->scene || desc->width < 1 || desc->height < 1 || ss < 1 ||
+        ss > REND_FRAME_SUPERSAMPLE_MAX || (long)desc->width * ss > 16384 || (long)desc->height * ss > 16384)
+        return lm_fail(err, LM_ERR_INVALID_ARG,
+                       "renderer: needs a scene, a size from 1x1 to 16384x16384 and 1..%d samples per pixel side, "
+                       "at most 16384 samples per row and column",
+                       REND_FRAME_SUPERSAMPLE_MAX);
+    GLint max_size = 0, max_rb = 0;
+    gl->GetIntegerv(GL_MAX_TEXTURE_SIZE, &max_size);
+    gl->GetIntegerv(GL_MAX_RENDERBUFFER_SIZE, &max_rb);
+    if (max_rb < max_size) max_size = max_rb;
+    if ((long)desc->width * ss > max_size || (long)desc->height * ss > max_size)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "renderer: %dx%d with %dx%d samples per pixel exceeds this GL's %d",
+                       desc->width, desc->height, ss, ss, (int)max_size);
+    rend_frame *f = calloc(1, sizeof *f);
+    if (!f) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
+    f->desc = *desc;
+    f->desc.supersample = ss;
+    f->gl = gl;
+    f->components = REND_FRAME_COMPONENTS_ALL;
+    int w = desc->width, h = desc->height;
+    f->sw = w * ss;
+    f->sh = h * ss;
+    f->readback = malloc((size_t)w * (size_t)h * 4 * sizeof *f->readback);
+    char defines[64];
+    snprintf(defines, sizeof defines, "#define SS %d\n", ss);
+    lm_result r = f->readback ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
+    if (r == LM_OK) r = glprog_build(gl, "renderer", material_names, "", &f->prog_material, err);
+    if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, "", &f->prog_value, err);
+    if (r == LM_OK) r = glprog_build(gl, "renderer", composite_names, defines, &f->prog_composite, err);
+    if (r == LM_OK) r = upload_scene(f, err);
+    if (r != LM_OK) {
+        rend_frame_destroy(f);
+        return r;
+    }
+    f->loc_mat_vp = gl->GetUniformLocation(f->prog_material, "u_viewproj");
+    f->loc_val_vp = gl->GetUniformLocation(f->prog_value, "u_viewproj");
+    f->loc_comp_terms = gl->GetUniformLocation(f->prog_composite, "u_terms");
+    gl->CreateVertexArrays(1, &f->empty_vao);
+
+    gl->CreateFramebuffers(1, &f->mat_fbo);
+    f->mat_tex = color_target(gl, GL_R32UI, f->sw, f->sh);
+    f->mat_depth = depth_target(gl, f->sw, f->sh);
+    gl->NamedFramebufferTexture(f->mat_fbo, GL_COLOR_ATTACHMENT0, f->mat_tex, 0);
+    gl->NamedFramebufferRenderbuffer(f->mat_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->mat_depth);
+
+    /* RGBA32F: an RGBA16F image was no faster to draw on llvmpipe (the cost
+     * is per triangle) and would overflow above 65504 (docs/renderer.md). */
+    for (int t = 0; t < TERMS; ++t) {
+        term_state *ts = &f->term[t];
+        gl->CreateVertexArrays(1, &ts->vao);
+        gl->CreateFramebuffers(1, &ts->fbo);
+        ts->tex = color_target(gl, GL_RGBA32F, f->sw, f->sh);
+        ts->depth = depth_target(gl, f->sw, f->sh);
+        gl->NamedFramebufferTexture(ts->fbo, GL_COLOR_ATTACHMENT0, ts->tex, 0);
+        gl->NamedFramebufferRenderbuffer(ts->fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, ts->depth);
+    }
+
+    gl->CreateFramebuffers(1, &f->out_fbo);
+    f->out_tex = color_target(gl, GL_RGBA32F, w, h);
+    gl->NamedFramebufferTexture(f->out_fbo, GL_COLOR_ATTACHMENT0, f->out_tex, 0);
+
+    GLuint fbos[2 + TERMS] = {f->mat_fbo, f->out_fbo, f->term[0].fbo, f->term[1].fbo, f->term[2].fbo};
+    for (int i = 0; i < 2 + TERMS; ++i)
+        if (gl->CheckNamedFramebufferStatus(fbos[i], GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+            rend_frame_destroy(f);
+            return lm_fail(err, LM_ERR_RUNTIME, "renderer: a %dx%d framebuffer is not complete on this GL", f->sw,
+                           f->sh);
+        }
+    if (gl->GetError() != GL_NO_ERROR) {
+        rend_frame_destroy(f);
+        return lm_fail(err, LM_ERR_RUNTIME, "renderer: a GL error occurred creating %dx%d targets (out of memory?)",
+                       f->sw, f->sh);
+    }
+    *out = f;
+    return LM_OK;
+}
+
+void rend_frame_invalidate(rend_frame *f)
+{
+    if (!f) return;
+    f->mat_valid = f->val_valid = f->snap_valid = f->comp_valid = 0;
+    for (int t = 0; t < TERMS; ++t) f->term[t].drawn = 0;
+}
+
+/* ---- Change detection ---------------------------------------------------- */
+
+static uint64_t tri_hash(const cache_snapshot_vertex *v)
+{
+    uint32_t w[3 * sizeof *v / sizeof(uint32_t)];
+    memcpy(w, v, sizeof w);
+    uint64_t h = 0x9E3779B97F4A7C15u;
+    for (size_t i = 0; i < sizeof w / sizeof *w; ++i) {
+        h = (h ^ w[i]) * 0xBF58476D1CE4E5B9u;
+        h ^= h >> 29;
+    }
+    return h;
+}
+
+static int rect_empty(const rect *r) { return r->x0 >= r->x1 || r->y0 >= r->y1; }
+
+/* Grows r by the pixels triangle v can touch in the w×h sample image seen
+ * through vp, with a margin of 2 pixels; a corner behind the camera makes it
+ * the whole image. */
+static void rect_add_tri(rect *r, const float vp[16], const cache_snapshot_vertex *v, int w, int h)
+{
+    float x0 = 0, y0 = 0, x1 = 0, y1 = 0;
+    for (int c = 0; c < 3; ++c) {
+        const float *p = v[c].position;
+        float clip[4];
+        for (int k = 0; k < 4; ++k) clip[k] = vp[k] * p[0] + vp[4 + k] * p[1] + vp[8 + k] * p[2] + vp[12 + k];
+        if (!(clip[3] > 0.0f)) {
+            *r = (rect){0, 0, w, h};
+            return;
+        }
+        float x = (clip[0] / clip[3] * 0.5f + 0.5f) * (float)w, y = (clip[1] / clip[3] * 0.5f + 0.5f) * (float)h;
+        if (c == 0 || x < x0) x0 = x;
+        if (c == 0 || x > x1) x1 = x;
+        if (c == 0 || y < y0) y0 = y;
+        if (c == 0 || y > y1) y1 = y;
+    }
+    if (!(x1 >= -2.0f && y1 >= -2.0f && x0 <= (float)w + 2.0f && y0 <= (float)h + 2.0f)) return; /* off screen or NaN */
+    int ix0 = x0 < 2.0f ? 0 : (int)x0 - 2, iy0 = y0 < 2.0f ? 0 : (int)y0 - 2;
+    int ix1 = x1 > (float)(w - 3) ? w : (int)x1 + 3, iy1 = y1 > (float)(h - 3) ? h : (int)y1 + 3;
+    if (rect_empty(r)) {
+        *r = (rect){ix0, iy0, ix1, iy1};
+        return;
+    }
+    if (ix0 < r->x0) r->x0 = ix0;
+    if (iy0 < r->y0) r->y0 = iy0;
+    if (ix1 > r->x1) r->x1 = ix1;
+    if (iy1 > r->y1) r->y1 = iy1;
+}
+
+/* The region of the sample image where the old triangles (the term's copy) and
+ * the new ones (m) differ: the bounding rectangle of every triangle in one set
+ * and not in the other, compared byte for byte. Outside it the same triangles
+ * cover every pixel, so the old image is what a full redraw would give there
+ * (depth ties between two of them go to the one drawn first: the worker lists
+ * leaves in node order, so triangles that did not change keep their order).
+ * Leaves the new triangles' hashes in f->new_hash and sets *hashed when they
+ * are all there (the search stops once the rectangle is the whole image). */
+static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m, const float vp[16],
+                              rect *out, int *hashed, lm_error *err)
+{
+    *out = (rect){0, 0, 0, 0};
+    *hashed = 0;
+    const rect full = {0, 0, f->sw, f->sh};
+    size_t need = 16;
+    while (need < 2 * (size_t)ts->tris) need *= 2;
+    if (need > f->hash_cap) {
+        uint64_t *k = realloc(f->hash_key, need * sizeof *k);
+        if (k) f->hash_key = k;
+        uint32_t *t = realloc(f->hash_tri, need * sizeof *t);
+        if (t) f->hash_tri = t;
+        uint8_t *sn = realloc(f->seen, need);
+        if (sn) f->seen = sn;
+        if (!k || !t || !sn) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory comparing snapshots");
+        f->hash_cap = need;
+    }
+    if (m->triangle_count > f->new_hash_cap) {
+        uint64_t *nh = realloc(f->new_hash, (size_t)m->triangle_count * sizeof *nh);
+        if (!nh) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory comparing snapshots");
+        f->new_hash = nh;
+        f->new_hash_cap = m->triangle_count;
+    }
+    if (!ts->hash_valid)
+        for (uint32_t i = 0; i < ts->tris; ++i) ts->hash[i] = tri_hash(ts->copy + 3 * (size_t)i);
+    ts->hash_valid = 1;
+    size_t mask = f->hash_cap - 1;
+    memset(f->hash_tri, 0, f->hash_cap * sizeof *f->hash_tri);
+    memset(f->seen, 0, ts->tris ? ts->tris : 1);
+    for (uint32_t i = 0; i < ts->tris; ++i) {
+        size_t j = (size_t)ts->hash[i] & mask;
+        while (f->hash_tri[j]) j = (j + 1) & mask;
+        f->hash_key[j] = ts->hash[i];
+        f->hash_tri[j] = i + 1;
+    }
+    for (uint32_t i = 0; i < m->triangle_count; ++i) {
+        const cache_snapshot_vertex *v = m->vertices + 3 * (size_t)i;
+        uint64_t hk = f->new_hash[i] = tri_hash(v);
+        int found = 0;
+        for (size_t j = (size_t)hk & mask; f->hash_tri[j]; j = (j + 1) & mask) {
+            uint32_t o = f->hash_tri[j] - 1;
+            if (f->hash_key[j] == hk && !f->seen[o] && memcmp(ts->copy + 3 * (size_t)o, v, 3 * sizeof *v) == 0) {
+                f->seen[o] = 1;
+                found = 1;
+                break;
+            }
+        }
+        if (!found) rect_add_tri(out, vp, v, f->sw, f->sh);
+        if (memcmp(out, &full, sizeof full) == 0) return LM_OK;
+    }
+    *hashed = 1;
+    for (uint32_t i = 0; i < ts->tris; ++i)
+        if (!f->seen[i]) {
+            rect_add_tri(out, vp, ts->copy + 3 * (size_t)i, f->sw, f->sh);
+            if (memcmp(out, &full, sizeof full) == 0) return LM_OK;
+        }
+    return LM_OK;
+}
+
+/* Copies snapshot mesh m to the term's buffer (grown when needed) and its CPU copy. */
+static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m, lm_error *err)
+{
+    const GladGLContext *gl = f->gl;
+    uint32_t n = m ? m->triangle_count : 0;
+    ts->src = m ? m->vertices : NULL;
+    ts->tris = 0;
+    ts->hash_valid = 0;
+    if (!n) return LM_OK;
+    if (n > ts->copy_cap) {
+        cache_snapshot_vertex *c = realloc(ts->copy, 3 * (size_t)n * sizeof *c);
+        if (c) ts->copy = c;
+        uint64_t *h = realloc(ts->hash, (size_t)n * sizeof *h);
+        if (h) ts->hash = h;
+        if (!c || !h) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u triangles", n);
+        ts->copy_cap = n;
+    }
+    size_t bytes = 3 * (size_t)n * sizeof *m->vertices;
+    if (bytes > ts->vbo_cap) {
+        /* Immutable storage cannot grow: a new buffer, bound to the VAO again. */
+        if (ts->vbo) gl->DeleteBuffers(1, &ts->vbo);
+        gl->CreateBuffers(1, &ts->vbo);
+        size_t cap = bytes + bytes / 2;
+        gl->NamedBufferStorage(ts->vbo, (GLsizeiptr)cap, NULL, GL_DYNAMIC_STORAGE_BIT);
+        ts->vbo_cap = cap;
+        gl->VertexArrayVertexBuffer(ts->vao, 0, ts->vbo, 0, sizeof(cache_snapshot_vertex));
+        for (GLuint a = 0; a < 2; ++a) {
+            gl->EnableVertexArrayAttrib(ts->vao, a);
+            gl->VertexArrayAttribFormat(ts->vao, a, 3, GL_FLOAT, GL_FALSE,
+                                        a ? (GLuint)offsetof(cache_snapshot_vertex, value) : 0);
+            gl->VertexArrayAttribBinding(ts->vao, a, 0);
+        }
+    }
+    gl->NamedBufferSubData(ts->vbo, 0, (GLsizeiptr)bytes, m->vertices);
+    memcpy(ts->copy, m->vertices, bytes);
+    ts->tris = n;
+    return LM_OK;
+}
+
+/* glFinish, then the seconds since *t0 (and *t0 moves on): per-pass wall time. */
+static double lap(const GladGLContext *gl, double *t0)
+{
+    gl->Finish();
+    double t = lm_now_seconds(), d = t - *t0;
+    *t0 = t;
+    return d;
+}
+
+/* Brings the snapshot in: per term, whether it changed since the last draw and
+ * where (dirty[t], empty: nothing to redraw), and the changed meshes uploaded. */
+static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, const float vp[16], int same_camera,
+                                 rect dirty[TERMS], int *uploads, lm_error *err)
+{
+    *uploads = 0;
+    const cache_snapshot_mesh *meshes[TERMS] = {snap ? &snap->direct : NULL, snap ? &snap->indirect : NULL,
+                                                snap ? &snap->specular : NULL};
+    const rect full = {0, 0, f->sw, f->sh};
+    uint64_t generation = snap ? snap->generation : 0;
+    for (int t = 0; t < TERMS; ++t) {
+        term_state *ts = &f->term[t];
+        const cache_snapshot_mesh *m = meshes[t];
+        uint32_t n = m ? m->triangle_count : 0;
+        int reusable = same_camera && ts->drawn;
+        /* Unchanged: the same snapshot array as last time (generations are
+         * per worker: rend_frame.h), else the same bytes. */
+        int same = f->snap_valid && generation == f->snap_generation && (m ? m->vertices : NULL) == ts->src &&
+                   n == ts->tris;
+        if (!same && n == ts->tris)
+            same = n == 0 || memcmp(ts->copy, m->vertices, 3 * (size_t)n * sizeof *m->vertices) == 0;
+        if (same) {
+            ts->src = m ? m->vertices : NULL;
+            dirty[t] = reusable ? (rect){0, 0, 0, 0} : full;
+            continue;
+        }
+        dirty[t] = full;
+        lm_result r = LM_OK;
+        int hashed = 0;
+        if (reusable && n) r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
+        if (r == LM_OK) r = upload_mesh(f, ts, m, err);
+        if (r == LM_OK && hashed) { /* the new triangles' hashes serve the next comparison */
+            memcpy(ts->hash, f->new_hash, (size_t)n * sizeof *ts->hash);
+            ts->hash_valid = 1;
+        }
+        ++*uploads;
+        if (r != LM_OK) {
+            rend_frame_invalidate(f);
+            return r;
+        }
+    }
+    f->snap_generation = generation;
+    f->snap_valid = 1;
+    return LM_OK;
+}
+
+lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb,
+                          lm_error *err)
+{
+    if (!f || !cam) return lm_fail(err, LM_ERR_INVALID_ARG, "renderer: missing arguments");
+    const GladGLContext *gl = f->gl;
+    const scene *s = f->desc.scene;
+    int w = f->desc.width, h = f->desc.height;
+    rend_frame_times *tt = &f->times;
+    *tt = (rend_frame_times){.supersample = f->desc.supersample};
+    double start = lm_now_seconds(), t0 = start;
+    float vp[16];
+    camera_viewproj(cam, f->sw, f->sh, camera_near(s), vp);
+    GLint viewport[4], scissor_box[4], draw_fbo = 0;
+    gl->GetIntegerv(GL_VIEWPORT, viewport);
+    gl->GetIntegerv(GL_SCISSOR_BOX, scissor_box);
+    gl->GetIntegerv(GL_DRAW_FRAMEBUFFER_BINDING, &draw_fbo);
+    GLboolean scissor_on = gl->IsEnabled(GL_SCISSOR_TEST);
+    gl->Disable(GL_SCISSOR_TEST);
+    gl->Viewport(0, 0, f->sw, f->sh);
+    gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); /* reversed Z (rend_camera.h) */
+    gl->Enable(GL_DEPTH_TEST);
+    gl->DepthFunc(GL_GREATER);
+    const GLfloat zero[4] = {0, 0, 0, 0}, far_depth = 0.0f;
+
+    /* Material: only when the camera moved. */
+    tt->material_reused = f->mat_valid && memcmp(vp, f->mat_vp, sizeof vp) == 0;
+    if (!tt->material_reused) {
+        const GLuint no_surface[4] = {0, 0, 0, 0};
+        gl->ClearNamedFramebufferuiv(f->mat_fbo, GL_COLOR, 0, no_surface);
+        gl->ClearNamedFramebufferfv(f->mat_fbo, GL_DEPTH, 0, &far_depth);
+        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->mat_fbo);
+        gl->UseProgram(f->prog_material);
+        gl->UniformMatrix4fv(f->loc_mat_vp, 1, GL_FALSE, vp);
+        gl->BindVertexArray(f->scene_vao);
+        gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * s->tri_count));
+        memcpy(f->mat_vp, vp, sizeof vp);
+        f->mat_valid = 1;
+        tt->material = lap(gl, &t0);
+    }
+
+    /* Snapshot: what changed, and where. */
+    int same_camera = f->val_valid && memcmp(vp, f->val_vp, sizeof vp) == 0;
+    rect dirty[TERMS];
+    int uploads = 0;
+    lm_result r = update_snapshot(f, snap, vp, same_camera, dirty, &uploads, err);
+    tt->upload_reused = uploads == 0;
+    tt->upload = lap(gl, &t0);
+
+    /* Radiance: each term where it changed (all of it when the camera moved),
+     * cleared and redrawn with every triangle of its mesh inside the dirty
+     * rectangle, so the image equals a full redraw. An empty mesh is neither
+     * cleared nor drawn: the composite takes its term as 0. */
+    unsigned terms = 0;
+    double redrawn = 0.0, present = 0.0;
+    int drew = 0;
+    for (int t = 0; r == LM_OK && t < TERMS; ++t) {
+        term_state *ts = &f->term[t];
+        if (!ts->tris) {
+            ts->drawn = 0;
+            continue;
+        }
+        terms |= 1u << t;
+        present += 1.0;
+        if (rect_empty(&dirty[t])) continue;
+        const rect *d = &dirty[t];
+        int part = d->x0 > 0 || d->y0 > 0 || d->x1 < f->sw || d->y1 < f->sh;
+        if (!drew) {
+            gl->UseProgram(f->prog_value);
+            gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
+            drew = 1;
+        }
+        if (part) {
+            gl->Enable(GL_SCISSOR_TEST);
+            gl->Scissor(d->x0, d->y0, d->x1 - d->x0, d->y1 - d->y0);
+        }
+        gl->ClearNamedFramebufferfv(ts->fbo, GL_COLOR, 0, zero);
+        gl->ClearNamedFramebufferfv(ts->fbo, GL_DEPTH, 0, &far_depth);
+        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->fbo);
+        gl->BindVertexArray(ts->vao);
+        gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * ts->tris));
+        if (part) gl->Disable(GL_SCISSOR_TEST);
+        ts->drawn = 1;
+        redrawn += (double)(d->x1 - d->x0) * (double)(d->y1 - d->y0) / ((double)f->sw * (double)f->sh);
+    }
+    if (r == LM_OK) {
+        memcpy(f->val_vp, vp, sizeof vp);
+        f->val_valid = 1;
+    }
+    tt->radiance_redrawn = present > 0.0 ? redrawn / present : 0.0;
+    tt->radiance_reused = !drew;
+    if (drew) tt->radiance = lap(gl, &t0);
+
+    /* Composite: unless its inputs are those of the output already (same camera,
+     * no radiance redrawn, same terms, no emission edit): a resting viewer's frame
+     * is then the tone mapping alone. */
+    gl->Disable(GL_DEPTH_TEST);
+    gl->DepthFunc(GL_LESS);
+    gl->ClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
+    gl->Viewport(0, 0, w, h);
+    unsigned comp_terms = (terms | REND_FRAME_COMPONENT_EMISSION) & f->components;
+    tt->composite_reused = r == LM_OK && f->comp_valid && tt->material_reused && tt->radiance_reused &&
+                           comp_terms == f->comp_terms;
+    if (r == LM_OK && !tt->composite_reused) {
+        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->out_fbo);
+        gl->UseProgram(f->prog_composite);
+        /* Bits 0..2: the radiance images drawn and shown; bit 3: emission shown. */
+        gl->Uniform1ui(f->loc_comp_terms, comp_terms);
+        GLuint inputs[1 + TERMS] = {f->mat_tex, f->term[0].tex, f->term[1].tex, f->term[2].tex};
+        gl->BindTextures(0, 1 + TERMS, inputs);
+        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
+        gl->BindVertexArray(f->empty_vao);
+        gl->DrawArrays(GL_TRIANGLES, 0, 3);
+        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
+        gl->BindTextures(0, 1 + TERMS, NULL);
+        f->comp_valid = 1;
+        f->comp_terms = comp_terms;
+    }
+    gl->BindVertexArray(0);
+    gl->UseProgram(0);
+    gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, (GLuint)draw_fbo);
+    gl->Viewport(viewport[0], viewport[1], viewport[2], viewport[3]);
+    gl->Scissor(scissor_box[0], scissor_box[1], scissor_box[2], scissor_box[3]);
+    if (scissor_on) gl->Enable(GL_SCISSOR_TEST);
+    if (r != LM_OK) return r;
+    tt->composite = lap(gl, &t0);
+
+    if (rgb) {
+        gl->GetTextureImage(f->out_tex, 0, GL_RGBA, GL_FLOAT, (GLsizei)((size_t)w * (size_t)h * 4 * sizeof(float)),
+                            f->readback);
+        for (int row = 0; row < h; ++row) /* GL rows run from the bottom */
+            for (int x = 0; x < w; ++x)
+                memcpy(rgb + 3 * ((size_t)row * (size_t)w + (size_t)x),
+                       f->readback + 4 * ((size_t)(h - 1 - row) * (size_t)w + (size_t)x), 3 * sizeof(float));
+        tt->readback = lm_now_seconds() - t0;
+    }
+    tt->total = lm_now_seconds() - start;
+    if (gl->GetError() != GL_NO_ERROR) {
+        rend_frame_invalidate(f);
+        return lm_fail(err, LM_ERR_RUNTIME, "renderer: a GL error occurred");
+    }
+    return LM_OK;
+}
+
+void rend_frame_get_times(const rend_frame *f, rend_frame_times *out) { *out = f->times; }
+
+void rend_frame_set_components(rend_frame *f, unsigned components)
+{
+    f->components = components & REND_FRAME_COMPONENTS_ALL;
+}
+
+unsigned rend_frame_get_components(const rend_frame *f) { return f->components; }
+
+lm_result rend_frame_set_emission(rend_frame *f, uint32_t material, const float le[3], lm_error *err)
+{
+    if (material >= f->desc.scene->material_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_frame_set_emission: material %u does not exist", material);
+    for (int k = 0; k < 3; ++k)
+        if (!(le[k] >= 0.0f) || !isfinite(le[k]))
+            return lm_fail(err, LM_ERR_INVALID_ARG, "rend_frame_set_emission: radiance must be finite and non-negative");
+    float v[4] = {le[0], le[1], le[2], 0.0f};
+    GLintptr at = (GLintptr)(material * sizeof(material_entry) + offsetof(material_entry, le));
+    f->gl->NamedBufferSubData(f->material_ssbo, at, sizeof v, v);
+    f->comp_valid = 0;
+    return LM_OK;
+}
+
+void rend_frame_get_output(const rend_frame *f, rend_frame_output *out)
+{
+    *out = (rend_frame_output){f->out_tex, f->out_fbo, f->desc.width, f->desc.height};
+}

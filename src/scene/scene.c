@@ -1,0 +1,190 @@
+/* scene.c — scene_load entry point, the builder's storage, and scene_destroy. */
+#include "src/scene/scene.h"
+
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "src/scene/scene_internal.h"
+#include "src/base/vfs.h"
+
+/* Grows *arr (elements of size elem) so that index `need-1` fits. */
+static int grow(void **arr, uint32_t *cap, size_t need, size_t elem)
+{
+    if (need <= *cap) return 1;
+    size_t ncap = *cap ? (size_t)*cap * 2 : 16;
+    while (ncap < need) ncap *= 2;
+    if (ncap > UINT32_MAX) return 0;
+    void *p = realloc(*arr, ncap * elem);
+    if (!p) return 0;
+    *arr = p;
+    *cap = (uint32_t)ncap;
+    return 1;
+}
+
+void scene_builder_free(scene_builder *b)
+{
+    free(b->pos);
+    free(b->nrm);
+    free(b->mat);
+    free(b->part);
+    free(b->mats);
+    free(b->parts);
+    free(b->points);
+    free(b->cams);
+    for (uint32_t i = 0; i < b->note_count; ++i) free(b->notes[i]);
+    free(b->notes);
+    memset(b, 0, sizeof *b);
+}
+
+lm_result scene_builder_add_triangle(scene_builder *b, const float p[9], const float *n,
+                                     uint32_t material, uint32_t part, lm_error *err)
+{
+    if (b->count == b->cap) {
+        size_t ncap = b->cap ? b->cap * 2 : 1024;
+        if (ncap > (size_t)UINT32_MAX)
+            return lm_fail(err, LM_ERR_BAD_INPUT, "%s: more than 4 billion triangles", b->source);
+        float *np = realloc(b->pos, ncap * 9 * sizeof(float));
+        if (np) b->pos = np;
+        float *nn = realloc(b->nrm, ncap * 9 * sizeof(float));
+        if (nn) b->nrm = nn;
+        uint32_t *nm = realloc(b->mat, ncap * sizeof(uint32_t));
+        if (nm) b->mat = nm;
+        uint32_t *npart = realloc(b->part, ncap * sizeof(uint32_t));
+        if (npart) b->part = npart;
+        if (!np || !nn || !nm || !npart)
+            return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory at %zu triangles", b->source,
+                           b->count);
+        b->cap = ncap;
+    }
+    memcpy(b->pos + 9 * b->count, p, 9 * sizeof(float));
+    if (n)
+        memcpy(b->nrm + 9 * b->count, n, 9 * sizeof(float));
+    else
+        memset(b->nrm + 9 * b->count, 0, 9 * sizeof(float));
+    b->mat[b->count] = material;
+    b->part[b->count] = part;
+    b->count++;
+    return LM_OK;
+}
+
+lm_result scene_builder_add_material(scene_builder *b, const scene_material *m, uint32_t *out_index,
+                                     lm_error *err)
+{
+    if (!grow((void **)&b->mats, &b->mat_cap, (size_t)b->mat_count + 1, sizeof *b->mats))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (materials)", b->source);
+    b->mats[b->mat_count] = *m;
+    *out_index = b->mat_count++;
+    return LM_OK;
+}
+
+lm_result scene_builder_add_part(scene_builder *b, const char *name, const char *source,
+                                 uint32_t *out_index, lm_error *err)
+{
+    if (!grow((void **)&b->parts, &b->part_cap, (size_t)b->part_count + 1, sizeof *b->parts))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (parts)", b->source);
+    scene_part *p = &b->parts[b->part_count];
+    lm_strlcpy(p->name, name, sizeof p->name);
+    lm_strlcpy(p->source, source, sizeof p->source);
+    *out_index = b->part_count++;
+    return LM_OK;
+}
+
+lm_result scene_builder_add_point_light(scene_builder *b, const scene_point_light *p, lm_error *err)
+{
+    if (!grow((void **)&b->points, &b->point_cap, (size_t)b->point_count + 1, sizeof *b->points))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (lights)", b->source);
+    b->points[b->point_count++] = *p;
+    return LM_OK;
+}
+
+lm_result scene_builder_add_camera(scene_builder *b, const scene_camera *c, lm_error *err)
+{
+    if (!grow((void **)&b->cams, &b->cam_cap, (size_t)b->cam_count + 1, sizeof *b->cams))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (cameras)", b->source);
+    b->cams[b->cam_count++] = *c;
+    return LM_OK;
+}
+
+void scene_builder_note(scene_builder *b, const char *fmt, ...)
+{
+    char line[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    for (uint32_t i = 0; i < b->note_count; ++i)
+        if (strcmp(b->notes[i], line) == 0) return;
+    if (!grow((void **)&b->notes, &b->note_cap, (size_t)b->note_count + 1, sizeof *b->notes)) return;
+    char *copy = malloc(strlen(line) + 1);
+    if (!copy) return; /* a lost note is not worth failing a load for */
+    strcpy(copy, line);
+    b->notes[b->note_count++] = copy;
+}
+
+scene_material scene_material_default(const char *name)
+{
+    scene_material m;
+    memset(&m, 0, sizeof m);
+    lm_strlcpy(m.name, name, sizeof m.name);
+    m.kd[0] = m.kd[1] = m.kd[2] = 0.7f;
+    m.n = 1.0f;
+    return m;
+}
+
+lm_result scene_load(const scene_load_desc *desc, scene **out, lm_error *err)
+{
+    static const scene_load_desc zero_desc;
+    if (!out) return lm_fail(err, LM_ERR_INVALID_ARG, "scene_load: out is NULL");
+    *out = NULL;
+    if (!desc) desc = &zero_desc;
+    const char *path = desc->path && desc->path[0] ? desc->path : VFS_DEFAULT_SCENE;
+    double t0 = lm_now_seconds();
+
+    scene_builder b;
+    memset(&b, 0, sizeof b);
+    b.source = path;
+
+    char ext[16];
+    lm_path_ext(path, ext, sizeof ext);
+    lm_result r = strcmp(ext, "json") == 0 ? scene_import_json(&b, path, err)
+                                           : scene_import_mesh_file(&b, path, NULL, -1, err);
+    if (r == LM_OK) r = scene_build(&b, desc, out, err);
+    scene_builder_free(&b);
+    if (r == LM_OK) (*out)->report.load_seconds = lm_now_seconds() - t0;
+    return r;
+}
+
+void scene_destroy(scene *s)
+{
+    if (!s) return;
+    free(s->positions);
+    free(s->tris);
+    free(s->corner_normals);
+    free(s->tri_normals);
+    free(s->tri_areas);
+    free(s->materials);
+    free(s->area_lights);
+    free(s->light_tris);
+    free(s->point_lights);
+    free(s->cameras);
+    free(s->parts);
+    mesh_geo_destroy(s->topology);
+    for (uint32_t i = 0; i < s->report.note_count; ++i) free(s->report.notes[i]);
+    free(s->report.notes);
+    free(s);
+}
+
+int scene_find_camera(const scene *s, const char *name)
+{
+    if (!name || !name[0]) return s->camera_count > 0 ? 0 : -1;
+    for (uint32_t i = 0; i < s->camera_count; ++i)
+        if (strcmp(s->cameras[i].name, name) == 0) return (int)i;
+    return -1;
+}
+
+uint32_t scene_light_count(const scene *s)
+{
+    return s->area_light_count + s->point_light_count;
+}

@@ -1,0 +1,76 @@
+/* scene_internal.h — the scene builder that loaders fill and scene_build.c turns
+ * into a clean scene. Private to src/scene*.c.
+ *
+ * Loaders only append raw triangles (world-space corners and optional file
+ * normals), materials, parts, point lights and cameras; every cleaning rule
+ * (finite, degenerate, duplicate, welding, normals, lights) lives in one place,
+ * scene_build.c, so all formats get the same treatment.
+ */
+#ifndef LUMESH_SCENE_INTERNAL_H
+#define LUMESH_SCENE_INTERNAL_H
+
+#include <stddef.h>
+#include "src/scene/scene.h"
+
+typedef struct scene_builder {
+    const char *source;       /* top-level path, for messages */
+
+    float *pos;               /* 9 floats per raw triangle: 3 corners, world space */
+    float *nrm;               /* 9 floats per raw triangle: file normals, (0,0,0) where none */
+    uint32_t *mat;            /* material per raw triangle */
+    uint32_t *part;           /* part per raw triangle */
+    size_t count, cap;
+
+    scene_material *mats;
+    uint32_t mat_count, mat_cap;
+    scene_part *parts;
+    uint32_t part_count, part_cap;
+    scene_point_light *points;
+    uint32_t point_count, point_cap;
+    scene_camera *cams;
+    uint32_t cam_count, cam_cap;
+    char **notes;
+    uint32_t note_count, note_cap;
+
+    float exposure;
+} scene_builder;
+
+void scene_builder_free(scene_builder *b);
+
+/* n may be NULL (no file normals). Corners are world space. */
+lm_result scene_builder_add_triangle(scene_builder *b, const float p[9], const float *n,
+                                     uint32_t material, uint32_t part, lm_error *err);
+lm_result scene_builder_add_material(scene_builder *b, const scene_material *m, uint32_t *out_index,
+                                     lm_error *err);
+lm_result scene_builder_add_part(scene_builder *b, const char *name, const char *source,
+                                 uint32_t *out_index, lm_error *err);
+lm_result scene_builder_add_point_light(scene_builder *b, const scene_point_light *p, lm_error *err);
+lm_result scene_builder_add_camera(scene_builder *b, const scene_camera *c, lm_error *err);
+/* Adds one line to the load report (identical lines are kept once). */
+void scene_builder_note(scene_builder *b, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+
+/* A material with the loader defaults: grey kd 0.7, no ks, n 1, no emission. */
+scene_material scene_material_default(const char *name);
+
+/* Imports a mesh file through Assimp into the builder.
+ * transform: 16 floats row-major (p' = M·p), or NULL for identity.
+ * material_override: a builder material index given to every triangle, or -1 to
+ * use the file's own materials. */
+lm_result scene_import_mesh_file(scene_builder *b, const char *path, const float *transform,
+                                 int32_t material_override, lm_error *err);
+
+/* Reads a JSON scene description (see docs/scene-format.md) into the builder. */
+lm_result scene_import_json(scene_builder *b, const char *path, lm_error *err);
+
+/* Cleans, welds, orients, computes normals, topology and lights: builder -> scene.
+ * Consumes nothing; the caller still frees the builder. */
+lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out, lm_error *err);
+
+/* Groups emissive triangles into planar area lights (scene_lights.c). */
+lm_result scene_build_lights(scene *s, lm_error *err);
+
+#endif

@@ -1,0 +1,568 @@
+/* view_app.c — `lumesh view`'s display loop (view_app.h). */
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
+#include "src/view/view_app_internal.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "src/image/image.h"
+#include "src/render/rend_id.h"
+#include "src/base/tonemap.h"
+#include "src/view/view_camera.h"
+#include "src/view/view_glfw.h"
+#include "src/view/view_hud.h"
+#include "src/view/view_tonemap.h"
+
+enum { TITLE_PERIOD_MS = 500 };
+static const float k_orbit_deg_per_unit = 0.3f; /* degrees per screen unit of drag */
+static const float k_zoom_per_step = 0.9f;      /* distance factor per wheel step */
+static const float k_exposure_step = 0.5f;      /* stops per + / - */
+static const float k_look_deg_per_unit = 0.2f;  /* degrees per screen unit of right drag */
+static const float k_fly_radii_per_s = 0.5f;    /* W A S D speed: scene bounding radii per second */
+/* A new snapshot is taken at most this often while the camera rests: redrawing the
+ * radiance images of a refined mesh is most of a frame's cost on llvmpipe (46 of
+ * 75 ms at 1280x720 on Water), and the eye does not need each of the worker's
+ * ~30 commits a second to see the picture sharpen. After a move: at once. */
+static const double k_snapshot_period = 0.25;
+/* While the camera moves the worker rests (the paper refines while the view is
+ * idle), the picture is drawn at half the resolution and the ID pass waits: a
+ * moving frame on llvmpipe cost ~165 ms at 1280x720 on Water, most of it the
+ * radiance images and the composite. This long after the last move, the ID pass
+ * runs, the worker gets the new view and resumes, and frames are full size again. */
+static const double k_motion_rest = 0.15;
+
+
+static void nap(double seconds)
+{
+    if (seconds <= 0) return;
+    struct timespec t = {(time_t)seconds, (long)((seconds - floor(seconds)) * 1e9)};
+    nanosleep(&t, NULL);
+}
+
+void view_app_report_of(const view_state *v, view_app_report *r)
+{
+    *r = (view_app_report){.scene = v->s, .camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
+                           .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
+                           .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
+                           .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win)};
+}
+
+/* K's colours: multipliers of the scene's, about equal in luminance. */
+static const float k_light_presets[][3] = {
+    {1.0f, 1.0f, 1.0f},    /* as the scene says */
+    {1.25f, 0.95f, 0.62f}, /* warm */
+    {0.78f, 0.98f, 1.35f}, /* cool */
+    {2.2f, 0.55f, 0.45f},  /* red */
+    {0.55f, 1.25f, 0.6f},  /* green */
+};
+enum { LIGHT_PRESETS = sizeof k_light_presets / sizeof k_light_presets[0] };
+const char *const view_light_preset_names[LIGHT_PRESETS] = {"", " warm", " cool", " red", " green"};
+
+/* Light l to scale × tint × the scene's radiance (or intensity): the worker
+ * recomputes the direct mesh from its stored G (no light sample), the renderer
+ * shows the emitter's new Le. */
+static lm_result set_light(view_state *v, uint32_t l, float scale, const float tint[3], lm_error *err)
+{
+    const scene *s = v->s;
+    if (l >= v->light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", l, v->light_count);
+    const float *base = l < s->area_light_count ? s->area_lights[l].le
+                                                : s->point_lights[l - s->area_light_count].intensity;
+    float value[3] = {base[0] * scale * tint[0], base[1] * scale * tint[1], base[2] * scale * tint[2]};
+    lm_result r = cache_worker_set_light(v->wk, l, value, err);
+    if (r != LM_OK) return r;
+    v->light_scale[l] = scale;
+    memmove(v->light_tint + 3 * (size_t)l, tint, 3 * sizeof *tint); /* tint may be that very row */
+    v->emission_dirty = 1;
+    return LM_OK;
+}
+
+static lm_result set_light_scale(view_state *v, uint32_t l, float scale, lm_error *err)
+{
+    if (l >= v->light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", l, v->light_count);
+    return set_light(v, l, scale, v->light_tint + 3 * (size_t)l, err);
+}
+
+/* The emitters' Le as light_scale says, after an edit or a new renderer. */
+static lm_result apply_emission(view_state *v, lm_error *err)
+{
+    const scene *s = v->s;
+    lm_result r = LM_OK;
+    for (uint32_t l = 0; r == LM_OK && l < s->area_light_count; ++l) {
+        const float *le = s->area_lights[l].le, k = v->light_scale[l], *t = v->light_tint + 3 * (size_t)l;
+        const float e[3] = {le[0] * k * t[0], le[1] * k * t[1], le[2] * k * t[2]};
+        r = rend_frame_set_emission(v->frame, s->area_lights[l].material, e, err);
+        if (r == LM_OK && v->motion_frame) r = rend_frame_set_emission(v->motion_frame, s->area_lights[l].material, e, err);
+    }
+    v->emission_dirty = 0;
+    return r;
+}
+
+static lm_result start_worker(view_state *v, lm_error *err)
+{
+    /* pixels_later: the coarse cache is made while the first ID pass runs;
+     * publish_debug: the snapshots carry what a mesh overlay (O) draws, only while
+     * one is shown (it costs the worker about a tenth of its pace on Water). */
+    return cache_worker_create(&(cache_worker_desc){.scene = v->s, .sampler = v->d->sampler, .pixels_later = 1,
+                                                    .publish_debug = v->overlay != 0},
+                               &v->wk, err);
+}
+
+/* Per light, power relative to the scene's: all 1 for a new scene. */
+static lm_result reset_lights(view_state *v, lm_error *err)
+{
+    v->light_count = scene_light_count(v->s);
+    v->light = 0;
+    free(v->light_scale);
+    free(v->light_tint);
+    free(v->light_preset);
+    size_t n = v->light_count ? v->light_count : 1;
+    v->light_scale = malloc(n * sizeof *v->light_scale);
+    v->light_tint = malloc(3 * n * sizeof *v->light_tint);
+    v->light_preset = calloc(n, sizeof *v->light_preset);
+    if (!v->light_scale || !v->light_tint || !v->light_preset)
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for %u lights", v->light_count);
+    for (uint32_t l = 0; l < v->light_count; ++l) {
+        v->light_scale[l] = 1.0f;
+        for (int k = 0; k < 3; ++k) v->light_tint[3 * l + (uint32_t)k] = 1.0f;
+    }
+    v->emission_dirty = 1;
+    return LM_OK;
+}
+
+/* R: the scene again from its file (it changed on disk). Everything made from the
+ * old scene goes (the worker is joined), the camera stays where the user put it.
+ * A file that no longer loads keeps the old scene (the reason is printed). */
+static lm_result reload_scene(view_state *v, lm_error *err)
+{
+    const view_app_desc *d = v->d;
+    if (!d->reload) return LM_OK;
+    const scene *fresh = NULL;
+    lm_error why = {{0}};
+    if (d->reload(d->user, &fresh, &why) != LM_OK || !fresh || fresh->camera_count == 0) {
+        fprintf(stderr, "lumesh view: the scene did not reload, keeping the one shown: %s\n",
+                why.msg[0] ? why.msg : "it has no camera");
+        if (fresh && d->release) d->release(d->user, fresh);
+        return LM_OK;
+    }
+    if (v->paused) cache_worker_resume(v->wk);
+    cache_worker_destroy(v->wk); /* cancels and joins: nothing refers to the old scene after this */
+    v->wk = NULL;
+    v->snap = NULL;
+    v->paused = v->motion_paused = 0;
+    rend_frame_destroy(v->frame);
+    rend_frame_destroy(v->motion_frame);
+    rend_id_destroy(v->ip);
+    v->frame = v->motion_frame = NULL;
+    v->ip = NULL;
+    v->fb_w = v->fb_h = 0;
+    const scene *old = v->s;
+    v->s = fresh;
+    if (v->camera_index >= fresh->camera_count) v->camera_index = 0;
+    v->camera_moved = 1;
+    v->ov_stale = 1;
+    v->reloads++;
+    lm_result r = reset_lights(v, err);
+    if (r == LM_OK) r = start_worker(v, err);
+    if (d->release) d->release(d->user, old);
+    return r;
+}
+
+/* The scene's camera i, at the window's size. */
+static void select_camera(view_state *v, uint32_t i)
+{
+    const scene *s = v->s;
+    if (i >= s->camera_count) return;
+    int w = v->cam.width, h = v->cam.height;
+    v->cam = s->cameras[i];
+    v->cam.width = w;
+    v->cam.height = h;
+    v->camera_index = i;
+    v->camera_moved = 1;
+}
+
+static lm_result apply_action(view_state *v, view_action a, lm_error *err)
+{
+    v->ov_stale = 1; /* whatever it changes, the overlay is made again from the picture */
+    switch (a) {
+    case VIEW_ACTION_QUIT: v->quit = 1; break;
+    case VIEW_ACTION_PAUSE:
+        /* The key does not wait for the worker's step in flight (the display never
+         * blocks on it); a script does, so that what follows sees no more commits. */
+        if (v->paused) cache_worker_resume(v->wk);
+        else if (v->in_script) cache_worker_pause(v->wk);
+        else cache_worker_request_pause(v->wk);
+        v->paused = !v->paused;
+        break;
+    case VIEW_ACTION_EXPOSURE_UP: v->exposure += k_exposure_step; break;
+    case VIEW_ACTION_EXPOSURE_DOWN: v->exposure -= k_exposure_step; break;
+    case VIEW_ACTION_SCREENSHOT:
+        snprintf(v->shot, sizeof v->shot, "lumesh-view-%llu.png", (unsigned long long)++v->screenshots);
+        v->shot_exr_too = 1;
+        break;
+    case VIEW_ACTION_CAMERA_NEXT: select_camera(v, (v->camera_index + 1) % v->s->camera_count); break;
+    case VIEW_ACTION_FRAME_ALL:
+        view_camera_frame_all(&v->cam, v->s->bounds_min, v->s->bounds_max,
+                              v->fb_h > 0 ? (float)v->fb_w / (float)v->fb_h : 16.0f / 9.0f);
+        v->camera_moved = 1;
+        break;
+    case VIEW_ACTION_LIGHT_NEXT:
+        if (v->light_count) v->light = (v->light + 1) % v->light_count;
+        break;
+    case VIEW_ACTION_LIGHT_UP:
+    case VIEW_ACTION_LIGHT_DOWN:
+        if (v->light_count)
+            return set_light_scale(v, v->light, v->light_scale[v->light] * (a == VIEW_ACTION_LIGHT_UP ? 2.0f : 0.5f),
+                                   err);
+        break;
+    case VIEW_ACTION_LIGHT_COLOR:
+        if (v->light_count) {
+            uint32_t p = v->light_preset[v->light] = (v->light_preset[v->light] + 1) % LIGHT_PRESETS;
+            return set_light(v, v->light, v->light_scale[v->light], k_light_presets[p], err);
+        }
+        break;
+    case VIEW_ACTION_TOGGLE_DIRECT: v->components ^= REND_FRAME_COMPONENT_DIRECT_DIFFUSE; break;
+    case VIEW_ACTION_TOGGLE_SPECULAR: v->components ^= REND_FRAME_COMPONENT_DIRECT_SPECULAR; break;
+    case VIEW_ACTION_TOGGLE_INDIRECT: v->components ^= REND_FRAME_COMPONENT_INDIRECT; break;
+    case VIEW_ACTION_TOGGLE_EMISSION: v->components ^= REND_FRAME_COMPONENT_EMISSION; break;
+    case VIEW_ACTION_HELP: v->help = !v->help; break;
+    case VIEW_ACTION_RELOAD: return reload_scene(v, err);
+    case VIEW_ACTION_OVERLAY_NEXT:
+        v->overlay = (v->overlay + 1) % (int)(4 + v->light_count);
+        v->ov_stale = 1;
+        cache_worker_set_publish_debug(v->wk, v->overlay != 0);
+        break;
+    case VIEW_ACTION_OVERLAY_KIND:
+        v->overlay_points = !v->overlay_points;
+        v->ov_stale = 1;
+        break;
+    default: break;
+    }
+    return LM_OK;
+}
+
+/* Runs the script's commands due now: instantaneous ones all at once, up to one
+ * that waits (wait, frames) or a screenshot (taken after this frame's draw). */
+static lm_result run_script(view_state *v, lm_error *err)
+{
+    const view_app_desc *d = v->d;
+    if (!d->script) return LM_OK;
+    while (!v->quit && !v->shot[0] && !v->window_shot[0]) {
+        if (v->si >= d->script_count) {
+            v->quit = 1; /* the script ran out: done */
+            return LM_OK;
+        }
+        const view_cmd *c = &d->script[v->si];
+        if (!v->cmd_started) {
+            v->cmd_started = 1;
+            v->cmd_t0 = lm_now_seconds();
+            v->cmd_frames0 = v->frames;
+            v->cmd_generation0 = v->snap ? v->snap->generation : 0;
+        }
+        lm_result r = LM_OK;
+        switch (c->kind) {
+        case VIEW_CMD_WAIT:
+            if (lm_now_seconds() - v->cmd_t0 < c->a) return LM_OK;
+            break;
+        case VIEW_CMD_FRAMES:
+            if (v->frames - v->cmd_frames0 < (uint64_t)c->a) return LM_OK;
+            break;
+        case VIEW_CMD_NEXT_SNAPSHOT:
+            /* Drawn already: v->snap is the one of the last frame. */
+            if ((!v->snap || v->snap->generation == v->cmd_generation0) && lm_now_seconds() - v->cmd_t0 < c->a)
+                return LM_OK;
+            break;
+        case VIEW_CMD_LIGHT: r = set_light_scale(v, (uint32_t)c->a, (float)c->b, err); break;
+        case VIEW_CMD_LIGHT_COLOR:
+            r = (uint32_t)c->a < v->light_count
+                    ? set_light(v, (uint32_t)c->a, v->light_scale[(uint32_t)c->a], c->rgb, err)
+                    : lm_fail(err, LM_ERR_INVALID_ARG, "light %.0f does not exist (the scene has %u)", c->a,
+                              v->light_count);
+            break;
+        case VIEW_CMD_ORBIT:
+            view_camera_orbit(&v->cam, (float)c->a, (float)c->b);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_ZOOM:
+            view_camera_zoom(&v->cam, (float)c->a);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_PAN:
+            view_camera_pan(&v->cam, (float)c->a, (float)c->b);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_FLY:
+            view_camera_fly(&v->cam, (float)c->a, (float)c->b, (float)c->c);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_LOOK:
+            view_camera_look(&v->cam, (float)c->a, (float)c->b);
+            v->camera_moved = 1;
+            break;
+        case VIEW_CMD_CAMERA:
+            if (c->a >= v->s->camera_count)
+                r = lm_fail(err, LM_ERR_INVALID_ARG, "camera %.0f does not exist (the scene has %u)", c->a,
+                            v->s->camera_count);
+            else
+                select_camera(v, (uint32_t)c->a);
+            break;
+        case VIEW_CMD_RESIZE: view_window_resize(v->win, (int)c->a, (int)c->b); break;
+        case VIEW_CMD_MINIMISE: view_window_minimise(v->win, (int)c->a); break;
+        case VIEW_CMD_WINDOW_SHOT: snprintf(v->window_shot, sizeof v->window_shot, "%s", c->path); break;
+        case VIEW_CMD_SCREENSHOT:
+            snprintf(v->shot, sizeof v->shot, "%s", c->path);
+            v->shot_exr_too = 0;
+            break;
+        case VIEW_CMD_KEY:
+            v->in_script = 1;
+            r = apply_action(v, c->action, err);
+            v->in_script = 0;
+            break;
+        case VIEW_CMD_QUIT: v->quit = 1; break;
+        default: break;
+        }
+        if (r != LM_OK) {
+            char why[sizeof err->msg];
+            snprintf(why, sizeof why, "%s", err->msg);
+            return lm_fail(err, r, "script line %d: %s", c->line, why);
+        }
+        v->si++;
+        v->cmd_started = 0;
+    }
+    return LM_OK;
+}
+
+/* The ID pass and the renderer at the framebuffer's size (made again on resize). */
+static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
+{
+    if (v->frame && w == v->fb_w && h == v->fb_h) return LM_OK;
+    rend_frame_destroy(v->frame);
+    rend_frame_destroy(v->motion_frame);
+    v->motion_frame = NULL;
+    rend_id_destroy(v->ip);
+    v->frame = NULL;
+    v->ip = NULL;
+    v->fb_w = v->fb_h = 0;
+    v->drawn = 0;
+    lm_result r = rend_id_create(v->gl, &(rend_id_desc){.scene = v->s, .width = w, .height = h}, &v->ip, err);
+    if (r == LM_OK)
+        r = rend_frame_create(v->gl, &(rend_frame_desc){.scene = v->s, .width = w, .height = h, .supersample = 1},
+                              &v->frame, err);
+
+    if (r != LM_OK) return r;
+    v->fb_w = w;
+    v->fb_h = h;
+    v->cam.width = w;
+    v->cam.height = h;
+    v->camera_moved = 1; /* new pixel counts for the new size */
+    v->emission_dirty = 1; /* a new renderer has the scene's Le */
+    return LM_OK;
+}
+
+/* One frame: input, script, ID pass after a move, the latest snapshot, draw, present. */
+static lm_result frame(view_state *v, lm_error *err)
+{
+    view_input in;
+    view_window_poll(v->win, &in);
+    if (in.close) v->quit = 1;
+    lm_result r = LM_OK;
+    for (int a = 0; a < VIEW_ACTION_COUNT; ++a)
+        for (int k = 0; r == LM_OK && k < in.actions[a]; ++k) r = apply_action(v, (view_action)a, err);
+    if (r != LM_OK) return r;
+    if (in.drag_dx != 0 || in.drag_dy != 0) {
+        /* Dragging right turns the scene right: the camera goes left. */
+        view_camera_orbit(&v->cam, -(float)in.drag_dx * k_orbit_deg_per_unit,
+                          (float)in.drag_dy * k_orbit_deg_per_unit);
+        v->camera_moved = 1;
+    }
+    if (in.wheel != 0) {
+        view_camera_zoom(&v->cam, powf(k_zoom_per_step, (float)in.wheel));
+        v->camera_moved = 1;
+    }
+    if (in.pan_dx != 0 || in.pan_dy != 0) {
+        /* The scene follows the cursor: the camera goes the other way. */
+        double hs = in.screen_height > 0 ? in.screen_height : 720.0;
+        view_camera_pan(&v->cam, -(float)(in.pan_dx / hs), (float)(in.pan_dy / hs));
+        v->camera_moved = 1;
+    }
+    if (in.look_dx != 0 || in.look_dy != 0) {
+        view_camera_look(&v->cam, (float)in.look_dx * k_look_deg_per_unit, -(float)in.look_dy * k_look_deg_per_unit);
+        v->camera_moved = 1;
+    }
+    double now = lm_now_seconds(), dt = fmin(0.25, now - v->last_input); /* a stall does not jump */
+    v->last_input = now;
+    if (in.fly[0] != 0 || in.fly[1] != 0 || in.fly[2] != 0) {
+        const scene *s = v->s;
+        double r2 = 0;
+        for (int k = 0; k < 3; ++k) r2 += 0.25 * (s->bounds_max[k] - s->bounds_min[k]) * (s->bounds_max[k] - s->bounds_min[k]);
+        float step = (float)(sqrt(r2) * k_fly_radii_per_s * dt);
+        view_camera_fly(&v->cam, in.fly[0] * step, in.fly[1] * step, in.fly[2] * step);
+        v->camera_moved = 1;
+    }
+    if ((r = run_script(v, err)) != LM_OK) return r;
+    if (v->quit && !v->shot[0] && !v->window_shot[0]) return LM_OK;
+
+    int w, h;
+    view_window_framebuffer_size(v->win, &w, &h);
+    if (w <= 0 || h <= 0) return LM_OK; /* minimised: nothing to draw into; the worker goes on */
+    r = fit_size(v, w, h, err);
+    if (r == LM_OK && v->emission_dirty) r = apply_emission(v, err);
+    if (r == LM_OK) {
+        rend_frame_set_components(v->frame, v->components);
+        if (v->motion_frame) rend_frame_set_components(v->motion_frame, v->components);
+    }
+    double now_m = lm_now_seconds();
+    if (v->camera_moved) {
+        v->camera_moved = 0;
+        v->view_pending = 1;
+        v->last_motion = now_m;
+        v->ov_stale = 1;
+        if (!v->paused && !v->motion_paused && v->frames > 0) {
+            cache_worker_request_pause(v->wk);
+            v->motion_paused = 1;
+        }
+    }
+    /* The ID pass once the camera rests (or at once for the first frame and for a
+     * screenshot of the picture, which must show the view refined; a window-shot
+     * shows what the window shows). */
+    int at_rest = now_m - v->last_motion >= k_motion_rest || v->frames == 0 || v->shot[0];
+    if (r == LM_OK && v->view_pending && at_rest) {
+        rend_id_result ids;
+        r = rend_id_render(v->ip, &v->cam, &ids, err);
+        if (r == LM_OK) r = cache_worker_set_view(v->wk, ids.pixels, v->cam.position, err);
+        v->id_seconds = ids.seconds;
+        v->id_passes++;
+        v->view_pending = 0;
+        v->fresh_view = 1;
+    }
+    if (r != LM_OK) return r;
+    double now_s = lm_now_seconds();
+    if (v->motion_paused && (v->paused || !v->view_pending)) {
+        if (!v->paused) cache_worker_resume(v->wk);
+        v->motion_paused = 0;
+    }
+    /* An overlay waiting for the worker's debug data takes each snapshot until it comes. */
+    int debug_missing = v->overlay && v->snap && !v->snap->direct.corners;
+    if (!v->snap || v->fresh_view || debug_missing || v->shot[0] || v->window_shot[0] ||
+        now_s - v->snap_taken >= k_snapshot_period) {
+        /* The snapshot held is valid until the acquire: its generation is read before. */
+        uint64_t held = v->snap ? v->snap->generation : 0;
+        const cache_snapshot *s = cache_worker_acquire(v->wk); /* never waits */
+        if (s) {
+            if (s->generation != held) {
+                v->snap_taken = now_s;
+                v->fresh_view = 0;
+            }
+            v->snap = s;
+        }
+    }
+    if (v->snap && v->snap->failed) return lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", v->snap->error);
+    /* Moving: the half-size renderer, its picture stretched by the tone mapping;
+     * made at the first move after a resize (its shaders cost start-up time). */
+    if (v->view_pending && !v->motion_frame) {
+        r = rend_frame_create(v->gl,
+                              &(rend_frame_desc){.scene = v->s, .width = (w + 1) / 2, .height = (h + 1) / 2,
+                                                 .supersample = 1},
+                              &v->motion_frame, err);
+        if (r == LM_OK) r = apply_emission(v, err);
+        if (r == LM_OK) rend_frame_set_components(v->motion_frame, v->components);
+        if (r != LM_OK) return r;
+    }
+    rend_frame *f = v->view_pending ? v->motion_frame : v->frame;
+    scene_camera cam = v->cam;
+    rend_frame_output o;
+    rend_frame_get_output(f, &o);
+    cam.width = o.width;
+    cam.height = o.height;
+    r = rend_frame_draw(f, &cam, v->snap, NULL, err);
+    tm_desc tm = {.exposure = v->exposure};
+    if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, o.texture, &tm, err);
+    if (r == LM_OK && v->overlay && v->snap && f == v->frame) r = view_app_draw_overlay(v, w, h, o.texture, &tm, err);
+    if (r == LM_OK && v->hud) {
+        char text[2048];
+        view_app_hud_text(v, text, sizeof text);
+        r = view_hud_draw(v->hud, &(view_hud_text){.text = text, .x = 8, .y = 8, .scale = h >= 600 ? 2.0f : 1.0f},
+                          w, h, err);
+    }
+    if (r != LM_OK) return r;
+    rend_frame_get_times(f, &v->times);
+    v->frames++;
+    if (v->first_image < 0 && v->snap) v->first_image = lm_now_seconds() - v->t_open;
+    if (v->shot[0]) r = view_app_take_screenshot(v, err);
+    if (r == LM_OK && v->window_shot[0]) {
+        uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
+        r = rgb ? view_hud_read_window(v->hud, w, h, rgb, err)
+                : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d window shot", w, h);
+        if (r == LM_OK)
+            r = img_write(&(img_write_desc){.path = v->window_shot, .width = w, .height = h, .channels = 3, .pixels8 = rgb},
+                          err);
+        free(rgb);
+        v->window_shot[0] = '\0';
+    }
+    view_window_swap(v->win);
+    return r;
+}
+
+lm_result view_app_run(const view_app_desc *d, lm_error *err)
+{
+    if (!d || !d->scene || d->camera < 0 || (uint32_t)d->camera >= d->scene->camera_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "view_app_run: no scene or no such camera");
+    view_state v = {.d = d, .s = d->scene, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
+                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL};
+    lm_result r = reset_lights(&v, err);
+    if (r != LM_OK) return r;
+    r = view_window_create(&(view_window_desc){.title = "lumesh view", .width = d->width,
+                                                        .height = d->height},
+                                     &v.win, err);
+    if (r != LM_OK) {
+        free(v.light_scale);
+        free(v.light_tint);
+        free(v.light_preset);
+        return r;
+    }
+    v.gl = view_window_gl(v.win);
+    v.t_open = v.last_input = lm_now_seconds();
+    v.camera_index = (uint32_t)d->camera;
+    r = start_worker(&v, err);
+    if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
+    if (r == LM_OK) r = view_hud_create(v.gl, &v.hud, err);
+    double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
+    double next = lm_now_seconds(), next_title = next;
+    while (r == LM_OK && !v.quit) {
+        r = frame(&v, err);
+        double now = lm_now_seconds();
+        if (now >= next_title) {
+            view_app_update_title(&v);
+            next_title = now + TITLE_PERIOD_MS * 1e-3;
+        }
+        /* Steady pacing: aim at fixed ticks; after a slow frame start again from now
+         * rather than drawing a burst to catch up. */
+        next += period;
+        if (next < now) next = now;
+        nap(next - now);
+    }
+    if (r == LM_OK && d->finished) {
+        view_app_report rep;
+        view_app_report_of(&v, &rep);
+        r = d->finished(&rep, d->user, err);
+    }
+    if (v.paused) cache_worker_resume(v.wk);
+    cache_worker_destroy(v.wk); /* cancels the refinement and joins the thread */
+    view_tm_destroy(v.tm);
+    view_hud_destroy(v.hud);
+    rend_frame_destroy(v.frame);
+    rend_frame_destroy(v.motion_frame);
+    rend_id_destroy(v.ip);
+    view_window_destroy(v.win);
+    free(v.light_scale);
+    free(v.light_tint);
+    free(v.light_preset);
+    free(v.ov_bg);
+    free(v.ov_rgb);
+    free(v.ov_ids);
+    return r;
+}

@@ -1,0 +1,85 @@
+/* view_app.h — `lumesh view`'s engine: a window on the renderer while the
+ * refinement worker sharpens the image (paper §6: the display shows what the
+ * cache has, the worker refines it in the meantime).
+ *
+ * Each frame: input (or the script's next commands), the ID pass again after a
+ * camera move (its pixel counts go to the worker: cache_worker_set_pixels, the
+ * view-independent caches are kept), the latest published snapshot (acquired
+ * without waiting), rend_frame at one sample a pixel without read-back, and the
+ * tone-mapping pass (view_tonemap.h) into the window. Frames are paced to
+ * max_fps, so the display redraws steadily whatever the worker does.
+ *
+ * Usage (main thread):
+ *     view_app_desc d = {.scene = s, .camera = 0, .sampler = sd, .script = cmds, .script_count = n};
+ *     lm_result r = view_app_run(&d, &err);
+ *
+ * A camera move (orbit, pan, zoom, fly, look, another named camera) runs the ID
+ * pass again and hands the worker its pixel counts and the new eye together
+ * (cache_worker_set_view): the specular mesh starts again for the new eye, the
+ * view-independent meshes stay.
+ *
+ * A HUD (view_hud.h) in the top-left corner: frame rate and pass times, samples
+ * per second, samples per mesh, memory, the display state; H adds the keys.
+ *
+ * Does NOT do: culling leaves the ID pass found hidden, mesh overlays.
+ */
+#ifndef LUMESH_VIEW_APP_H
+#define LUMESH_VIEW_APP_H
+
+#include <stddef.h>
+#include <stdint.h>
+
+#include "mesh/cache/cache_worker.h"
+#include "src/render/rend_frame.h"
+#include "sampling/samp.h"
+#include "src/scene/scene.h"
+#include "src/base/util.h"
+#include "src/view/view_script.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+enum { VIEW_APP_DEFAULT_FPS = 60 };
+
+/* What the run measured, for the caller's report and --stats. */
+typedef struct view_app_report {
+    const scene *scene;                /* the scene now (d->scene, or the last reload's) */
+    const scene_camera *camera;        /* the camera now */
+    int width, height;                 /* framebuffer pixels of the last frame */
+    uint64_t frames;                   /* frames drawn */
+    double seconds;                    /* from the window opening to now */
+    double first_image_seconds;        /* from the window opening to the first frame with a snapshot; < 0 = none */
+    double id_seconds;                 /* the last ID pass */
+    uint64_t id_passes;                /* ID passes run (1 + camera moves and resizes) */
+    const cache_snapshot *snap;        /* the last snapshot drawn; NULL = none yet */
+    const rend_frame_times *frame;     /* the last frame's passes; NULL = none drawn */
+    const char *renderer;              /* GL_RENDERER / GL_VERSION of the window */
+} view_app_report;
+
+typedef struct view_app_desc {
+    const scene *scene;               /* must outlive the run */
+    int camera;                       /* index into scene->cameras */
+    int width, height;                /* window size; 0 = 1280 × 720 */
+    samp_desc sampler;                /* the worker's sampler */
+    const view_cmd *script;           /* NULL: interactive until Esc / Q / the close button */
+    size_t script_count;
+    double max_fps;                   /* 0 = VIEW_APP_DEFAULT_FPS; < 0 = unpaced */
+    void *user;
+    /* Called after each screenshot is written (report->snap: the snapshot in it). */
+    void (*screenshot)(const char *path, const view_app_report *report, void *user);
+    /* R: a new scene from the same file (the caller's; NULL: R does nothing). On
+     * error the viewer prints the reason and keeps the scene it shows. */
+    lm_result (*reload)(void *user, const scene **fresh, lm_error *err);
+    /* A scene the viewer no longer uses (after a reload): the caller may free it. */
+    void (*release)(void *user, const scene *old);
+    /* Called once when the run ends without error, before the worker is destroyed. */
+    lm_result (*finished)(const view_app_report *report, void *user, lm_error *err);
+} view_app_desc;
+
+lm_result view_app_run(const view_app_desc *desc, lm_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,89 @@
+/* view_app_internal.h — what view_app.c (the loop, input, the worker) and
+ * view_app_show.c (what is shown and written: HUD text, title, mesh overlays,
+ * screenshots) share. Not a public header. */
+#ifndef LUMESH_VIEW_APP_INTERNAL_H
+#define LUMESH_VIEW_APP_INTERNAL_H
+
+#include <stdint.h>
+
+#include "src/render/rend_id.h"
+#include "src/base/tonemap.h"
+#include "src/view/view_app.h"
+#include "src/view/view_glfw.h"
+#include "src/view/view_hud.h"
+#include "src/view/view_tonemap.h"
+
+/* Everything the loop owns; all of it display thread only (the worker's state is
+ * behind cache_worker's API). */
+typedef struct view_state {
+    const view_app_desc *d;
+    const scene *s;                 /* d->scene, or the last one d->reload gave */
+    view_window *win;
+    const GladGLContext *gl;
+    cache_worker *wk;
+    view_tm *tm;
+    view_hud *hud;
+    rend_id *ip;
+    rend_frame *frame;
+    rend_frame *motion_frame;       /* half size: drawn while the camera moves */
+    int fb_w, fb_h;                 /* size of ip and frame; 0 = not made */
+    scene_camera cam;
+    uint32_t camera_index;          /* the scene camera C last selected */
+    int camera_moved;               /* the camera moved this frame */
+    int view_pending;               /* it moved since the last ID pass (which waits for it to rest) */
+    int fresh_view;                 /* the camera moved: take the next snapshot at once */
+    double snap_taken;              /* when the snapshot drawn was acquired */
+    double last_input;              /* when the last frame's input was taken (fly speed) */
+    int paused;                     /* P: the user paused refinement */
+    int motion_paused;              /* the camera is moving: refinement rests (not the user's pause) */
+    double last_motion;
+    float exposure;                 /* stops */
+    uint32_t light_count, light;    /* the scene's lights; the one the keys edit */
+    float *light_scale;             /* per light: power relative to the scene's */
+    float *light_tint;              /* per light, RGB: colour multiplier of the scene's (K cycles presets) */
+    uint32_t *light_preset;         /* per light: the K preset shown (0 = the scene's colour) */
+    int emission_dirty;             /* the renderer's emitters differ from light_scale */
+    unsigned components;            /* REND_FRAME_COMPONENT_* shown */
+    int help;                       /* the help overlay is on */
+    /* Mesh overlay (paper Fig. 4b/4c, rend_debug.h): 0 off, else 1 + the mesh
+     * (0 direct, 1 indirect, 2 specular, 3 + l light l); the image made on the CPU
+     * is kept until the snapshot, the camera, the size or the choice changes. */
+    int overlay, overlay_points;
+    uint8_t *ov_bg, *ov_rgb;
+    uint32_t *ov_ids;
+    int ov_w, ov_h, ov_stale;
+    uint64_t ov_generation;
+    /* Samples per second for the HUD: all samples at the start of the current
+     * one-second window, and the rate measured over the last one. */
+    double rate_t0, rate;
+    uint64_t rate_samples0;
+    const cache_snapshot *snap;     /* the last acquired, valid until the next acquire */
+    uint64_t frames, id_passes, screenshots, reloads;
+    double t_open, first_image, id_seconds;
+    rend_frame_times times;
+    int drawn;                      /* a frame with the current sizes exists */
+    /* The script: the command running and when it started. */
+    size_t si;
+    int cmd_started;
+    double cmd_t0;
+    uint64_t cmd_frames0, cmd_generation0;
+    int quit;
+    int in_script;                  /* apply_action runs for a script command */
+    char shot[VIEW_SCRIPT_PATH_MAX];/* screenshot to take after this frame's draw; "" = none */
+    int shot_exr_too;               /* F12: shot is a .png, write the .exr beside it */
+    char window_shot[VIEW_SCRIPT_PATH_MAX]; /* the whole window after this frame's draw; "" = none */
+} view_state;
+
+/* K's colour names, by preset ("" for the scene's own colour). */
+extern const char *const view_light_preset_names[];
+
+void view_app_report_of(const view_state *v, view_app_report *r);
+/* v->shot (PNG as shown, EXR linear; with shot_exr_too the EXR beside the PNG). */
+lm_result view_app_take_screenshot(view_state *v, lm_error *err);
+/* The mesh overlay over the picture in the window; nothing without data. */
+lm_result view_app_draw_overlay(view_state *v, int w, int h, GLuint texture, const tm_desc *tm, lm_error *err);
+/* The HUD's lines. */
+void view_app_hud_text(view_state *v, char *out, size_t size);
+void view_app_update_title(view_state *v);
+
+#endif
