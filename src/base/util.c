@@ -149,3 +149,34 @@ void lm_path_ext(const char *path, char *out, size_t out_size)
         out[i] = (char)((*p >= 'A' && *p <= 'Z') ? *p - 'A' + 'a' : *p);
     out[i] = '\0';
 }
+
+size_t lm_grow_capacity(size_t cap, size_t need, size_t first, size_t max)
+{
+    if (need > max) return 0;
+    if (need <= cap) return cap;
+    size_t c = cap ? cap : (first ? first : 16);
+    while (c < need) c = c > max / 2 ? max : 2 * c;
+    return c;
+}
+
+int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size)
+{
+    if (elem_size && count > SIZE_MAX / elem_size) return 0;
+    void *old;
+    memcpy(&old, ptr_to_ptr, sizeof old);
+    size_t bytes = count * elem_size;
+    void *p = realloc(old, bytes ? bytes : 1);
+    if (!p) return 0;
+    if (count > old_count) memset((char *)p + old_count * elem_size, 0, (count - old_count) * elem_size);
+    memcpy(ptr_to_ptr, &p, sizeof p);
+    return 1;
+}
+
+int lm_grow_array(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size)
+{
+    if (need <= *cap) return 1;
+    size_t c = lm_grow_capacity(*cap, need, 16, elem_size ? SIZE_MAX / elem_size : SIZE_MAX);
+    if (!c || !lm_realloc_array(ptr_to_ptr, *cap, c, elem_size)) return 0;
+    *cap = c;
+    return 1;
+}

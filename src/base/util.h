@@ -7,8 +7,8 @@
  *
  * Does NOT do: logging to stderr, allocation tracking, threading.
  */
-#ifndef LUMESH_UTIL_H
-#define LUMESH_UTIL_H
+#ifndef LUMESH_BASE_UTIL_H
+#define LUMESH_BASE_UTIL_H
 
 #include <stddef.h>
 #include <stdint.h>
@@ -56,6 +56,30 @@ void lm_path_dir(const char *path, char *out, size_t out_size);
 int lm_path_join(const char *dir, const char *rel, char *out, size_t out_size);
 /* Lower-case extension without the dot ("" if none), into out. */
 void lm_path_ext(const char *path, char *out, size_t out_size);
+
+/* ---- growing arrays -------------------------------------------------------
+ * The one way the project grows an array by doubling (instead of a hand-written
+ * realloc loop at each site):
+ *     float *v = NULL; size_t cap = 0;
+ *     if (!LM_GROW(v, cap, n + 1)) return lm_fail(err, LM_ERR_NO_MEMORY, "...");
+ *     v[n++] = x;
+ * Several arrays that share one capacity (or a capacity kept in a narrower type)
+ * take lm_grow_capacity once and lm_realloc_array per array. */
+
+/* The capacity to grow to: cap doubled (from `first` when cap is 0; first 0 = 16)
+ * until it holds `need`, but never beyond `max`; cap itself when it already holds
+ * need; 0 when need > max (the caller reports the limit). */
+size_t lm_grow_capacity(size_t cap, size_t need, size_t first, size_t max);
+
+/* realloc of *ptr_to_ptr (any T **) from old_count to count elements of elem_size
+ * bytes, the new elements zeroed. Returns 1; 0 when memory runs out or the size
+ * overflows, with the old block and *ptr_to_ptr unchanged. */
+int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size);
+
+/* Makes the array hold at least `need` elements (capacity *cap, doubled from 16):
+ * 1 on success (new elements zeroed), 0 with nothing changed when memory runs out. */
+int lm_grow_array(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size);
+#define LM_GROW(ptr, cap, need) lm_grow_array(&(ptr), &(cap), (need), sizeof *(ptr))
 
 /* Copies at most n-1 bytes and always terminates. */
 void lm_strlcpy(char *dst, const char *src, size_t n);
