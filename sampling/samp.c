@@ -277,11 +277,13 @@ lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err)
         samp_destroy(sp);
         return r;
     }
-    sp->stats.backend_name = sp->be.direct_ops->name;
-    sp->stats.backend = strncmp(sp->stats.backend_name, "gl", 2) == 0 ? SAMP_BACKEND_GL : SAMP_BACKEND_EMBREE;
-    sp->stats.indirect_backend_name = sp->be.indirect_ops->name;
-    sp->stats.indirect_backend =
-        strncmp(sp->stats.indirect_backend_name, "gl", 2) == 0 ? SAMP_BACKEND_GL : SAMP_BACKEND_EMBREE;
+    const samp_backend_ops *d = sp->be.direct_ops, *i = sp->be.indirect_ops;
+    sp->stats.backend = d->backend;
+    sp->stats.gl_platform = d->gl_platform;
+    sp->stats.backend_name = d->name;
+    sp->stats.indirect_backend = i->backend;
+    sp->stats.indirect_gl_platform = i->gl_platform;
+    sp->stats.indirect_backend_name = i->name;
     *out = sp;
     return LM_OK;
 }

@@ -311,7 +311,9 @@ lm_result samp_gl_create(const samp_desc *desc, const rt_scene *rt, const samp_b
     }
     g->gl = glctx_gl(g->ctx);
     const GladGLContext *gl = g->gl;
-    g->ops = (samp_backend_ops){.name = glctx_name(g->ctx),
+    g->ops = (samp_backend_ops){.backend = SAMP_BACKEND_GL,
+                                .gl_platform = g->desc.gl_platform,
+                                .name = glctx_name(g->ctx),
                                 .direct = samp_gl_direct,
                                 .indirect = samp_gl_indirect,
                                 .destroy = samp_gl_destroy};

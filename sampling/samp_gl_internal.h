@@ -59,7 +59,7 @@ typedef struct samp_gl {
     double near;             /* near plane of every view, scene units: eps/1000 (samp_gl.c says why) */
     glctx *ctx;
     const GladGLContext *gl;
-    samp_backend_ops ops;    /* name from the context's platform */
+    samp_backend_ops ops;    /* gl_platform from desc, display name from the context */
     int max_tex;             /* GL_MAX_TEXTURE_SIZE, pixels */
     GLint saved_viewport[4]; /* the caller's viewport, put back after each draw */
 

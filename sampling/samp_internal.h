@@ -17,8 +17,12 @@
 extern "C" {
 #endif
 
+/* What a back end is, for deciding (backend, gl_platform), and what it is
+ * called, for display only (name): never decide by the name. */
 typedef struct samp_backend_ops {
-    const char *name;  /* "embree", "gl-egl", "gl-osmesa" */
+    samp_backend backend;        /* SAMP_BACKEND_EMBREE or SAMP_BACKEND_GL, never AUTO */
+    glctx_platform gl_platform;  /* GL: GLCTX_EGL or GLCTX_OSMESA; Embree: GLCTX_DEFAULT */
+    const char *name;            /* display: "embree", "gl-egl", "gl-osmesa" */
     /* G of area light `area_light` (index into scene.area_lights) at n points. */
     lm_result (*direct)(void *impl, uint32_t area_light, const samp_point *pts, uint32_t n, float *G,
                         lm_error *err);
