@@ -1,7 +1,8 @@
-/* samp_gl_internal.h — what the three files of the GL sampler share
- * (samp_gl.c: context, shaders, atlas views and reduction; samp_gl_direct.c:
- * area lights; samp_gl_indirect.c: hemicube and 160° plane). Not a public
- * header. Everything here belongs to the thread that created the sampler (its
+/* samp_gl_internal.h — what the four files of the GL sampler share
+ * (samp_gl.c: creation, context, shaders; samp_gl_direct.c: area lights;
+ * samp_gl_indirect.c: hemicube and 160° plane; samp_gl_draw.c: scratch, atlases,
+ * views and reduction, which both passes call). Calls go samp_gl.c → the passes
+ * → samp_gl_draw.c, never back. Private to sampling/. Everything here belongs to the thread that created the sampler (its
  * GL context is current there). */
 #ifndef LUMESH_SAMP_GL_INTERNAL_H
 #define LUMESH_SAMP_GL_INTERNAL_H
@@ -92,7 +93,7 @@ typedef struct samp_gl {
     size_t sums_cap_cpu;
 } samp_gl;
 
-/* samp_gl.c */
+/* samp_gl_draw.c */
 lm_result samp_gl_reserve(void **buf, size_t *cap, size_t need, size_t elem, lm_error *err);
 lm_result samp_gl_upload(samp_gl *g, GLuint buf, size_t *cap, const void *data, size_t bytes, lm_error *err);
 lm_result samp_gl_atlas_make(samp_gl *g, samp_gl_atlas *a, int tile_w, int tile_h, GLenum format, int color_count,

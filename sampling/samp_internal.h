@@ -1,10 +1,15 @@
 /* samp_internal.h — what a sampler back end implements (samp_embree.c, samp_gl.c)
- * and what samp.c gives every back end beyond the public samp.h. Private to
- * sampling/.
+ * and what the back ends share beyond the public samp.h. Private to sampling/
+ * (the cache uses samp.h).
  *
  * samp.c owns the sampler: it validates arguments, serves point lights with
  * Embree shadow rays, counts and times the calls, and forwards area lights and
  * indirect batches to the back end through samp_backend_ops.
+ *
+ * Calls run one way: samp.c → samp_auto.c → the back ends (samp_embree.c,
+ * samp_gl.c) → the shared helpers (samp_geom.c, samp_coarse.c,
+ * samp_radiance_index.c; the public ones are declared in samp.h). A back end
+ * never calls samp.c.
  */
 #ifndef LUMESH_SAMP_INTERNAL_H
 #define LUMESH_SAMP_INTERNAL_H
@@ -53,7 +58,7 @@ typedef struct samp_choice {
 lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choice *out, samp_stats *stats,
                            lm_error *err);
 
-/* Index i with cdf[i-1] <= u < cdf[i] (cdf non-decreasing, cdf[n-1] = 1). */
+/* samp_geom.c: index i with cdf[i-1] <= u < cdf[i] (cdf non-decreasing, cdf[n-1] = 1). */
 uint32_t samp_cdf_pick(const double *cdf, uint32_t n, double u);
 #ifdef __cplusplus
 }
