@@ -5,6 +5,7 @@
  * creates the sampler and calls down to here). The depth convention and
  * batching are described in samp_gl.c. Threads: the sampler's (its context
  * current). */
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -12,27 +13,31 @@
 
 enum { ATLAS_SIDE = 2048 };
 
-lm_result samp_gl_reserve(void **buf, size_t *cap, size_t need, size_t elem, lm_error *err)
+lm_result samp_gl_reserve(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem, lm_error *err)
 {
     if (need <= *cap) return LM_OK;
-    size_t n = *cap ? *cap : 256;
-    while (n < need) n *= 2;
-    void *p = realloc(*buf, n * elem);
-    if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "GL sampler: out of memory (%zu bytes of scratch)", n * elem);
-    *buf = p;
+    size_t n = lm_grow_capacity(*cap, need, 256, (size_t)PTRDIFF_MAX / elem);
+    if (!n || !lm_realloc_array(ptr_to_ptr, *cap, n, elem))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "GL sampler: out of memory (%zu elements of %zu bytes of scratch)",
+                       need, elem);
     *cap = n;
     return LM_OK;
+}
+
+/* Gives GL buffer `buf` (*cap bytes of storage) room for `bytes`, doubling from
+ * 4 KiB; the old contents are not kept. */
+static void gpu_reserve(samp_gl *g, GLuint buf, size_t *cap, size_t bytes, GLenum usage)
+{
+    if (bytes <= *cap) return;
+    size_t n = lm_grow_capacity(*cap, bytes, 4096, (size_t)PTRDIFF_MAX);
+    g->gl->NamedBufferData(buf, (GLsizeiptr)n, NULL, usage);
+    *cap = n;
 }
 
 lm_result samp_gl_upload(samp_gl *g, GLuint buf, size_t *cap, const void *data, size_t bytes, lm_error *err)
 {
     const GladGLContext *gl = g->gl;
-    if (bytes > *cap) {
-        size_t n = *cap ? *cap : 4096;
-        while (n < bytes) n *= 2;
-        gl->NamedBufferData(buf, (GLsizeiptr)n, NULL, GL_STREAM_DRAW);
-        *cap = n;
-    }
+    gpu_reserve(g, buf, cap, bytes, GL_STREAM_DRAW);
     if (bytes) gl->NamedBufferSubData(buf, 0, (GLsizeiptr)bytes, data);
     return glctx_check(g->ctx, "a buffer upload", err);
 }
@@ -164,13 +169,8 @@ lm_result samp_gl_reduce(samp_gl *g, const samp_gl_atlas *a, uint32_t tiles, int
 {
     const GladGLContext *gl = g->gl;
     size_t bytes = (size_t)tiles * (size_t)per_tile * sizeof(float);
-    if (bytes > g->sum_cap) {
-        size_t n = g->sum_cap ? g->sum_cap : 4096;
-        while (n < bytes) n *= 2;
-        gl->NamedBufferData(g->sum_buf, (GLsizeiptr)n, NULL, GL_STREAM_READ);
-        g->sum_cap = n;
-    }
-    lm_result r = samp_gl_reserve((void **)&g->sums, &g->sums_cap_cpu, (size_t)tiles * (size_t)per_tile, sizeof(float),
+    gpu_reserve(g, g->sum_buf, &g->sum_cap, bytes, GL_STREAM_READ);
+    lm_result r = samp_gl_reserve(&g->sums, &g->sums_cap_cpu, (size_t)tiles * (size_t)per_tile, sizeof(float),
                                   err);
     if (r != LM_OK) return r;
     GLuint prog = per_tile == 2 ? g->prog_reduce2 : g->prog_reduce3;

@@ -94,7 +94,10 @@ typedef struct samp_gl {
 } samp_gl;
 
 /* samp_gl_draw.c */
-lm_result samp_gl_reserve(void **buf, size_t *cap, size_t need, size_t elem, lm_error *err);
+/* Grows the CPU scratch array *ptr_to_ptr (any T **; *cap elements of elem
+ * bytes) to hold `need`, doubling from 256 (lm_grow_capacity). */
+lm_result samp_gl_reserve(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem, lm_error *err);
+/* Uploads `bytes` of data to GL buffer buf, growing its storage (*cap bytes) by doubling. */
 lm_result samp_gl_upload(samp_gl *g, GLuint buf, size_t *cap, const void *data, size_t bytes, lm_error *err);
 lm_result samp_gl_atlas_make(samp_gl *g, samp_gl_atlas *a, int tile_w, int tile_h, GLenum format, int color_count,
                              lm_error *err);
