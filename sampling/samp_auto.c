@@ -37,7 +37,7 @@ enum {
     CAL_INDIRECT_POINTS = 12,
     CAL_INDIRECT_REF_RAYS = 65536,
     /* Indirect samples are calibrated on a source of the size the cache feeds
-     * them (mesh/cache_source.c, CACHE_RMESH_TRIANGLES): GL's cost grows with it, Embree's
+     * them (mesh/cache/cache_source.c, CACHE_RMESH_TRIANGLES): GL's cost grows with it, Embree's
      * barely. With one triangle per scene triangle GL won on the Cornell box and
      * then cost 1.4 ms per sample in the cache against Embree's 0.22 ms. */
     CAL_SOURCE_TRIANGLES = 8192
