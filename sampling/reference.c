@@ -11,6 +11,7 @@
 
 #include "sampling/ref_shading.h"
 #include "sampling/rt_scene.h"
+#include "src/scene/camera.h"
 
 enum { TILE = 16, MAX_THREADS = 256, MAX_FULL_DEPTH = 256, RR_START_DEPTH = 3, RR_DEEP_DEPTH = 32 };
 #define RR_SMALL_THROUGHPUT 0.05f
@@ -30,7 +31,7 @@ struct ref_renderer {
     ref_lights lights;
     float eps;
     int width, height, threads;
-    lm_vec3 cam_pos, cam_fwd, cam_right, cam_up; /* right/up scaled to the image plane at 1 */
+    camera_basis cam;       /* the primary rays (src/scene/camera.h) */
     ref_pixel *pixels;
     uint64_t rays;          /* main thread; summed from workers after each pass */
     double seconds;
@@ -283,14 +284,12 @@ static void render_pixel(ctx *c, int px, int py)
     ref_pixel *pix = &r->pixels[(size_t)py * (size_t)r->width + (size_t)px];
     lm_rng_seed(&c->g, r->desc.seed, (uint64_t)py * (uint64_t)r->width + (uint64_t)px, pix->count);
     float jx = lm_rng_float(&c->g), jy = lm_rng_float(&c->g);
-    float sx = 2.0f * ((float)px + jx) / (float)r->width - 1.0f;
-    float sy = 1.0f - 2.0f * ((float)py + jy) / (float)r->height;
-    lm_vec3 dir = v3_normalize(v3_add(r->cam_fwd, v3_add(v3_scale(r->cam_right, sx), v3_scale(r->cam_up, sy))));
+    lm_vec3 dir = camera_ray_dir(&r->cam, (float)px + jx, (float)py + jy);
     float L[3];
     if (r->desc.transport == REF_TRANSPORT_FULL)
-        radiance_full(c, r->cam_pos, dir, L);
+        radiance_full(c, r->cam.position, dir, L);
     else
-        radiance_model(c, r->cam_pos, dir, L);
+        radiance_model(c, r->cam.position, dir, L);
     if (!isfinite(L[0]) || !isfinite(L[1]) || !isfinite(L[2])) {
         /* Counted, not accumulated: one NaN would poison the pixel for good. */
         atomic_fetch_add(&c->r->bad_samples, 1);
@@ -381,16 +380,7 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
         return res;
     }
     r->eps = rt_scene_epsilon(r->rt);
-    lm_vec3 pos = v3_load(cam->position);
-    lm_vec3 fwd = v3_normalize(v3_sub(v3_load(cam->target), pos));
-    lm_vec3 right = v3_normalize(v3_cross(fwd, v3_load(cam->up)));
-    lm_vec3 up = v3_cross(right, fwd);
-    float ty = tanf(0.5f * cam->fov_y_deg * (float)M_PI / 180.0f);
-    float tx = ty * (float)r->width / (float)r->height;
-    r->cam_pos = pos;
-    r->cam_fwd = fwd;
-    r->cam_right = v3_scale(right, tx);
-    r->cam_up = v3_scale(up, ty);
+    r->cam = camera_basis_make(cam, r->width, r->height);
     *out = r;
     return LM_OK;
 }

@@ -1,6 +1,8 @@
 /* samp.c — the sampler front end (samp.h): argument checks, point lights, call
  * statistics, and dispatch to a back end (samp_embree.c, samp_gl.c). The choice
- * SAMP_BACKEND_AUTO is made in samp_auto.c. */
+ * SAMP_BACKEND_AUTO is made in samp_auto.c. The top of sampling/'s samplers:
+ * it calls the back ends and they never call it (what they share is in
+ * samp_geom.c). */
 #include "sampling/samp.h"
 
 #include <math.h>
@@ -10,7 +12,6 @@
 
 #include "sampling/analytic.h"
 #include "sampling/samp_internal.h"
-#include "src/base/vecmath.h"
 
 struct samp_sampler {
     samp_desc desc;            /* defaults filled in */
@@ -51,160 +52,7 @@ samp_desc samp_desc_defaults(const samp_desc *desc)
     return d;
 }
 
-double samp_area_light_unoccluded(const scene *s, uint32_t light, const float p[3], const float n[3])
-{
-    const scene_area_light *L = &s->area_lights[light];
-    const double x[3] = {p[0], p[1], p[2]}, nx[3] = {n[0], n[1], n[2]};
-    double g = 0.0;
-    for (uint32_t i = 0; i < L->count; ++i) {
-        const uint32_t *v = s->tris[s->light_tris[L->first + i]].v;
-        double tri[3][3];
-        for (int c = 0; c < 3; ++c)
-            for (int k = 0; k < 3; ++k) tri[c][k] = s->positions[3 * (size_t)v[c] + (size_t)k];
-        g += samp_polygon_G(tri, 3, x, nx);
-    }
-    return g;
-}
-
 float samp_origin_epsilon(const samp_sampler *sp) { return rt_scene_epsilon(sp->rt); }
-
-void samp_point_origin(const scene *s, const samp_point *x, float eps, float out[3])
-{
-    lm_vec3 p = v3_load(x->p);
-    if (x->tri_plus_one > 0 && x->tri_plus_one <= s->tri_count) {
-        const uint32_t *v = s->tris[x->tri_plus_one - 1].v;
-        lm_vec3 c = v3_scale(v3_add(v3_add(v3_load(s->positions + 3 * (size_t)v[0]),
-                                           v3_load(s->positions + 3 * (size_t)v[1])),
-                                    v3_load(s->positions + 3 * (size_t)v[2])),
-                             1.0f / 3.0f);
-        lm_vec3 to_c = v3_sub(c, p);
-        float d = v3_length(to_c);
-        /* Never past the centroid: a tiny triangle keeps its point inside. */
-        if (d > 0.0f) p = v3_add(p, v3_scale(to_c, fminf(eps, 0.5f * d) / d));
-    }
-    v3_store(out, v3_add(p, v3_scale(v3_load(x->n), eps)));
-}
-
-uint32_t samp_cdf_pick(const double *cdf, uint32_t n, double u)
-{
-    uint32_t lo = 0, hi = n - 1;
-    while (lo < hi) {
-        uint32_t mid = (lo + hi) / 2;
-        if (u < cdf[mid])
-            hi = mid;
-        else
-            lo = mid + 1;
-    }
-    return lo;
-}
-
-double *samp_area_cdf(const scene *s)
-{
-    double *cdf = malloc((s->tri_count ? s->tri_count : 1) * sizeof *cdf), total = 0.0;
-    if (!cdf) return NULL;
-    for (uint32_t t = 0; t < s->tri_count; ++t) cdf[t] = (total += s->tri_areas[t]);
-    for (uint32_t t = 0; t < s->tri_count; ++t) cdf[t] /= total;
-    if (s->tri_count) cdf[s->tri_count - 1] = 1.0;
-    return cdf;
-}
-
-samp_point samp_random_receiver(const scene *s, const double *area_cdf, lm_rng *g)
-{
-    uint32_t t = 0;
-    for (int tries = 0; tries < 1000; ++tries) { /* a scene is never only lights (scene_load) */
-        t = samp_cdf_pick(area_cdf, s->tri_count, lm_rng_float(g));
-        if (s->tris[t].light < 0) break;
-    }
-    float u = lm_rng_float(g), v = lm_rng_float(g);
-    if (u + v > 1.0f) {
-        u = 1.0f - u;
-        v = 1.0f - v;
-    }
-    const uint32_t *vi = s->tris[t].v;
-    samp_point x = {.tri_plus_one = t + 1};
-    for (int k = 0; k < 3; ++k) {
-        x.p[k] = (1.0f - u - v) * s->positions[3 * (size_t)vi[0] + (size_t)k] +
-                 u * s->positions[3 * (size_t)vi[1] + (size_t)k] + v * s->positions[3 * (size_t)vi[2] + (size_t)k];
-        x.n[k] = s->tri_normals[3 * (size_t)t + (size_t)k];
-    }
-    return x;
-}
-
-/* kd·Σ_ℓ L_ℓ·G_ℓ,unocc/π at barycentrics (w1, w2) of scene triangle t. */
-static void unoccluded_radiance(const scene *s, uint32_t t, double w1, double w2, float out[3])
-{
-    const scene_material *m = &s->materials[s->tris[t].material];
-    const float *nrm = s->tri_normals + 3 * (size_t)t;
-    float p[3];
-    for (int k = 0; k < 3; ++k)
-        p[k] = (float)((1.0 - w1 - w2) * s->positions[3 * (size_t)s->tris[t].v[0] + (size_t)k] +
-                       w1 * s->positions[3 * (size_t)s->tris[t].v[1] + (size_t)k] +
-                       w2 * s->positions[3 * (size_t)s->tris[t].v[2] + (size_t)k]);
-    double e[3] = {0, 0, 0};
-    for (uint32_t l = 0; l < s->area_light_count; ++l) {
-        double g = samp_area_light_unoccluded(s, l, p, nrm);
-        for (int k = 0; k < 3; ++k) e[k] += s->area_lights[l].le[k] * g;
-    }
-    const double P[3] = {p[0], p[1], p[2]}, N[3] = {nrm[0], nrm[1], nrm[2]};
-    for (uint32_t l = 0; l < s->point_light_count; ++l) {
-        const float *q = s->point_lights[l].position;
-        const double Q[3] = {q[0], q[1], q[2]};
-        double g = samp_point_G(Q, P, N);
-        for (int k = 0; k < 3; ++k) e[k] += s->point_lights[l].intensity[k] * g;
-    }
-    for (int k = 0; k < 3; ++k) {
-        double v = s->tris[t].light >= 0 ? 0.0 : m->kd[k] * e[k] / M_PI; /* emission is no source (eq. 7) */
-        out[k] = v < 3e38 ? (float)v : 3e38f;
-    }
-}
-
-lm_result samp_coarse_mesh_build(const scene *s, uint32_t target_triangles, samp_coarse_mesh *out, lm_error *err)
-{
-    memset(out, 0, sizeof *out);
-    /* Every scene triangle cut into the 4^k triangles of its dyadic lattice, k the
-     * largest with tri_count·4^k <= target_triangles (k = 0 at least). */
-    uint32_t k = 0;
-    while (k < 8 && ((uint64_t)s->tri_count << (2 * (k + 1))) <= target_triangles) k++;
-    uint32_t n = 1u << k, per = n * n;
-    size_t total = (size_t)s->tri_count * per;
-    out->first = malloc(((size_t)s->tri_count + 1) * sizeof *out->first);
-    out->bary = malloc(6 * total * sizeof *out->bary);
-    out->radiance = malloc(9 * total * sizeof *out->radiance);
-    if (!out->first || !out->bary || !out->radiance) {
-        samp_coarse_mesh_free(out);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a coarse radiance mesh");
-    }
-    size_t at = 0;
-    for (uint32_t t = 0; t < s->tri_count; ++t) {
-        out->first[t] = (uint32_t)at;
-        for (uint32_t a = 0; a < n; ++a)
-            for (uint32_t b = 0; a + b < n; ++b)
-                for (int down = 0; down < 2; ++down) {
-                    if (down && a + b + 1 >= n) continue;
-                    /* up: (a,b) (a+1,b) (a,b+1); down: (a+1,b) (a+1,b+1) (a,b+1) */
-                    const uint32_t cw[3][2] = {{a + (uint32_t)down, b}, {a + 1, b + (uint32_t)down}, {a, b + 1}};
-                    for (int c = 0; c < 3; ++c) {
-                        double w1 = (double)cw[c][0] / n, w2 = (double)cw[c][1] / n;
-                        out->bary[6 * at + 2 * (size_t)c] = (float)w1;
-                        out->bary[6 * at + 2 * (size_t)c + 1] = (float)w2;
-                        unoccluded_radiance(s, t, w1, w2, out->radiance + 9 * at + 3 * (size_t)c);
-                    }
-                    at++;
-                }
-    }
-    out->first[s->tri_count] = (uint32_t)at;
-    out->mesh = (samp_radiance_mesh){.tri_count = (uint32_t)at, .first = out->first, .bary = out->bary,
-                                     .radiance = out->radiance};
-    return LM_OK;
-}
-
-void samp_coarse_mesh_free(samp_coarse_mesh *m)
-{
-    free(m->first);
-    free(m->bary);
-    free(m->radiance);
-    memset(m, 0, sizeof *m);
-}
 
 int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *m, lm_error *err)
 {
@@ -277,11 +125,13 @@ lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err)
         samp_destroy(sp);
         return r;
     }
-    sp->stats.backend_name = sp->be.direct_ops->name;
-    sp->stats.backend = strncmp(sp->stats.backend_name, "gl", 2) == 0 ? SAMP_BACKEND_GL : SAMP_BACKEND_EMBREE;
-    sp->stats.indirect_backend_name = sp->be.indirect_ops->name;
-    sp->stats.indirect_backend =
-        strncmp(sp->stats.indirect_backend_name, "gl", 2) == 0 ? SAMP_BACKEND_GL : SAMP_BACKEND_EMBREE;
+    const samp_backend_ops *d = sp->be.direct_ops, *i = sp->be.indirect_ops;
+    sp->stats.backend = d->backend;
+    sp->stats.gl_platform = d->gl_platform;
+    sp->stats.backend_name = d->name;
+    sp->stats.indirect_backend = i->backend;
+    sp->stats.indirect_gl_platform = i->gl_platform;
+    sp->stats.indirect_backend_name = i->name;
     *out = sp;
     return LM_OK;
 }

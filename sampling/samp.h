@@ -141,10 +141,15 @@ lm_result samp_direct(samp_sampler *sp, uint32_t light, const samp_point *pts, u
 lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                         float *E, lm_error *err);
 
+/* Which back ends serve a sampler. Decide by the enums (backend, gl_platform);
+ * the names are for display and the statistics JSON only. A zeroed samp_stats
+ * (backend AUTO, names NULL) stands for "no sampler". */
 typedef struct samp_stats {
     samp_backend backend;         /* the back end of direct samples (never AUTO) */
-    const char *backend_name;     /* "embree", "gl-egl", "gl-osmesa" */
+    glctx_platform gl_platform;   /* its GL platform (GLCTX_EGL, GLCTX_OSMESA); GLCTX_DEFAULT unless GL */
+    const char *backend_name;     /* display: "embree", "gl-egl", "gl-osmesa" */
     samp_backend indirect_backend;/* the back end of indirect samples */
+    glctx_platform indirect_gl_platform;
     const char *indirect_backend_name;
     char choice[512];             /* why these back ends (AUTO: the calibration's numbers) */
     uint64_t direct_samples, indirect_samples;  /* points served */

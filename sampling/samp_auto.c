@@ -37,7 +37,7 @@ enum {
     CAL_INDIRECT_POINTS = 12,
     CAL_INDIRECT_REF_RAYS = 65536,
     /* Indirect samples are calibrated on a source of the size the cache feeds
-     * them (mesh/cache_source.c, CACHE_RMESH_TRIANGLES): GL's cost grows with it, Embree's
+     * them (mesh/cache/cache_source.c, CACHE_RMESH_TRIANGLES): GL's cost grows with it, Embree's
      * barely. With one triangle per scene triangle GL won on the Cornell box and
      * then cost 1.4 ms per sample in the cache against Embree's 0.22 ms. */
     CAL_SOURCE_TRIANGLES = 8192
@@ -252,7 +252,7 @@ lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choic
     if (have_direct)
         snprintf(direct_text, sizeof direct_text,
                  "direct %s for %s (%s %dx%d: %.1f us at %.2g%% error; embree %d rays: %.1f us at %.2g%%)",
-                 vd.gl_wins ? gl_ops->name : "embree",
+                 out->direct_ops->name,
                  desc->direct_target_error > 0.0f ? "the asked error" : "equal error", gl_ops->name,
                  desc->direct_res, desc->direct_res,
                  vd.gl_cost * 1e6, 100.0 * vd.gl_error, vd.rays, vd.e_cost * 1e6, 100.0 * vd.e_error);
@@ -261,7 +261,7 @@ lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choic
     snprintf(stats->choice, sizeof stats->choice,
              "auto, calibrated in %.2f s: %s; indirect %s for %s (%s %dx%d hemicube: %.1f us at %.2g%% error; "
              "embree %d rays: %.1f us at %.2g%%)",
-             lm_now_seconds() - t0, direct_text, vi.gl_wins ? gl_ops->name : "embree",
+             lm_now_seconds() - t0, direct_text, out->indirect_ops->name,
              desc->indirect_target_error > 0.0f ? "the asked error" : "equal error", gl_ops->name,
              desc->indirect_res, desc->indirect_res, vi.gl_cost * 1e6, 100.0 * vi.gl_error, vi.rays, vi.e_cost * 1e6,
              100.0 * vi.e_error);

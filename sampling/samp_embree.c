@@ -257,7 +257,7 @@ static void embree_destroy(void *impl)
 }
 
 static const samp_backend_ops embree_ops = {
-    .name = "embree", .direct = embree_direct, .indirect = embree_indirect, .destroy = embree_destroy};
+    .backend = SAMP_BACKEND_EMBREE, .name = "embree", .direct = embree_direct, .indirect = embree_indirect, .destroy = embree_destroy};
 
 /* Two triangles sharing an edge whose four corners satisfy a + c = b + d (to
  * float rounding): record the parallelogram. */

@@ -271,7 +271,7 @@ static size_t list_candidates(samp_gl *g, const scene_area_light *L, const frust
      * drawn first, so that with GL_GREATER a surface coplanar with the light (a
      * ceiling the light is set into) does not hide it at equal depth. */
     size_t need = start + 3 * (size_t)L->count;
-    *r = samp_gl_reserve((void **)&g->indices, &g->indices_cap_cpu, need, sizeof *g->indices, err);
+    *r = samp_gl_reserve(&g->indices, &g->indices_cap_cpu, need, sizeof *g->indices, err);
     if (*r != LM_OK) return 0;
     for (uint32_t i = 0; i < L->count; ++i) {
         uint32_t t = s->light_tris[L->first + i];
@@ -299,7 +299,7 @@ static size_t list_candidates(samp_gl *g, const scene_area_light *L, const frust
                     uint32_t t = gr->tris[i];
                     if (g->stamp[t] == serial) continue;
                     g->stamp[t] = serial;
-                    *r = samp_gl_reserve((void **)&g->indices, &g->indices_cap_cpu, g->indices_len + 3,
+                    *r = samp_gl_reserve(&g->indices, &g->indices_cap_cpu, g->indices_len + 3,
                                          sizeof *g->indices, err);
                     if (*r != LM_OK) return 0;
                     for (uint32_t k = 0; k < 3; ++k) g->indices[g->indices_len++] = 3 * t + k;
@@ -357,19 +357,19 @@ lm_result samp_gl_direct(void *impl, uint32_t light, const samp_point *pts, uint
     const int cv = g->desc.direct_control_variate != SAMP_OFF;
     const uint32_t tiles = (uint32_t)a->cols * (uint32_t)a->rows;
     lm_result r = glctx_make_current(g->ctx, err);
-    if (r == LM_OK) r = samp_gl_reserve((void **)&g->views, &g->views_cap_cpu, tiles, sizeof *g->views, err);
-    if (r == LM_OK) r = samp_gl_reserve((void **)&g->cmds, &g->cmds_cap_cpu, tiles, sizeof *g->cmds, err);
+    if (r == LM_OK) r = samp_gl_reserve(&g->views, &g->views_cap_cpu, tiles, sizeof *g->views, err);
+    if (r == LM_OK) r = samp_gl_reserve(&g->cmds, &g->cmds_cap_cpu, tiles, sizeof *g->cmds, err);
     if (r == LM_OK)
-        r = samp_gl_reserve((void **)&g->batch_point, &g->batch_point_cap_cpu, tiles, sizeof *g->batch_point, err);
+        r = samp_gl_reserve(&g->batch_point, &g->batch_point_cap_cpu, tiles, sizeof *g->batch_point, err);
     if (r == LM_OK)
-        r = samp_gl_reserve((void **)&g->batch_unocc, &g->batch_unocc_cap_cpu, tiles, sizeof *g->batch_unocc, err);
+        r = samp_gl_reserve(&g->batch_unocc, &g->batch_unocc_cap_cpu, tiles, sizeof *g->batch_unocc, err);
     if (r != LM_OK) return r;
 
     uint32_t i = 0;
     while (i < n && r == LM_OK) {
         uint32_t nb = 0;
         g->indices_len = 0;
-        r = samp_gl_reserve((void **)&g->indices, &g->indices_cap_cpu, 3 * (size_t)L->count, sizeof *g->indices,
+        r = samp_gl_reserve(&g->indices, &g->indices_cap_cpu, 3 * (size_t)L->count, sizeof *g->indices,
                             err);
         for (uint32_t k = 0; r == LM_OK && k < L->count; ++k)
             for (uint32_t c = 0; c < 3; ++c) g->indices[g->indices_len++] = 3 * s->light_tris[L->first + k] + c;

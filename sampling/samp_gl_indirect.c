@@ -204,7 +204,7 @@ lm_result samp_gl_indirect(void *impl, const samp_radiance_mesh *mesh, const sam
     int nf = faces_of(g->desc.indirect_mode, f);
     uint32_t tiles = (uint32_t)a->cols * (uint32_t)a->rows;
     if (r == LM_OK)
-        r = samp_gl_reserve((void **)&g->views, &g->views_cap_cpu, (size_t)nf * tiles, sizeof *g->views, err);
+        r = samp_gl_reserve(&g->views, &g->views_cap_cpu, (size_t)nf * tiles, sizeof *g->views, err);
     for (uint32_t first = 0; r == LM_OK && first < n; first += tiles) {
         uint32_t nb = n - first < tiles ? n - first : tiles;
         for (uint32_t b = 0; b < nb; ++b) {

@@ -1,7 +1,8 @@
-/* samp_gl_internal.h — what the three files of the GL sampler share
- * (samp_gl.c: context, shaders, atlas views and reduction; samp_gl_direct.c:
- * area lights; samp_gl_indirect.c: hemicube and 160° plane). Not a public
- * header. Everything here belongs to the thread that created the sampler (its
+/* samp_gl_internal.h — what the four files of the GL sampler share
+ * (samp_gl.c: creation, context, shaders; samp_gl_direct.c: area lights;
+ * samp_gl_indirect.c: hemicube and 160° plane; samp_gl_draw.c: scratch, atlases,
+ * views and reduction, which both passes call). Calls go samp_gl.c → the passes
+ * → samp_gl_draw.c, never back. Private to sampling/. Everything here belongs to the thread that created the sampler (its
  * GL context is current there). */
 #ifndef LUMESH_SAMP_GL_INTERNAL_H
 #define LUMESH_SAMP_GL_INTERNAL_H
@@ -59,7 +60,7 @@ typedef struct samp_gl {
     double near;             /* near plane of every view, scene units: eps/1000 (samp_gl.c says why) */
     glctx *ctx;
     const GladGLContext *gl;
-    samp_backend_ops ops;    /* name from the context's platform */
+    samp_backend_ops ops;    /* gl_platform from desc, display name from the context */
     int max_tex;             /* GL_MAX_TEXTURE_SIZE, pixels */
     GLint saved_viewport[4]; /* the caller's viewport, put back after each draw */
 
@@ -92,8 +93,11 @@ typedef struct samp_gl {
     size_t sums_cap_cpu;
 } samp_gl;
 
-/* samp_gl.c */
-lm_result samp_gl_reserve(void **buf, size_t *cap, size_t need, size_t elem, lm_error *err);
+/* samp_gl_draw.c */
+/* Grows the CPU scratch array *ptr_to_ptr (any T **; *cap elements of elem
+ * bytes) to hold `need`, doubling from 256 (lm_grow_capacity). */
+lm_result samp_gl_reserve(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem, lm_error *err);
+/* Uploads `bytes` of data to GL buffer buf, growing its storage (*cap bytes) by doubling. */
 lm_result samp_gl_upload(samp_gl *g, GLuint buf, size_t *cap, const void *data, size_t bytes, lm_error *err);
 lm_result samp_gl_atlas_make(samp_gl *g, samp_gl_atlas *a, int tile_w, int tile_h, GLenum format, int color_count,
                              lm_error *err);

@@ -1,10 +1,15 @@
 /* samp_internal.h — what a sampler back end implements (samp_embree.c, samp_gl.c)
- * and what samp.c gives every back end beyond the public samp.h. Private to
- * sampling/.
+ * and what the back ends share beyond the public samp.h. Private to sampling/
+ * (the cache uses samp.h).
  *
  * samp.c owns the sampler: it validates arguments, serves point lights with
  * Embree shadow rays, counts and times the calls, and forwards area lights and
  * indirect batches to the back end through samp_backend_ops.
+ *
+ * Calls run one way: samp.c → samp_auto.c → the back ends (samp_embree.c,
+ * samp_gl.c) → the shared helpers (samp_geom.c, samp_coarse.c,
+ * samp_radiance_index.c; the public ones are declared in samp.h). A back end
+ * never calls samp.c.
  */
 #ifndef LUMESH_SAMP_INTERNAL_H
 #define LUMESH_SAMP_INTERNAL_H
@@ -17,8 +22,12 @@
 extern "C" {
 #endif
 
+/* What a back end is, for deciding (backend, gl_platform), and what it is
+ * called, for display only (name): never decide by the name. */
 typedef struct samp_backend_ops {
-    const char *name;  /* "embree", "gl-egl", "gl-osmesa" */
+    samp_backend backend;        /* SAMP_BACKEND_EMBREE or SAMP_BACKEND_GL, never AUTO */
+    glctx_platform gl_platform;  /* GL: GLCTX_EGL or GLCTX_OSMESA; Embree: GLCTX_DEFAULT */
+    const char *name;            /* display: "embree", "gl-egl", "gl-osmesa" */
     /* G of area light `area_light` (index into scene.area_lights) at n points. */
     lm_result (*direct)(void *impl, uint32_t area_light, const samp_point *pts, uint32_t n, float *G,
                         lm_error *err);
@@ -49,7 +58,7 @@ typedef struct samp_choice {
 lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choice *out, samp_stats *stats,
                            lm_error *err);
 
-/* Index i with cdf[i-1] <= u < cdf[i] (cdf non-decreasing, cdf[n-1] = 1). */
+/* samp_geom.c: index i with cdf[i-1] <= u < cdf[i] (cdf non-decreasing, cdf[n-1] = 1). */
 uint32_t samp_cdf_pick(const double *cdf, uint32_t n, double u);
 #ifdef __cplusplus
 }

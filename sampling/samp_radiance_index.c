@@ -1,6 +1,7 @@
-/* samp_radiance_index.c — point location in a radiance mesh (samp_internal.h):
- * the Embree back end's gathers and the cache's source comparisons. */
-#include "sampling/samp_internal.h"
+/* samp_radiance_index.c — point location in a radiance mesh (samp.h,
+ * samp_radiance_index): the Embree back end's gathers and the cache's source
+ * comparisons. Calls nothing else in sampling/. */
+#include "sampling/samp.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -21,6 +21,7 @@
 #include "src/base/vecmath.h"
 
 #include <float.h>
+#include <limits.h>
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -303,11 +304,11 @@ static void make_cell(ref_ctx *rc, const double v[3][3], double q, cell *out)
 static void heap_push(cell_heap *h, const cell *c)
 {
     if (h->n == h->cap) {
-        h->cap = h->cap ? 2 * h->cap : 256;
-        cell *na = realloc(h->a, (size_t)h->cap * sizeof *na);
-        CHECK(na != NULL);
-        if (!na) exit(1);
-        h->a = na;
+        size_t c = lm_grow_capacity((size_t)h->cap, (size_t)h->n + 1, 256, INT_MAX);
+        int grown = c && lm_realloc_array(&h->a, (size_t)h->cap, c, sizeof *h->a);
+        CHECK(grown);
+        if (!grown) exit(1);
+        h->cap = (int)c;
     }
     int i = h->n++;
     h->a[i] = *c;

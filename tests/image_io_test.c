@@ -4,6 +4,7 @@
  * go to a private directory under LUMESH_TMP_DIR. */
 #define _XOPEN_SOURCE 700
 #include "src/image/image.h"
+#include "src/base/util.h"
 #include "tests/test_util.h"
 
 #include <dirent.h>
@@ -64,20 +65,17 @@ static unsigned char *slurp(const char *path, size_t *size)
 {
     FILE *f = fopen(path, "rb");
     if (!f) return NULL;
-    size_t cap = 4096, len = 0;
-    unsigned char *buf = malloc(cap);
-    while (buf) {
-        size_t got = fread(buf + len, 1, cap - len, f);
-        len += got;
-        if (len < cap) break;
-        unsigned char *nb = realloc(buf, cap * 2);
-        if (!nb) {
+    size_t cap = 0, len = 0;
+    unsigned char *buf = NULL;
+    for (;;) {
+        if (!LM_GROW(buf, cap, len + 4096)) {
             free(buf);
             buf = NULL;
             break;
         }
-        buf = nb;
-        cap *= 2;
+        size_t got = fread(buf + len, 1, cap - len, f);
+        len += got;
+        if (len < cap) break;
     }
     fclose(f);
     *size = len;

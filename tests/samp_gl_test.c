@@ -313,8 +313,10 @@ static void test_platforms_agree(const scene *s)
         samp_stats st;
         samp_get_stats(a, &st);
         CHECK(strcmp(st.backend_name, "gl-egl") == 0 && st.backend == SAMP_BACKEND_GL);
+        CHECK(st.gl_platform == GLCTX_EGL && st.indirect_gl_platform == GLCTX_EGL);
         samp_get_stats(b, &st);
         CHECK(strcmp(st.backend_name, "gl-osmesa") == 0);
+        CHECK(st.backend == SAMP_BACKEND_GL && st.gl_platform == GLCTX_OSMESA);
         printf("EGL vs OSMesa, %u points: max relative difference %.1e\n", n, worst);
     }
     samp_destroy(a);

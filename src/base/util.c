@@ -78,15 +78,11 @@ lm_result lm_read_file(const char *path, size_t max_bytes, char **out_data, size
                 return lm_fail(err, LM_ERR_BAD_INPUT, "%s: file is larger than %zu bytes", path,
                                max_bytes);
             }
-            size_t ncap = cap * 2;
-            char *nb = realloc(buf, ncap);
-            if (!nb) {
+            if (!LM_GROW(buf, cap, len + 2)) {
                 free(buf);
                 fclose(f);
                 return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory reading the file", path);
             }
-            buf = nb;
-            cap = ncap;
         }
         size_t got = fread(buf + len, 1, cap - 1 - len, f);
         len += got;
@@ -161,7 +157,8 @@ size_t lm_grow_capacity(size_t cap, size_t need, size_t first, size_t max)
 
 int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size)
 {
-    if (elem_size && count > SIZE_MAX / elem_size) return 0;
+    /* No object is larger than PTRDIFF_MAX bytes (and GCC refuses a realloc that could be). */
+    if (elem_size && count > (size_t)PTRDIFF_MAX / elem_size) return 0;
     void *old;
     memcpy(&old, ptr_to_ptr, sizeof old);
     size_t bytes = count * elem_size;
@@ -175,7 +172,7 @@ int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t el
 int lm_grow_array(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size)
 {
     if (need <= *cap) return 1;
-    size_t c = lm_grow_capacity(*cap, need, 16, elem_size ? SIZE_MAX / elem_size : SIZE_MAX);
+    size_t c = lm_grow_capacity(*cap, need, 16, (size_t)PTRDIFF_MAX / (elem_size ? elem_size : 1));
     if (!c || !lm_realloc_array(ptr_to_ptr, *cap, c, elem_size)) return 0;
     *cap = c;
     return 1;

@@ -73,7 +73,7 @@ size_t lm_grow_capacity(size_t cap, size_t need, size_t first, size_t max);
 
 /* realloc of *ptr_to_ptr (any T **) from old_count to count elements of elem_size
  * bytes, the new elements zeroed. Returns 1; 0 when memory runs out or the size
- * overflows, with the old block and *ptr_to_ptr unchanged. */
+ * passes PTRDIFF_MAX bytes, with the old block and *ptr_to_ptr unchanged. */
 int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size);
 
 /* Makes the array hold at least `need` elements (capacity *cap, doubled from 16):

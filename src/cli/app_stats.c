@@ -53,7 +53,7 @@ static cJSON *sampler_json(const samp_stats *st, const samp_stats *quick)
     cJSON_AddItemToObject(o, "direct", sampler_side(st->backend_name, st->direct_samples, st->direct_seconds));
     cJSON_AddItemToObject(o, "indirect",
                           sampler_side(st->indirect_backend_name, st->indirect_samples, st->indirect_seconds));
-    if (quick->backend_name) {
+    if (quick->backend != SAMP_BACKEND_AUTO) { /* zeroed: no quick start */
         cJSON *q = cJSON_AddObjectToObject(o, "quick_start");
         if (q) {
             cJSON_AddItemToObject(q, "direct", sampler_side(quick->backend_name, quick->direct_samples,
@@ -64,11 +64,12 @@ static cJSON *sampler_json(const samp_stats *st, const samp_stats *quick)
     }
     /* Seconds per back end, whichever quantity they served, the quick start's included. */
     cJSON *by = cJSON_AddObjectToObject(o, "seconds_by_backend");
+    const samp_backend kinds[4] = {st->backend, st->indirect_backend, quick->backend, quick->indirect_backend};
     const char *names[4] = {st->backend_name, st->indirect_backend_name, quick->backend_name,
                             quick->indirect_backend_name};
     double secs[4] = {st->direct_seconds, st->indirect_seconds, quick->direct_seconds, quick->indirect_seconds};
     for (int k = 0; by && k < 4; ++k) {
-        if (!names[k]) continue;
+        if (kinds[k] == SAMP_BACKEND_AUTO || !names[k]) continue; /* no such sampler */
         cJSON *have = cJSON_GetObjectItemCaseSensitive(by, names[k]);
         if (have)
             cJSON_SetNumberValue(have, have->valuedouble + secs[k]);

@@ -59,7 +59,8 @@ lm_result glctx_make_current(glctx *ctx, lm_error *err);
  * current on the calling thread. */
 const GladGLContext *glctx_gl(const glctx *ctx);
 
-/* "gl-egl" or "gl-osmesa" (the sampler back end's name). */
+/* "gl-egl" or "gl-osmesa", for display (messages, and the GL sampler's name in
+ * reports); decide by the platform asked for (glctx_desc.platform), not by this. */
 const char *glctx_name(const glctx *ctx);
 /* GL_RENDERER and GL_VERSION, for reports ("llvmpipe (LLVM 15.0.6, 256 bits) / 4.5 (Core Profile) Mesa 22.3.6"). */
 const char *glctx_renderer(const glctx *ctx);

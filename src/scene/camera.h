@@ -12,15 +12,21 @@
  * Usage:
  *     float vp[16];
  *     camera_viewproj(&s->cameras[0], 640, 480, near, vp);  // column-major, for glUniformMatrix4fv
+ *     camera_basis b = camera_basis_make(&s->cameras[0], 640, 480);
+ *     lm_vec3 d = camera_ray_dir(&b, px + 0.5f, py + 0.5f);  // pixel (px, py)'s centre; from b.position
  *
  * Depth: reversed infinite Z (clip z = near, w = −z_eye): with a 32-bit float
  * depth buffer cleared to 0 and GL_GREATER, precision is even from near to
  * infinity (Reed, "Depth precision visualized", 2015).
- * Does NOT do: orthographic cameras, lens effects, jitter.
+ * Units: positions in scene units, pixels for image points; fov_y in degrees.
+ * Threads: pure functions; any thread.
+ * Does NOT do: orthographic cameras, lens effects, jitter (the caller chooses the
+ * image point inside a pixel).
  */
 #ifndef LUMESH_SCENE_CAMERA_H
 #define LUMESH_SCENE_CAMERA_H
 
+#include "src/base/vecmath.h"
 #include "src/scene/scene.h"
 
 #ifdef __cplusplus
@@ -29,6 +35,25 @@ extern "C" {
 
 /* World → clip, column-major, reversed infinite Z with near plane `near` (scene units). */
 void camera_viewproj(const scene_camera *cam, int width, int height, float near, float out[16]);
+
+/* The primary rays of a width × height image in the convention above: fwd,
+ * right and up come from the same double-precision frame as camera_viewproj,
+ * rounded to float, right and up already scaled to the image plane at unit
+ * distance (by tan(fov_y/2)·W/H and tan(fov_y/2)). */
+typedef struct camera_basis {
+    lm_vec3 position;   /* where every ray starts, scene units */
+    lm_vec3 fwd;        /* unit, towards the target */
+    lm_vec3 right, up;  /* half the image plane's width and height at unit distance */
+    int width, height;  /* pixels */
+} camera_basis;
+
+camera_basis camera_basis_make(const scene_camera *cam, int width, int height);
+
+/* Unit direction of the ray from b->position through image point (x, y), in
+ * pixels from the image's top-left corner (pixel (px, py) spans [px, px+1) ×
+ * [py, py+1); its centre is (px + ½, py + ½)): fwd + sx·right + sy·up normalized,
+ * sx = 2x/W − 1, sy = 1 − 2y/H. */
+lm_vec3 camera_ray_dir(const camera_basis *b, float x, float y);
 
 /* A near plane for a scene seen from this camera: small against the scene's
  * extent (1e-5 of it), never 0. */

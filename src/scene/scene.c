@@ -9,17 +9,13 @@
 #include "src/scene/scene_internal.h"
 #include "src/base/vfs.h"
 
-/* Grows *arr (elements of size elem) so that index `need-1` fits. */
-static int grow(void **arr, uint32_t *cap, size_t need, size_t elem)
+/* Grows the array *ptr_to_ptr (any T **; elements of size elem, capacity in a
+ * uint32_t) so that index `need-1` fits: lm_grow_capacity with the uint32_t limit. */
+static int grow(void *ptr_to_ptr, uint32_t *cap, size_t need, size_t elem)
 {
-    if (need <= *cap) return 1;
-    size_t ncap = *cap ? (size_t)*cap * 2 : 16;
-    while (ncap < need) ncap *= 2;
-    if (ncap > UINT32_MAX) return 0;
-    void *p = realloc(*arr, ncap * elem);
-    if (!p) return 0;
-    *arr = p;
-    *cap = (uint32_t)ncap;
+    size_t c = lm_grow_capacity(*cap, need, 16, UINT32_MAX);
+    if (!c || !lm_realloc_array(ptr_to_ptr, *cap, c, elem)) return 0;
+    *cap = (uint32_t)c;
     return 1;
 }
 
@@ -41,19 +37,13 @@ void scene_builder_free(scene_builder *b)
 lm_result scene_builder_add_triangle(scene_builder *b, const float p[9], const float *n,
                                      uint32_t material, uint32_t part, lm_error *err)
 {
-    if (b->count == b->cap) {
-        size_t ncap = b->cap ? b->cap * 2 : 1024;
-        if (ncap > (size_t)UINT32_MAX)
-            return lm_fail(err, LM_ERR_BAD_INPUT, "%s: more than 4 billion triangles", b->source);
-        float *np = realloc(b->pos, ncap * 9 * sizeof(float));
-        if (np) b->pos = np;
-        float *nn = realloc(b->nrm, ncap * 9 * sizeof(float));
-        if (nn) b->nrm = nn;
-        uint32_t *nm = realloc(b->mat, ncap * sizeof(uint32_t));
-        if (nm) b->mat = nm;
-        uint32_t *npart = realloc(b->part, ncap * sizeof(uint32_t));
-        if (npart) b->part = npart;
-        if (!np || !nn || !nm || !npart)
+    if (b->count == b->cap) { /* four arrays, one capacity */
+        size_t ncap = lm_grow_capacity(b->cap, b->count + 1, 1024, UINT32_MAX);
+        if (!ncap) return lm_fail(err, LM_ERR_BAD_INPUT, "%s: more than 4 billion triangles", b->source);
+        if (!lm_realloc_array(&b->pos, b->cap, ncap, 9 * sizeof(float)) ||
+            !lm_realloc_array(&b->nrm, b->cap, ncap, 9 * sizeof(float)) ||
+            !lm_realloc_array(&b->mat, b->cap, ncap, sizeof(uint32_t)) ||
+            !lm_realloc_array(&b->part, b->cap, ncap, sizeof(uint32_t)))
             return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory at %zu triangles", b->source,
                            b->count);
         b->cap = ncap;
@@ -72,7 +62,7 @@ lm_result scene_builder_add_triangle(scene_builder *b, const float p[9], const f
 lm_result scene_builder_add_material(scene_builder *b, const scene_material *m, uint32_t *out_index,
                                      lm_error *err)
 {
-    if (!grow((void **)&b->mats, &b->mat_cap, (size_t)b->mat_count + 1, sizeof *b->mats))
+    if (!grow(&b->mats, &b->mat_cap, (size_t)b->mat_count + 1, sizeof *b->mats))
         return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (materials)", b->source);
     b->mats[b->mat_count] = *m;
     *out_index = b->mat_count++;
@@ -82,7 +72,7 @@ lm_result scene_builder_add_material(scene_builder *b, const scene_material *m, 
 lm_result scene_builder_add_part(scene_builder *b, const char *name, const char *source,
                                  uint32_t *out_index, lm_error *err)
 {
-    if (!grow((void **)&b->parts, &b->part_cap, (size_t)b->part_count + 1, sizeof *b->parts))
+    if (!grow(&b->parts, &b->part_cap, (size_t)b->part_count + 1, sizeof *b->parts))
         return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (parts)", b->source);
     scene_part *p = &b->parts[b->part_count];
     lm_strlcpy(p->name, name, sizeof p->name);
@@ -93,7 +83,7 @@ lm_result scene_builder_add_part(scene_builder *b, const char *name, const char 
 
 lm_result scene_builder_add_point_light(scene_builder *b, const scene_point_light *p, lm_error *err)
 {
-    if (!grow((void **)&b->points, &b->point_cap, (size_t)b->point_count + 1, sizeof *b->points))
+    if (!grow(&b->points, &b->point_cap, (size_t)b->point_count + 1, sizeof *b->points))
         return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (lights)", b->source);
     b->points[b->point_count++] = *p;
     return LM_OK;
@@ -101,7 +91,7 @@ lm_result scene_builder_add_point_light(scene_builder *b, const scene_point_ligh
 
 lm_result scene_builder_add_camera(scene_builder *b, const scene_camera *c, lm_error *err)
 {
-    if (!grow((void **)&b->cams, &b->cam_cap, (size_t)b->cam_count + 1, sizeof *b->cams))
+    if (!grow(&b->cams, &b->cam_cap, (size_t)b->cam_count + 1, sizeof *b->cams))
         return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (cameras)", b->source);
     b->cams[b->cam_count++] = *c;
     return LM_OK;
@@ -116,7 +106,7 @@ void scene_builder_note(scene_builder *b, const char *fmt, ...)
     va_end(ap);
     for (uint32_t i = 0; i < b->note_count; ++i)
         if (strcmp(b->notes[i], line) == 0) return;
-    if (!grow((void **)&b->notes, &b->note_cap, (size_t)b->note_count + 1, sizeof *b->notes)) return;
+    if (!grow(&b->notes, &b->note_cap, (size_t)b->note_count + 1, sizeof *b->notes)) return;
     char *copy = malloc(strlen(line) + 1);
     if (!copy) return; /* a lost note is not worth failing a load for */
     strcpy(copy, line);
