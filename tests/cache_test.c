@@ -1,4 +1,4 @@
-/* cache_test — the multi-mesh cache (mesh/cache*.c, src/cache_refine.c):
+/* cache_test — the multi-mesh cache (mesh/cache/):
  *   - a lone quad light over a plane: after refinement the cached direct radiance
  *     matches Lambert's closed form everywhere within the JND (tone-mapped CIELAB
  *     ΔE), G is exact, and the light mesh samples a small fraction of the
@@ -937,7 +937,7 @@ static void test_sphere_indirect(int bounces)
  *     box's walls lit. */
 enum { CB_W = 256 };
 
-/* Pixels per triangle: primary rays through the pixel centres (rend_camera.h). */
+/* Pixels per triangle: primary rays through the pixel centres (src/scene/camera.h). */
 static uint32_t *cornell_pixels(const scene *s, const rt_scene *rt)
 {
     uint32_t *px = calloc(s->tri_count, sizeof *px);

@@ -1,4 +1,4 @@
-/* cache_worker_test — the refinement worker (src/cache_worker.c):
+/* cache_worker_test — the refinement worker (mesh/cache/cache_worker.c):
  *   - determinism: a worker with a leaf budget ends with the same statistics as
  *     the same refinement done synchronously, and its last snapshot holds as many
  *     triangles as the synchronous cache's leaves give;

@@ -1,5 +1,5 @@
 /* rend_id_test — the ID pass against Embree primary rays through the same pixel
- * centres (rend_camera.h), on CornellBox-Original and CornellBox-Water:
+ * centres (src/scene/camera.h), on CornellBox-Original and CornellBox-Water:
  *   - the id image names the triangle the ray hits in ≥ 99.5% of pixels (the
  *     rest lie on triangle edges, where rasterisation rules and ray tests may
  *     pick either side) and never a triangle the ray does not see nearby;
