@@ -13,6 +13,7 @@
 #include "src/render/rend_debug.h"
 #include "src/render/rend_frame.h"
 #include "src/render/rend_id.h"
+#include "src/render/rend_session.h"
 #include "sampling/rt_scene.h"
 #include "sampling/samp.h"
 #include "src/scene/scene.h"
