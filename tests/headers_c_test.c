@@ -23,6 +23,7 @@
 #include "src/render/rend_debug.h"
 #include "src/render/rend_frame.h"
 #include "src/render/rend_id.h"
+#include "src/render/rend_session.h"
 #include "src/scene/camera.h"
 #include "src/scene/scene.h"
 #include "src/view/view_camera.h"

@@ -62,9 +62,11 @@ typedef struct app_opt {
 int app_parse_options(const app_command *cmd, int argc, char **argv, app_opt *opts, int nopts,
                       const char **pos, int max_pos, int *npos);
 
-/* --sampler NAME and --gl NAME (render, converge, view): APP_EXIT_OK, or a usage
- * error printed and APP_EXIT_USAGE. */
-int app_check_sampler_options(const app_command *cmd, const char *sampler, const char *gl);
+/* --sampler NAME and --gl NAME (render, converge, view; NULL: not given) into
+ * the session's sampler back end and GL platform (rend_session.h), its other
+ * fields left alone: APP_EXIT_OK, or a usage error printed and APP_EXIT_USAGE. */
+struct rend_session_desc;
+int app_session_options(const app_command *cmd, const char *sampler, const char *gl, struct rend_session_desc *d);
 
 int cmd_info(const app_command *cmd, int argc, char **argv);
 int cmd_render(const app_command *cmd, int argc, char **argv);

@@ -7,7 +7,7 @@
 #include <string.h>
 
 #include "src/cli/cli.h"
-#include "sampling/samp.h"
+#include "src/render/rend_session.h"
 
 int app_exit_for(lm_result r)
 {
@@ -112,13 +112,11 @@ int app_parse_options(const app_command *cmd, int argc, char **argv, app_opt *op
     return APP_EXIT_OK;
 }
 
-int app_check_sampler_options(const app_command *cmd, const char *sampler, const char *gl)
+int app_session_options(const app_command *cmd, const char *sampler, const char *gl, rend_session_desc *d)
 {
-    samp_backend b;
-    glctx_platform p;
-    if (sampler && !samp_backend_from_name(sampler, &b))
+    if (sampler && !samp_backend_from_name(sampler, &d->sampler.backend))
         return app_usage_error(cmd, "--sampler must be gl, embree or auto, not '%s'", sampler);
-    if (gl && !glctx_platform_from_name(gl, &p))
+    if (gl && !glctx_platform_from_name(gl, &d->gl_platform))
         return app_usage_error(cmd, "--gl must be egl or osmesa, not '%s'", gl);
     return APP_EXIT_OK;
 }

@@ -30,15 +30,12 @@
 #include <unistd.h>
 
 #include "src/cli/app_stats.h"
-#include "mesh/cache/cache_worker.h"
 #include "src/cli/cli.h"
 #include "src/image/compare.h"
-#include "src/gpu/gl_context.h"
 #include "src/image/image.h"
 #include "src/cli/plot.h"
 #include "sampling/reference.h"
-#include "src/render/rend_frame.h"
-#include "src/render/rend_id.h"
+#include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 #include "src/base/tonemap.h"
 
@@ -194,25 +191,21 @@ static void keep_final(conv_ctx *c, const cache_snapshot *snap)
     c->have_final = 1;
 }
 
-/* The first image, as a viewer shows it: the renderer at one sample a pixel
- * (rend_frame_desc.supersample = 1), made while the worker makes the coarse
- * cache, draws it as soon as the worker publishes it. The ID pass and every
- * measurement come after, so they cannot delay it. (Compiling the shaders
- * beforehand on a stand-in triangle measured no faster: the worker and the
- * compiler then share the 2 cores.) */
-static lm_result first_image(conv_ctx *c, cache_worker *wk, glctx *ctx, double t0, float *rgb,
-                             lm_error *err)
+/* The first image, as a viewer shows it: the session's preview renderer (one
+ * sample a pixel), made while the worker makes the coarse cache, draws it as soon
+ * as the worker publishes it. The ID pass and every measurement come after, so
+ * they cannot delay it. (Compiling the shaders beforehand on a stand-in triangle
+ * measured no faster: the worker and the compiler then share the 2 cores.) */
+static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rgb, lm_error *err)
 {
-    rend_frame *preview = NULL;
     const scene_camera *cam = &c->s->cameras[c->cam];
-    lm_result r = rend_frame_create(glctx_gl(ctx), &(rend_frame_desc){.scene = c->s, .width = c->w, .height = c->h,
-                                                                      .supersample = 1},
-                                    &preview, err);
+    lm_result r = rend_session_renderer(rs, REND_SESSION_PREVIEW, NULL, err);
     const cache_snapshot *snap = NULL;
-    while (r == LM_OK && !interrupted && !(snap = cache_worker_acquire(wk))) nap_ms(1);
-    if (r == LM_OK && snap && snap->failed) r = lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", snap->error);
+    if (r == LM_OK)
+        r = rend_session_wait(rs, &(rend_session_wait_desc){.first = 1, .stop = &interrupted, .nap = 0.001}, &snap,
+                              err);
     if (r == LM_OK && snap) {
-        r = rend_frame_draw(preview, cam, snap, NULL, err); /* a viewer shows it from the GPU */
+        r = rend_session_draw(rs, REND_SESSION_PREVIEW, cam, NULL, err); /* a viewer shows it from the GPU */
         c->first_image = lm_now_seconds() - t0;
         c->frames++;
     }
@@ -220,64 +213,53 @@ static lm_result first_image(conv_ctx *c, cache_worker *wk, glctx *ctx, double t
         /* Kept as DIR/first-image.png: what the user saw first. */
         char path[SCENE_PATH_MAX + 32];
         snprintf(path, sizeof path, "%s/first-image.exr", c->dir);
-        r = rend_frame_draw(preview, cam, snap, rgb, err);
+        r = rend_session_draw(rs, REND_SESSION_PREVIEW, cam, rgb, err);
         if (r == LM_OK)
             r = img_write(&(img_write_desc){.path = path, .width = c->w, .height = c->h, .channels = 3, .pixels = rgb},
                           err);
     }
-    rend_frame_destroy(preview);
+    rend_session_drop_renderer(rs, REND_SESSION_PREVIEW);
     return r;
 }
 
-/* The previewer: worker, GL context, ID pass, renderer; snapshots at c->times. */
-static lm_result run_lumesh(conv_ctx *c, const samp_desc *sd, glctx_platform platform, int single_mesh,
-                            double t0, conv_run *run, lm_error *err)
+/* The previewer: a render session (worker first, then the GL context, the first
+ * image, the ID pass, the offline renderer); snapshots at c->times. */
+static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0, conv_run *run, lm_error *err)
 {
-    glctx *ctx = NULL;
-    rend_id *ip = NULL;
-    rend_frame *frame = NULL;
-    cache_worker *wk = NULL;
-    rend_id_result ids;
+    rend_session *rs = NULL;
     float *rgb = malloc((size_t)c->w * (size_t)c->h * 3 * sizeof *rgb);
     lm_result r = rgb ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
     const scene_camera *cam = &c->s->cameras[c->cam];
     /* The worker starts first: it makes the coarse cache while this thread makes the
      * GL context and the renderer; the ID pass, whose pixel counts the worker needs
      * only to refine, follows the first image. */
-    if (r == LM_OK)
-        r = cache_worker_create(&(cache_worker_desc){.scene = c->s, .sampler = *sd, .pixels_later = 1,
-                                                     .cache = {.single_mesh = single_mesh}},
-                                &wk, err);
-    if (r == LM_OK) r = glctx_create(&(glctx_desc){.platform = platform}, &ctx, err);
-    if (r == LM_OK) r = first_image(c, wk, ctx, t0, rgb, err);
-    if (r == LM_OK)
-        r = rend_id_create(glctx_gl(ctx), &(rend_id_desc){.scene = c->s, .width = c->w, .height = c->h}, &ip, err);
-    if (r == LM_OK) r = rend_id_render(ip, cam, &ids, err);
-    if (r == LM_OK) c->id_seconds = ids.seconds;
-    if (r == LM_OK) r = cache_worker_set_pixels(wk, ids.pixels, err);
+    if (r == LM_OK) r = rend_session_create(sd, &rs, err);
+    if (r == LM_OK) r = first_image(c, rs, t0, rgb, err);
+    if (r == LM_OK) r = rend_session_set_pixels(rs, cam, err);
+    rend_session_info in;
+    rend_session_get_info(rs, &in);
+    c->id_seconds = in.id_seconds;
     /* The measured images: the offline renderer (s×s samples a pixel, like the
      * reference's box filter). */
-    if (r == LM_OK)
-        r = rend_frame_create(glctx_gl(ctx), &(rend_frame_desc){.scene = c->s, .width = c->w, .height = c->h,
-                                                                .supersample = c->supersample},
-                              &frame, err);
+    if (r == LM_OK) r = rend_session_renderer(rs, REND_SESSION_FINAL, NULL, err);
     const cache_snapshot *snap = NULL;
     for (int i = 0; r == LM_OK && i < c->time_count && !interrupted; ++i) {
         conv_row *row = &run->rows[run->count];
         memset(row, 0, sizeof *row);
         row->target = c->times[i];
         /* Wait for the time, unless the cache has nothing more to do. */
+        lm_result ar;
         for (;;) {
-            snap = cache_worker_acquire(wk);
-            if (interrupted || (snap && (snap->finished || snap->failed))) break;
+            ar = rend_session_acquire(rs, &snap, err);
+            if (interrupted || ar != LM_OK || (snap && snap->finished)) break;
             double now = lm_now_seconds() - t0;
             if (now >= row->target) break;
             progress(c, run->method, now, run->count ? &run->rows[run->count - 1] : NULL, 0);
             nap_ms(now + 0.02 < row->target ? 10 : 1);
         }
-        if (interrupted || r != LM_OK) break;
-        if (snap && snap->failed) {
-            r = lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", snap->error);
+        if (interrupted) break;
+        if (ar != LM_OK) {
+            r = ar;
             break;
         }
         double now = lm_now_seconds() - t0;
@@ -290,9 +272,10 @@ static lm_result run_lumesh(conv_ctx *c, const samp_desc *sd, glctx_platform pla
             row->seconds = now;
         }
         if (snap) snapshot_samples(c, snap, row);
-        r = rend_frame_draw(frame, cam, snap, rgb, err);
+        r = rend_session_draw(rs, REND_SESSION_FINAL, cam, rgb, err);
         c->frames++;
-        if (r == LM_OK) rend_frame_get_times(frame, &c->frame_times);
+        rend_session_get_info(rs, &in);
+        if (r == LM_OK) c->frame_times = in.times[REND_SESSION_FINAL];
         if (r == LM_OK) r = measure(c, run->method, rgb, row, err);
         if (r == LM_OK) {
             run->count++;
@@ -301,10 +284,7 @@ static lm_result run_lumesh(conv_ctx *c, const samp_desc *sd, glctx_platform pla
         }
     }
     progress(c, run->method, run->count ? run->rows[run->count - 1].seconds : 0, NULL, 1);
-    cache_worker_destroy(wk);
-    rend_frame_destroy(frame);
-    rend_id_destroy(ip);
-    glctx_destroy(ctx);
+    rend_session_destroy(rs);
     free(rgb);
     return r;
 }
@@ -547,7 +527,9 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     if (rc) return rc;
     if (!ref_path || !dir || !opts[1].seen)
         return app_usage_error(cmd, "--reference, --seconds and --out are required");
-    if ((rc = app_check_sampler_options(cmd, sampler, gl_name)) != APP_EXIT_OK) return rc;
+    rend_session_desc sd = {.order = REND_SESSION_WORKER_FIRST, .single_mesh = single,
+                            .supersample = (int)supersample};
+    if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
     static conv_ctx c; /* large (rows, statistics): not on the stack */
     static conv_run runs[2];
     memset(&c, 0, sizeof c);
@@ -580,11 +562,9 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     else if (c.light_count + 3 > MAX_MESHES)
         r = lm_fail(&err, LM_ERR_UNSUPPORTED, "%s: converge reports at most %d lights", c.s->source, MAX_MESHES - 3);
     if (r == LM_OK) r = app_make_dir(dir, &err);
-    samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
-    if (sampler) samp_backend_from_name(sampler, &sd.backend);
-    glctx_platform platform = GLCTX_EGL;
-    if (gl_name) glctx_platform_from_name(gl_name, &platform);
-    sd.gl_platform = platform;
+    sd.scene = c.s;
+    sd.width = c.w;
+    sd.height = c.h;
     c.tty = isatty(STDERR_FILENO);
 
     struct sigaction sa, old;
@@ -595,7 +575,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     int nrun = 0;
     if (r == LM_OK) {
         runs[nrun].method = single ? "lumesh-single-mesh" : "lumesh";
-        r = run_lumesh(&c, &sd, platform, single, t0, &runs[nrun], &err);
+        r = run_lumesh(&c, &sd, t0, &runs[nrun], &err);
         nrun++;
     }
     if (r == LM_OK && vs_pt && !interrupted) {

@@ -1,26 +1,21 @@
 /* cmd_render.c — `lumesh render`: a headless progressive render.
  *
- * The ID pass gives the pixels per triangle; the refinement worker refines the
- * multi-mesh cache (its own sampler, `--sampler`, chosen at the cache's 2%
+ * A render session (rend_session.h): the ID pass gives the pixels per triangle;
+ * the refinement worker refines the multi-mesh cache (its own sampler, `--sampler`, chosen at the cache's 2%
  * tolerance by default) until nothing is left to test, `--seconds` have passed,
  * or `--samples` leaf tests are done; the renderer's passes draw the last
  * snapshot; the image is written linear (EXR) or tone-mapped (PNG), through a
  * temporary file (img_write), so a failure leaves no partial file.
  */
-#define _POSIX_C_SOURCE 200809L /* nanosleep */
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "src/cli/app_stats.h"
-#include "mesh/cache/cache_worker.h"
 #include "src/cli/cli.h"
-#include "src/gpu/gl_context.h"
 #include "src/image/image.h"
 #include "src/render/rend_debug.h"
-#include "src/render/rend_frame.h"
-#include "src/render/rend_id.h"
+#include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 #include "src/base/tonemap.h"
 
@@ -31,12 +26,6 @@ static int ext_is(const char *path, const char *want)
     char ext[16];
     lm_path_ext(path, ext, sizeof ext);
     return strcmp(ext, want) == 0;
-}
-
-static void nap(void)
-{
-    struct timespec t = {0, 5000000}; /* 5 ms */
-    nanosleep(&t, NULL);
 }
 
 static void print_debug_image(const char *path, const rend_debug_counts *n, void *user)
@@ -53,13 +42,13 @@ static void print_debug_image(const char *path, const rend_debug_counts *n, void
 /* --debug-meshes DIR: each mesh's leaves and samples over the tone-mapped image,
  * hidden parts left out by the ID image (rend_debug.h). */
 static lm_result write_debug_meshes(const char *dir, const scene *s, const scene_camera *cam, int w, int h,
-                                    rend_id *ip, const float *rgb, const cache_snapshot *snap, lm_error *err)
+                                    rend_session *rs, const float *rgb, const cache_snapshot *snap, lm_error *err)
 {
     const size_t n = (size_t)w * (size_t)h;
     uint32_t *ids = malloc(n * sizeof *ids);
     uint8_t *bg = malloc(3 * n);
     lm_result r = ids && bg ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
-    if (r == LM_OK) r = rend_id_read_image(ip, ids, err);
+    if (r == LM_OK) r = rend_session_read_ids(rs, ids, err);
     if (r == LM_OK) {
         tm_to_rgb8(&(tm_desc){.exposure = s->exposure}, rgb, 3, n, bg);
         rend_debug_desc d = {.camera = cam, .width = w, .height = h, .ids = ids, .background = bg};
@@ -99,7 +88,9 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (!ext_is(out, "exr") && !ext_is(out, "png")) return app_usage_error(cmd, "the output must end in .png or .exr");
     if (opts[1].seen && opts[2].seen) return app_usage_error(cmd, "give --seconds or --samples, not both");
     if (opts[3].seen != opts[4].seen) return app_usage_error(cmd, "give both --width and --height");
-    if ((rc = app_check_sampler_options(cmd, sampler, gl_name)) != APP_EXIT_OK) return rc;
+    rend_session_desc sd = {.supersample = (int)supersample, .max_tested = (uint64_t)samples,
+                            .publish_debug = debug_dir != NULL};
+    if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
     /* Reproducible runs: a stop counted in leaf tests, not seconds, and no timing-based
      * calibration (auto picks its back ends by measured speed). */
     if (deterministic && !opts[2].seen) return app_usage_error(cmd, "--deterministic needs --samples N");
@@ -118,46 +109,23 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     }
     scene_camera cam = s->cameras[ci];
     int w = width ? (int)width : cam.width, h = height ? (int)height : cam.height;
-    samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
-    if (sampler) samp_backend_from_name(sampler, &sd.backend);
-    if (deterministic && !sampler) sd.backend = SAMP_BACKEND_EMBREE;
-    glctx_platform platform = GLCTX_EGL;
-    if (gl_name) glctx_platform_from_name(gl_name, &platform);
-    sd.gl_platform = platform;
+    if (deterministic && !sampler) sd.sampler.backend = SAMP_BACKEND_EMBREE;
+    sd.scene = s;
+    sd.camera = &cam;
+    sd.width = w;
+    sd.height = h;
 
     double t0 = lm_now_seconds();
-    glctx *ctx = NULL;
-    rend_id *ip = NULL;
-    rend_frame *frame = NULL;
-    cache_worker *wk = NULL;
+    rend_session *rs = NULL;
     float *rgb = NULL;
     uint8_t *png = NULL;
-    rend_id_result ids;
-    r = glctx_create(&(glctx_desc){.platform = platform}, &ctx, &err);
-    if (r == LM_OK) r = rend_id_create(glctx_gl(ctx), &(rend_id_desc){.scene = s, .width = w, .height = h}, &ip, &err);
-    if (r == LM_OK) r = rend_id_render(ip, &cam, &ids, &err);
-    if (r == LM_OK)
-        r = cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = ids.pixels,
-                                                     .max_tested = (uint64_t)samples, .publish_debug = debug_dir != NULL},
-                                &wk, &err);
     const cache_snapshot *snap = NULL;
     double limit = opts[1].seen ? seconds : DEFAULT_SECONDS_LIMIT;
-    while (r == LM_OK) {
-        snap = cache_worker_acquire(wk);
-        if (snap && snap->failed) {
-            r = lm_fail(&err, LM_ERR_RUNTIME, "refinement failed: %s", snap->error);
-            break;
-        }
-        if (snap && (snap->finished || lm_now_seconds() - t0 >= limit)) break;
-        nap();
-    }
-    if (r == LM_OK)
-        r = rend_frame_create(glctx_gl(ctx),
-                              &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = (int)supersample},
-                              &frame, &err);
+    r = rend_session_create(&sd, &rs, &err);
+    if (r == LM_OK) r = rend_session_wait(rs, &(rend_session_wait_desc){.until = t0 + limit}, &snap, &err);
     rgb = r == LM_OK ? malloc((size_t)w * (size_t)h * 3 * sizeof *rgb) : NULL;
     if (r == LM_OK && !rgb) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
-    if (r == LM_OK) r = rend_frame_draw(frame, &cam, snap, rgb, &err);
+    if (r == LM_OK) r = rend_session_draw(rs, REND_SESSION_FINAL, &cam, rgb, &err);
     if (r == LM_OK) {
         img_write_desc d = {.path = out, .width = w, .height = h, .channels = 3};
         if (ext_is(out, "png")) {
@@ -173,12 +141,12 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     }
     double elapsed = lm_now_seconds() - t0;
     if (r == LM_OK && stats) {
-        rend_frame_times tt;
-        rend_frame_get_times(frame, &tt);
+        rend_session_info in;
+        rend_session_get_info(rs, &in);
         cJSON *j = app_stats_json(&(app_stats_desc){.command = "render", .scene = s->source, .width = w, .height = h,
                                                    .supersample = (int)supersample, .seconds = elapsed,
-                                                   .first_image_seconds = -1, .snap = snap, .id_seconds = ids.seconds,
-                                                   .frame = &tt, .frames = 1});
+                                                   .first_image_seconds = -1, .snap = snap, .id_seconds = in.id_seconds,
+                                                   .frame = &in.times[REND_SESSION_FINAL], .frames = 1});
         r = app_write_json(stats, j, &err);
         cJSON_Delete(j);
     }
@@ -192,13 +160,10 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
                (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
                snap->indirect.triangle_count, snap->specular.triangle_count);
     }
-    if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, ip, rgb, snap, &err);
+    if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, rs, rgb, snap, &err);
     free(png);
     free(rgb);
-    cache_worker_destroy(wk);
-    rend_frame_destroy(frame);
-    rend_id_destroy(ip);
-    glctx_destroy(ctx);
+    rend_session_destroy(rs);
     scene_destroy(s);
     return r == LM_OK ? APP_EXIT_OK : app_report(r, &err);
 }

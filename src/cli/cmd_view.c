@@ -10,7 +10,7 @@
 
 #include "src/cli/app_stats.h"
 #include "src/cli/cli.h"
-#include "sampling/samp.h"
+#include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 #include "src/view/view_app.h"
 #include "src/view/view_script.h"
@@ -106,7 +106,10 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     if (rc < 0) return APP_EXIT_OK;
     if (rc) return rc;
     if (opts[5].seen != opts[6].seen) return app_usage_error(cmd, "give both --width and --height");
-    if ((rc = app_check_sampler_options(cmd, sampler, gl_name)) != APP_EXIT_OK) return rc;
+    /* As render: the 2% tolerance (rend_session_desc_defaults), the sampler chosen by
+     * --sampler (auto by default). */
+    rend_session_desc sd = {0};
+    if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
 
     lm_error err = {{0}};
     view_cmd *cmds = NULL;
@@ -120,14 +123,9 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     int ci = r == LM_OK ? scene_find_camera(s, camera) : 0;
     if (r == LM_OK && ci < 0) r = lm_fail(&err, LM_ERR_BAD_INPUT, "%s: no camera named '%s'", s->source, camera);
     if (r == LM_OK) {
-        /* As render: the 2% tolerance, the sampler chosen by --sampler (auto by default). */
-        samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f};
-        if (sampler) samp_backend_from_name(sampler, &sd.backend);
-        sd.gl_platform = GLCTX_EGL;
-        if (gl_name) glctx_platform_from_name(gl_name, &sd.gl_platform);
         view_cli c = {.path = npos ? pos[0] : NULL, .current = s, .stats = stats, .t_loaded = t_loaded};
         r = view_app_run(&(view_app_desc){.scene = s, .camera = ci, .width = (int)width, .height = (int)height,
-                                          .sampler = sd, .script = script ? cmds : NULL, .script_count = ncmds,
+                                          .session = sd, .script = script ? cmds : NULL, .script_count = ncmds,
                                           .max_fps = max_fps > 0 ? max_fps : -1, .user = &c,
                                           .screenshot = print_screenshot, .finished = finished, .reload = reload,
                                           .release = release},

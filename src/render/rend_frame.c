@@ -328,16 +328,16 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
     *out = (rect){0, 0, 0, 0};
     *hashed = 0;
     const rect full = {0, 0, f->sw, f->sh};
-    size_t need = 16;
-    while (need < 2 * (size_t)ts->tris) need *= 2;
+    /* Three arrays of one capacity: a power of two (doubled from 16), at least 16 and
+     * twice the triangles. */
+    size_t want = 2 * (size_t)ts->tris < 16 ? 16 : 2 * (size_t)ts->tris;
+    size_t need = lm_grow_capacity(f->hash_cap, want, 16, (SIZE_MAX / 2 + 1) / sizeof *f->hash_key);
+    if (!need) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: %u triangles are too many to compare", ts->tris);
     if (need > f->hash_cap) {
-        uint64_t *k = realloc(f->hash_key, need * sizeof *k);
-        if (k) f->hash_key = k;
-        uint32_t *t = realloc(f->hash_tri, need * sizeof *t);
-        if (t) f->hash_tri = t;
-        uint8_t *sn = realloc(f->seen, need);
-        if (sn) f->seen = sn;
-        if (!k || !t || !sn) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory comparing snapshots");
+        if (!lm_realloc_array(&f->hash_key, f->hash_cap, need, sizeof *f->hash_key) ||
+            !lm_realloc_array(&f->hash_tri, f->hash_cap, need, sizeof *f->hash_tri) ||
+            !lm_realloc_array(&f->seen, f->hash_cap, need, sizeof *f->seen))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory comparing snapshots");
         f->hash_cap = need;
     }
     if (m->triangle_count > f->new_hash_cap) {

@@ -9,7 +9,7 @@
 #include <time.h>
 
 #include "src/image/image.h"
-#include "src/render/rend_id.h"
+#include "src/render/rend_session.h"
 #include "src/base/tonemap.h"
 #include "src/view/view_camera.h"
 #include "src/view/view_glfw.h"
@@ -34,6 +34,11 @@ static const double k_snapshot_period = 0.25;
  * runs, the worker gets the new view and resumes, and frames are full size again. */
 static const double k_motion_rest = 0.15;
 
+
+static cache_worker *worker(const view_state *v)
+{
+    return rend_session_worker(v->rs);
+}
 
 static void nap(double seconds)
 {
@@ -72,7 +77,7 @@ static lm_result set_light(view_state *v, uint32_t l, float scale, const float t
     const float *base = l < s->area_light_count ? s->area_lights[l].le
                                                 : s->point_lights[l - s->area_light_count].intensity;
     float value[3] = {base[0] * scale * tint[0], base[1] * scale * tint[1], base[2] * scale * tint[2]};
-    lm_result r = cache_worker_set_light(v->wk, l, value, err);
+    lm_result r = cache_worker_set_light(worker(v), l, value, err);
     if (r != LM_OK) return r;
     v->light_scale[l] = scale;
     memmove(v->light_tint + 3 * (size_t)l, tint, 3 * sizeof *tint); /* tint may be that very row */
@@ -102,14 +107,21 @@ static lm_result apply_emission(view_state *v, lm_error *err)
     return r;
 }
 
-static lm_result start_worker(view_state *v, lm_error *err)
+static lm_result start_session(view_state *v, lm_error *err)
 {
-    /* pixels_later: the coarse cache is made while the first ID pass runs;
+    /* Worker first (pixels_later): the coarse cache is made while the first ID pass
+     * runs; on the window's context, at the framebuffer's size (fit_size);
      * publish_debug: the snapshots carry what a mesh overlay (O) draws, only while
      * one is shown (it costs the worker about a tenth of its pace on Water). */
-    return cache_worker_create(&(cache_worker_desc){.scene = v->s, .sampler = v->d->sampler, .pixels_later = 1,
-                                                    .publish_debug = v->overlay != 0},
-                               &v->wk, err);
+    rend_session_desc d = v->d->session;
+    d.scene = v->s;
+    d.camera = NULL;
+    d.width = d.height = 0;
+    d.order = REND_SESSION_WORKER_FIRST;
+    d.gl = v->gl;
+    d.supersample = 1;
+    d.publish_debug = v->overlay != 0;
+    return rend_session_create(&d, &v->rs, err);
 }
 
 /* Per light, power relative to the scene's: all 1 for a new scene. */
@@ -149,16 +161,13 @@ static lm_result reload_scene(view_state *v, lm_error *err)
         if (fresh && d->release) d->release(d->user, fresh);
         return LM_OK;
     }
-    if (v->paused) cache_worker_resume(v->wk);
-    cache_worker_destroy(v->wk); /* cancels and joins: nothing refers to the old scene after this */
-    v->wk = NULL;
+    if (v->paused) cache_worker_resume(worker(v));
+    rend_session_destroy(v->rs); /* joins the worker first: nothing refers to the old scene after this */
+    v->rs = NULL;
     v->snap = NULL;
     v->paused = v->motion_paused = 0;
-    rend_frame_destroy(v->frame);
     rend_frame_destroy(v->motion_frame);
-    rend_id_destroy(v->ip);
     v->frame = v->motion_frame = NULL;
-    v->ip = NULL;
     v->fb_w = v->fb_h = 0;
     const scene *old = v->s;
     v->s = fresh;
@@ -167,7 +176,7 @@ static lm_result reload_scene(view_state *v, lm_error *err)
     v->ov_stale = 1;
     v->reloads++;
     lm_result r = reset_lights(v, err);
-    if (r == LM_OK) r = start_worker(v, err);
+    if (r == LM_OK) r = start_session(v, err);
     if (d->release) d->release(d->user, old);
     return r;
 }
@@ -193,9 +202,9 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
     case VIEW_ACTION_PAUSE:
         /* The key does not wait for the worker's step in flight (the display never
          * blocks on it); a script does, so that what follows sees no more commits. */
-        if (v->paused) cache_worker_resume(v->wk);
-        else if (v->in_script) cache_worker_pause(v->wk);
-        else cache_worker_request_pause(v->wk);
+        if (v->paused) cache_worker_resume(worker(v));
+        else if (v->in_script) cache_worker_pause(worker(v));
+        else cache_worker_request_pause(worker(v));
         v->paused = !v->paused;
         break;
     case VIEW_ACTION_EXPOSURE_UP: v->exposure += k_exposure_step; break;
@@ -234,7 +243,7 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
     case VIEW_ACTION_OVERLAY_NEXT:
         v->overlay = (v->overlay + 1) % (int)(4 + v->light_count);
         v->ov_stale = 1;
-        cache_worker_set_publish_debug(v->wk, v->overlay != 0);
+        cache_worker_set_publish_debug(worker(v), v->overlay != 0);
         break;
     case VIEW_ACTION_OVERLAY_KIND:
         v->overlay_points = !v->overlay_points;
@@ -336,23 +345,18 @@ static lm_result run_script(view_state *v, lm_error *err)
     return LM_OK;
 }
 
-/* The ID pass and the renderer at the framebuffer's size (made again on resize). */
+/* The session's ID pass and renderer at the framebuffer's size (made again on
+ * resize; the ID pass at the next view). */
 static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
 {
     if (v->frame && w == v->fb_w && h == v->fb_h) return LM_OK;
-    rend_frame_destroy(v->frame);
     rend_frame_destroy(v->motion_frame);
     v->motion_frame = NULL;
-    rend_id_destroy(v->ip);
     v->frame = NULL;
-    v->ip = NULL;
     v->fb_w = v->fb_h = 0;
     v->drawn = 0;
-    lm_result r = rend_id_create(v->gl, &(rend_id_desc){.scene = v->s, .width = w, .height = h}, &v->ip, err);
-    if (r == LM_OK)
-        r = rend_frame_create(v->gl, &(rend_frame_desc){.scene = v->s, .width = w, .height = h, .supersample = 1},
-                              &v->frame, err);
-
+    lm_result r = rend_session_resize(v->rs, w, h, err);
+    if (r == LM_OK) r = rend_session_renderer(v->rs, REND_SESSION_FINAL, &v->frame, err);
     if (r != LM_OK) return r;
     v->fb_w = w;
     v->fb_h = h;
@@ -422,7 +426,7 @@ static lm_result frame(view_state *v, lm_error *err)
         v->last_motion = now_m;
         v->ov_stale = 1;
         if (!v->paused && !v->motion_paused && v->frames > 0) {
-            cache_worker_request_pause(v->wk);
+            cache_worker_request_pause(worker(v));
             v->motion_paused = 1;
         }
     }
@@ -431,10 +435,10 @@ static lm_result frame(view_state *v, lm_error *err)
      * shows what the window shows). */
     int at_rest = now_m - v->last_motion >= k_motion_rest || v->frames == 0 || v->shot[0];
     if (r == LM_OK && v->view_pending && at_rest) {
-        rend_id_result ids;
-        r = rend_id_render(v->ip, &v->cam, &ids, err);
-        if (r == LM_OK) r = cache_worker_set_view(v->wk, ids.pixels, v->cam.position, err);
-        v->id_seconds = ids.seconds;
+        r = rend_session_set_view(v->rs, &v->cam, err);
+        rend_session_info in;
+        rend_session_get_info(v->rs, &in);
+        v->id_seconds = in.id_seconds;
         v->id_passes++;
         v->view_pending = 0;
         v->fresh_view = 1;
@@ -442,7 +446,7 @@ static lm_result frame(view_state *v, lm_error *err)
     if (r != LM_OK) return r;
     double now_s = lm_now_seconds();
     if (v->motion_paused && (v->paused || !v->view_pending)) {
-        if (!v->paused) cache_worker_resume(v->wk);
+        if (!v->paused) cache_worker_resume(worker(v));
         v->motion_paused = 0;
     }
     /* An overlay waiting for the worker's debug data takes each snapshot until it comes. */
@@ -451,7 +455,8 @@ static lm_result frame(view_state *v, lm_error *err)
         now_s - v->snap_taken >= k_snapshot_period) {
         /* The snapshot held is valid until the acquire: its generation is read before. */
         uint64_t held = v->snap ? v->snap->generation : 0;
-        const cache_snapshot *s = cache_worker_acquire(v->wk); /* never waits */
+        const cache_snapshot *s;
+        r = rend_session_acquire(v->rs, &s, err); /* never waits */
         if (s) {
             if (s->generation != held) {
                 v->snap_taken = now_s;
@@ -459,8 +464,8 @@ static lm_result frame(view_state *v, lm_error *err)
             }
             v->snap = s;
         }
+        if (r != LM_OK) return r; /* refinement failed */
     }
-    if (v->snap && v->snap->failed) return lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", v->snap->error);
     /* Moving: the half-size renderer, its picture stretched by the tone mapping;
      * made at the first move after a resize (its shaders cost start-up time). */
     if (v->view_pending && !v->motion_frame) {
@@ -527,7 +532,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     v.gl = view_window_gl(v.win);
     v.t_open = v.last_input = lm_now_seconds();
     v.camera_index = (uint32_t)d->camera;
-    r = start_worker(&v, err);
+    r = start_session(&v, err);
     if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
     if (r == LM_OK) r = view_hud_create(v.gl, &v.hud, err);
     double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
@@ -550,13 +555,11 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
         view_app_report_of(&v, &rep);
         r = d->finished(&rep, d->user, err);
     }
-    if (v.paused) cache_worker_resume(v.wk);
-    cache_worker_destroy(v.wk); /* cancels the refinement and joins the thread */
+    if (v.paused) cache_worker_resume(worker(&v));
+    rend_session_destroy(v.rs); /* cancels the refinement and joins the thread, then its GL objects */
     view_tm_destroy(v.tm);
     view_hud_destroy(v.hud);
-    rend_frame_destroy(v.frame);
     rend_frame_destroy(v.motion_frame);
-    rend_id_destroy(v.ip);
     view_window_destroy(v.win);
     free(v.light_scale);
     free(v.light_tint);

@@ -2,15 +2,16 @@
  * refinement worker sharpens the image (paper §6: the display shows what the
  * cache has, the worker refines it in the meantime).
  *
- * Each frame: input (or the script's next commands), the ID pass again after a
- * camera move (its pixel counts go to the worker: cache_worker_set_pixels, the
+ * The ID pass, the worker and the renderer are a render session (rend_session.h,
+ * worker first) on the window's GL context. Each frame: input (or the script's
+ * next commands), the ID pass again after a camera move (its pixel counts go to the worker: cache_worker_set_pixels, the
  * view-independent caches are kept), the latest published snapshot (acquired
  * without waiting), rend_frame at one sample a pixel without read-back, and the
  * tone-mapping pass (view_tonemap.h) into the window. Frames are paced to
  * max_fps, so the display redraws steadily whatever the worker does.
  *
  * Usage (main thread):
- *     view_app_desc d = {.scene = s, .camera = 0, .sampler = sd, .script = cmds, .script_count = n};
+ *     view_app_desc d = {.scene = s, .camera = 0, .session = {.sampler = sd}, .script = cmds, .script_count = n};
  *     lm_result r = view_app_run(&d, &err);
  *
  * A camera move (orbit, pan, zoom, fly, look, another named camera) runs the ID
@@ -31,7 +32,7 @@
 
 #include "mesh/cache/cache_worker.h"
 #include "src/render/rend_frame.h"
-#include "sampling/samp.h"
+#include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 #include "src/base/util.h"
 #include "src/view/view_script.h"
@@ -61,7 +62,9 @@ typedef struct view_app_desc {
     const scene *scene;               /* must outlive the run */
     int camera;                       /* index into scene->cameras */
     int width, height;                /* window size; 0 = 1280 × 720 */
-    samp_desc sampler;                /* the worker's sampler */
+    rend_session_desc session;        /* the worker's sampler, GL platform and limits (zero fields:
+                                         rend_session_desc_defaults); scene, sizes, order, gl,
+                                         supersample and publish_debug are the viewer's */
     const view_cmd *script;           /* NULL: interactive until Esc / Q / the close button */
     size_t script_count;
     double max_fps;                   /* 0 = VIEW_APP_DEFAULT_FPS; < 0 = unpaced */

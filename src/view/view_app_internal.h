@@ -6,7 +6,7 @@
 
 #include <stdint.h>
 
-#include "src/render/rend_id.h"
+#include "src/render/rend_session.h"
 #include "src/base/tonemap.h"
 #include "src/view/view_app.h"
 #include "src/view/view_glfw.h"
@@ -14,19 +14,18 @@
 #include "src/view/view_tonemap.h"
 
 /* Everything the loop owns; all of it display thread only (the worker's state is
- * behind cache_worker's API). */
+ * behind cache_worker's API, reached through rend_session_worker). */
 typedef struct view_state {
     const view_app_desc *d;
     const scene *s;                 /* d->scene, or the last one d->reload gave */
     view_window *win;
-    const GladGLContext *gl;
-    cache_worker *wk;
+    const GladGLContext *gl;        /* the window's, lent to the session */
+    rend_session *rs;               /* the ID pass, the worker and frame, on gl (rend_session.h) */
     view_tm *tm;
     view_hud *hud;
-    rend_id *ip;
-    rend_frame *frame;
-    rend_frame *motion_frame;       /* half size: drawn while the camera moves */
-    int fb_w, fb_h;                 /* size of ip and frame; 0 = not made */
+    rend_frame *frame;              /* the session's REND_SESSION_FINAL (1 sample a pixel) */
+    rend_frame *motion_frame;       /* the viewer's own, half size: drawn while the camera moves */
+    int fb_w, fb_h;                 /* size of the session's images and frame; 0 = not made */
     scene_camera cam;
     uint32_t camera_index;          /* the scene camera C last selected */
     int camera_moved;               /* the camera moved this frame */

@@ -25,7 +25,7 @@ static lm_result write_exr(view_state *v, const char *path, lm_error *err)
     rend_frame_get_output(v->frame, &o);
     float *rgb = malloc((size_t)o.width * (size_t)o.height * 3 * sizeof *rgb);
     if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-    lm_result r = rend_frame_draw(v->frame, &v->cam, v->snap, rgb, err);
+    lm_result r = rend_session_draw(v->rs, REND_SESSION_FINAL, &v->cam, rgb, err);
     if (r == LM_OK)
         r = img_write(&(img_write_desc){.path = path, .width = o.width, .height = o.height, .channels = 3, .pixels = rgb},
                       err);
@@ -99,7 +99,7 @@ lm_result view_app_draw_overlay(view_state *v, int w, int h, GLuint texture, con
     }
     lm_result r = LM_OK;
     if (v->ov_stale || v->ov_generation != v->snap->generation) {
-        r = rend_id_read_image(v->ip, v->ov_ids, err);
+        r = rend_session_read_ids(v->rs, v->ov_ids, err);
         if (r == LM_OK) r = view_tm_read(v->tm, texture, w, h, tm, v->ov_bg, err);
         rend_debug_desc d = {.camera = &v->cam, .width = w, .height = h, .ids = v->ov_ids, .background = v->ov_bg};
         if (r == LM_OK)

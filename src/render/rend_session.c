@@ -1,0 +1,286 @@
+/* rend_session.c — the GL context, ID pass, worker and renderers wired once
+ * (rend_session.h). */
+#define _POSIX_C_SOURCE 200809L /* nanosleep */
+#include "src/render/rend_session.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <time.h>
+
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_id.h"
+
+struct rend_session {
+    rend_session_desc d;              /* defaults applied; d.camera points at cam */
+    scene_camera cam;                 /* the first view (ID_FIRST) */
+    glctx *ctx;                       /* NULL when d.gl is borrowed */
+    const GladGLContext *gl;
+    rend_id *ip;
+    cache_worker *wk;
+    rend_frame *frame[REND_SESSION_RENDERER_COUNT];
+    const cache_snapshot *snap;       /* the last acquired */
+    rend_session_info info;
+};
+
+void rend_session_desc_defaults(rend_session_desc *d)
+{
+    if (!d) return;
+    if (d->sampler.direct_target_error == 0) d->sampler.direct_target_error = REND_SESSION_TARGET_ERROR_DEFAULT;
+    if (d->sampler.indirect_target_error == 0) d->sampler.indirect_target_error = REND_SESSION_TARGET_ERROR_DEFAULT;
+    if (d->gl_platform == GLCTX_DEFAULT) d->gl_platform = GLCTX_EGL;
+    if (d->sampler.gl_platform == GLCTX_DEFAULT) d->sampler.gl_platform = d->gl_platform;
+    if (d->supersample == 0) d->supersample = REND_FRAME_SUPERSAMPLE_DEFAULT;
+    if (d->camera && d->width == 0 && d->height == 0) {
+        d->width = d->camera->width;
+        d->height = d->camera->height;
+    }
+}
+
+static lm_result check_desc(const rend_session_desc *d, lm_error *err)
+{
+    if (!d || !d->scene) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: no scene");
+    if ((unsigned)d->order >= REND_SESSION_ORDER_COUNT)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: order %d is none of rend_session_order",
+                       (int)d->order);
+    if (d->order == REND_SESSION_ID_FIRST && !d->camera)
+        return lm_fail(err, LM_ERR_INVALID_ARG,
+                       "rend_session_create: REND_SESSION_ID_FIRST needs a camera for the first ID pass");
+    if (d->width < 0 || d->height < 0 || d->width > 16384 || d->height > 16384 || (d->width == 0) != (d->height == 0))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: %dx%d is no image size (1..16384 a side)",
+                       d->width, d->height);
+    if (d->order == REND_SESSION_ID_FIRST && d->width == 0)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: the first ID pass needs an image size");
+    if (d->supersample < 1 || d->supersample > REND_FRAME_SUPERSAMPLE_MAX)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: supersample %d is not 1..%d", d->supersample,
+                       REND_FRAME_SUPERSAMPLE_MAX);
+    return LM_OK;
+}
+
+static lm_result make_context(rend_session *rs, lm_error *err)
+{
+    if (rs->d.gl) {
+        rs->gl = rs->d.gl;
+        return LM_OK;
+    }
+    lm_result r = glctx_create(&(glctx_desc){.platform = rs->d.gl_platform}, &rs->ctx, err);
+    if (r == LM_OK) rs->gl = glctx_gl(rs->ctx);
+    return r;
+}
+
+static lm_result make_worker(rend_session *rs, const uint32_t *pixels, lm_error *err)
+{
+    const rend_session_desc *d = &rs->d;
+    return cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels = pixels,
+                                                    .pixels_later = pixels == NULL, .max_tested = d->max_tested,
+                                                    .publish_debug = d->publish_debug,
+                                                    .cache = {.single_mesh = d->single_mesh}},
+                               &rs->wk, err);
+}
+
+/* The ID pass at cam, made at its first use; *out valid until the next. */
+static lm_result id_pass(rend_session *rs, const scene_camera *cam, rend_id_result *out, lm_error *err)
+{
+    if (!cam) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session: no camera for the ID pass");
+    if (rs->info.width <= 0)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session: no image size yet (rend_session_resize)");
+    lm_result r = LM_OK;
+    if (!rs->ip)
+        r = rend_id_create(rs->gl, &(rend_id_desc){.scene = rs->d.scene, .width = rs->info.width,
+                                                   .height = rs->info.height},
+                           &rs->ip, err);
+    if (r == LM_OK) r = rend_id_render(rs->ip, cam, out, err);
+    if (r == LM_OK) {
+        rs->info.id_passes++;
+        rs->info.id_seconds = out->seconds;
+    }
+    return r;
+}
+
+lm_result rend_session_create(const rend_session_desc *desc, rend_session **out, lm_error *err)
+{
+    if (out) *out = NULL;
+    if (!out) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: no place for the session");
+    rend_session_desc d = desc ? *desc : (rend_session_desc){0};
+    rend_session_desc_defaults(&d);
+    lm_result r = check_desc(&d, err);
+    if (r != LM_OK) return r;
+    rend_session *rs = calloc(1, sizeof *rs);
+    if (!rs) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a render session");
+    rs->d = d;
+    if (d.camera) {
+        rs->cam = *d.camera;
+        rs->d.camera = &rs->cam;
+    }
+    rs->info.width = d.width;
+    rs->info.height = d.height;
+    if (d.order == REND_SESSION_ID_FIRST) {
+        rend_id_result ids;
+        r = make_context(rs, err);
+        if (r == LM_OK) r = id_pass(rs, &rs->cam, &ids, err);
+        if (r == LM_OK) r = make_worker(rs, ids.pixels, err);
+    } else {
+        r = make_worker(rs, NULL, err);
+        if (r == LM_OK) r = make_context(rs, err);
+    }
+    if (r != LM_OK) {
+        rend_session_destroy(rs);
+        return r;
+    }
+    *out = rs;
+    return LM_OK;
+}
+
+static void drop_gl_objects(rend_session *rs)
+{
+    for (int k = 0; k < REND_SESSION_RENDERER_COUNT; ++k) {
+        rend_frame_destroy(rs->frame[k]);
+        rs->frame[k] = NULL;
+    }
+    rend_id_destroy(rs->ip);
+    rs->ip = NULL;
+}
+
+void rend_session_destroy(rend_session *rs)
+{
+    if (!rs) return;
+    cache_worker_destroy(rs->wk); /* cancels and joins: nothing refers to the snapshots after this */
+    drop_gl_objects(rs);
+    glctx_destroy(rs->ctx);
+    free(rs);
+}
+
+lm_result rend_session_resize(rend_session *rs, int width, int height, lm_error *err)
+{
+    if (!rs) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_resize: no session");
+    if (width < 1 || height < 1 || width > 16384 || height > 16384)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_resize: %dx%d is no image size (1..16384 a side)",
+                       width, height);
+    if (width == rs->info.width && height == rs->info.height) return LM_OK;
+    drop_gl_objects(rs);
+    rs->info.width = width;
+    rs->info.height = height;
+    return LM_OK;
+}
+
+lm_result rend_session_set_view(rend_session *rs, const scene_camera *cam, lm_error *err)
+{
+    if (!rs) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_set_view: no session");
+    rend_id_result ids;
+    lm_result r = id_pass(rs, cam, &ids, err);
+    return r == LM_OK ? cache_worker_set_view(rs->wk, ids.pixels, cam->position, err) : r;
+}
+
+lm_result rend_session_set_pixels(rend_session *rs, const scene_camera *cam, lm_error *err)
+{
+    if (!rs) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_set_pixels: no session");
+    rend_id_result ids;
+    lm_result r = id_pass(rs, cam, &ids, err);
+    return r == LM_OK ? cache_worker_set_pixels(rs->wk, ids.pixels, err) : r;
+}
+
+lm_result rend_session_read_ids(rend_session *rs, uint32_t *ids, lm_error *err)
+{
+    if (!rs || !ids) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_read_ids: no session or no buffer");
+    if (!rs->ip) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_read_ids: no ID pass has run at this size");
+    return rend_id_read_image(rs->ip, ids, err);
+}
+
+lm_result rend_session_acquire(rend_session *rs, const cache_snapshot **snap, lm_error *err)
+{
+    if (snap) *snap = NULL;
+    if (!rs) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_acquire: no session");
+    const cache_snapshot *s = cache_worker_acquire(rs->wk);
+    if (s) rs->snap = s;
+    if (snap) *snap = rs->snap;
+    if (rs->snap && rs->snap->failed) return lm_fail(err, LM_ERR_RUNTIME, "refinement failed: %s", rs->snap->error);
+    return LM_OK;
+}
+
+const cache_snapshot *rend_session_snapshot(const rend_session *rs)
+{
+    return rs ? rs->snap : NULL;
+}
+
+static void nap(double seconds)
+{
+    struct timespec t = {(time_t)seconds, (long)((seconds - floor(seconds)) * 1e9)};
+    nanosleep(&t, NULL);
+}
+
+lm_result rend_session_wait(rend_session *rs, const rend_session_wait_desc *w, const cache_snapshot **snap,
+                            lm_error *err)
+{
+    if (snap) *snap = NULL;
+    if (!rs || !w) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_wait: no session or no wait_desc");
+    double period = w->nap > 0 ? w->nap : 0.005;
+    for (;;) {
+        if (w->stop && *w->stop) break;
+        const cache_snapshot *s;
+        lm_result r = rend_session_acquire(rs, &s, err);
+        if (snap) *snap = s;
+        if (r != LM_OK) return r;
+        if (s && (s->finished || w->first || (w->until > 0 && lm_now_seconds() >= w->until))) break;
+        nap(period);
+    }
+    return LM_OK;
+}
+
+lm_result rend_session_renderer(rend_session *rs, rend_session_renderer_kind kind, rend_frame **out, lm_error *err)
+{
+    if (out) *out = NULL;
+    if (!rs || (unsigned)kind >= REND_SESSION_RENDERER_COUNT)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_renderer: no session or no such renderer (%d)",
+                       (int)kind);
+    if (rs->info.width <= 0)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_renderer: no image size yet (rend_session_resize)");
+    if (!rs->frame[kind]) {
+        int s = kind == REND_SESSION_FINAL ? rs->d.supersample : 1;
+        lm_result r = rend_frame_create(rs->gl, &(rend_frame_desc){.scene = rs->d.scene, .width = rs->info.width,
+                                                                   .height = rs->info.height, .supersample = s},
+                                        &rs->frame[kind], err);
+        if (r != LM_OK) return r;
+    }
+    if (out) *out = rs->frame[kind];
+    return LM_OK;
+}
+
+void rend_session_drop_renderer(rend_session *rs, rend_session_renderer_kind kind)
+{
+    if (!rs || (unsigned)kind >= REND_SESSION_RENDERER_COUNT) return;
+    rend_frame_destroy(rs->frame[kind]);
+    rs->frame[kind] = NULL;
+}
+
+lm_result rend_session_draw(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam, float *rgb,
+                            lm_error *err)
+{
+    if (!cam) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_draw: no camera");
+    rend_frame *f;
+    lm_result r = rend_session_renderer(rs, kind, &f, err);
+    if (r != LM_OK) return r;
+    r = rend_frame_draw(f, cam, rs->snap, rgb, err);
+    rend_frame_get_times(f, &rs->info.times[kind]);
+    rs->info.draws[kind]++;
+    return r;
+}
+
+void rend_session_get_info(const rend_session *rs, rend_session_info *out)
+{
+    if (!out) return;
+    if (!rs) {
+        memset(out, 0, sizeof *out);
+        return;
+    }
+    *out = rs->info;
+}
+
+cache_worker *rend_session_worker(rend_session *rs)
+{
+    return rs ? rs->wk : NULL;
+}
+
+const GladGLContext *rend_session_gl(const rend_session *rs)
+{
+    return rs ? rs->gl : NULL;
+}

@@ -1,0 +1,182 @@
+/* rend_session.h — one progressive render as the front ends run it: the GL
+ * context, the ID pass, the refinement worker and the renderers, wired once
+ * (`lumesh render`, `lumesh converge` and `lumesh view` are built on it).
+ *
+ * What it owns, and in which order it makes it:
+ *   - the GL context: made headless on desc.gl_platform (gl_context.h), or the
+ *     caller's (desc.gl: the viewer's window), borrowed, never destroyed;
+ *   - the ID pass (rend_id.h) at width × height, made at the first view;
+ *   - the refinement worker (cache_worker.h) with desc's sampler and limits;
+ *   - two renderers (rend_frame.h) at width × height, each made at its first use:
+ *     REND_SESSION_FINAL with desc.supersample samples a pixel (the offline
+ *     image), REND_SESSION_PREVIEW with one (a first image as a viewer shows it).
+ * desc.order says what comes first:
+ *   REND_SESSION_ID_FIRST      the context, the ID pass at *desc.camera, then the
+ *                              worker with its pixel counts: refinement follows
+ *                              the view from its first step (render);
+ *   REND_SESSION_WORKER_FIRST  the worker first (cache_worker_desc.pixels_later):
+ *                              it makes the coarse cache while this thread makes
+ *                              the context and a renderer; the ID pass waits for
+ *                              rend_session_set_view / _set_pixels, so it cannot
+ *                              delay the first image (converge, view).
+ *
+ * Usage (one thread, the display's):
+ *     rend_session_desc d = {.scene = s, .camera = &cam, .max_tested = 5000};
+ *     rend_session_desc_defaults(&d);         // optional: create applies it to its copy
+ *     rend_session *rs;
+ *     if (rend_session_create(&d, &rs, &err) != LM_OK) ...;   // err says what to try
+ *     const cache_snapshot *snap;
+ *     rend_session_wait(rs, &(rend_session_wait_desc){.until = lm_now_seconds() + 10}, &snap, &err);
+ *     rend_session_draw(rs, REND_SESSION_FINAL, &cam, rgb, &err);  // rgb: w·h·3 floats, or NULL
+ *     rend_session_destroy(rs);
+ * A viewer: .gl = its window's table, .order = REND_SESSION_WORKER_FIRST; on a
+ * resize rend_session_resize; after a camera move rend_session_set_view; each
+ * frame rend_session_acquire and a draw without read-back, the picture taken
+ * from rend_session_renderer's rend_frame_get_output.
+ *
+ * Threads: every call on the thread that created the session, where the GL
+ * context is current (a made one is current there from create on; a borrowed
+ * one must be). The worker's thread is private to it (cache_worker.h); the
+ * caller may pause, resume, edit lights and switch the debug data through
+ * rend_session_worker's cache_worker API, but not destroy the worker.
+ * Lifetimes: the snapshot of rend_session_acquire / _snapshot / _wait stays valid
+ * until the next acquire or wait (cache_worker_acquire); a rend_frame of
+ * rend_session_renderer until rend_session_resize, _drop_renderer or _destroy.
+ * Units: pixels for sizes, seconds of lm_now_seconds for times.
+ *
+ * Does NOT do: windows, tone mapping, writing images, the viewer's half-size
+ * renderer for moves, pacing or measuring (the front ends'); several scenes (a
+ * reload is a new session); sharing one worker between sessions.
+ */
+#ifndef LUMESH_REND_SESSION_H
+#define LUMESH_REND_SESSION_H
+
+#include <signal.h>
+#include <stdint.h>
+
+#include <glad/gl.h>
+
+#include "mesh/cache/cache_worker.h"
+#include "sampling/samp.h"
+#include "src/gpu/gl_platform.h"
+#include "src/render/rend_frame.h"
+#include "src/scene/scene.h"
+#include "src/base/util.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The sampler's defaults for a preview (rend_session_desc_defaults): the mean
+ * relative error tolerated in penumbra and in indirect samples, the cache's 2%. */
+#define REND_SESSION_TARGET_ERROR_DEFAULT 0.02f
+
+typedef enum rend_session_order {
+    REND_SESSION_ID_FIRST = 0,  /* default; needs desc.camera */
+    REND_SESSION_WORKER_FIRST,
+    REND_SESSION_ORDER_COUNT
+} rend_session_order;
+
+typedef enum rend_session_renderer_kind {
+    REND_SESSION_FINAL = 0,     /* desc.supersample samples a pixel */
+    REND_SESSION_PREVIEW,       /* 1 sample a pixel */
+    REND_SESSION_RENDERER_COUNT
+} rend_session_renderer_kind;
+
+/* Zero fields mean "default" (rend_session_desc_defaults says which). */
+typedef struct rend_session_desc {
+    const scene *scene;            /* required; must outlive the session */
+    const scene_camera *camera;    /* the first view (REND_SESSION_ID_FIRST: required); copied */
+    int width, height;             /* pixels of the ID pass and the renderers; 0 = the camera's
+                                      (WORKER_FIRST without a camera: 0 until rend_session_resize) */
+    rend_session_order order;
+    const GladGLContext *gl;       /* a context current on this thread, borrowed; NULL = make one */
+    glctx_platform gl_platform;    /* the context made, and the GL sampler's when sampler.gl_platform
+                                      is 0; 0 = GLCTX_EGL */
+    samp_desc sampler;             /* the worker's sampler (.scene is set); target errors 0 =
+                                      REND_SESSION_TARGET_ERROR_DEFAULT, backend 0 = auto */
+    int supersample;               /* REND_SESSION_FINAL's s (rend_frame_desc); 0 =
+                                      REND_FRAME_SUPERSAMPLE_DEFAULT */
+    uint64_t max_tested;           /* the worker stops after this many leaf tests; 0 = no limit */
+    int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
+    int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */
+} rend_session_desc;
+
+/* Fills d's zero fields with the defaults above (idempotent). */
+void rend_session_desc_defaults(rend_session_desc *d);
+
+typedef struct rend_session rend_session;
+
+/* Makes what desc.order says, in that order. On failure nothing is left (out is
+ * NULL) and err names the part that failed: a GL context that cannot be made
+ * says which platform to try instead. */
+lm_result rend_session_create(const rend_session_desc *desc, rend_session **out, lm_error *err);
+/* Cancels and joins the worker, then frees the GL objects and a made context.
+ * NULL is a no-op. */
+void rend_session_destroy(rend_session *rs);
+
+/* A new size for the ID pass and the renderers (a window resized): both are made
+ * again at their next use; the worker keeps the counts of the last view until
+ * the next rend_session_set_view. Same size: nothing happens. */
+lm_result rend_session_resize(rend_session *rs, int width, int height, lm_error *err);
+
+/* The ID pass at cam (the image is the session's width × height, whatever cam's);
+ * its pixel counts and the eye go to the worker together (cache_worker_set_view:
+ * the specular mesh starts again for the eye). */
+lm_result rend_session_set_view(rend_session *rs, const scene_camera *cam, lm_error *err);
+/* The same with the pixel counts only (cache_worker_set_pixels): the cache keeps
+ * its eye (at first the scene's first camera). */
+lm_result rend_session_set_pixels(rend_session *rs, const scene_camera *cam, lm_error *err);
+/* The id image of the last view, width·height values (rend_id_read_image). */
+lm_result rend_session_read_ids(rend_session *rs, uint32_t *ids, lm_error *err);
+
+/* The latest published snapshot into *snap (NULL before the first; never waits).
+ * A snapshot that says refinement failed is returned and LM_ERR_RUNTIME with its
+ * error. */
+lm_result rend_session_acquire(rend_session *rs, const cache_snapshot **snap, lm_error *err);
+/* The snapshot of the last acquire (NULL: none yet). */
+const cache_snapshot *rend_session_snapshot(const rend_session *rs);
+
+typedef struct rend_session_wait_desc {
+    double until;                     /* lm_now_seconds time to stop at, once a snapshot exists; <= 0: none */
+    int first;                        /* non-zero: stop at the first snapshot */
+    volatile sig_atomic_t *stop;      /* non-NULL: stop when it becomes non-zero (a SIGINT handler's) */
+    double nap;                       /* seconds between looks; 0 = 0.005 */
+} rend_session_wait_desc;
+
+/* Acquires until a snapshot is finished, or (with one) `until` has come or
+ * `first` is set, or *stop is set; *snap is the last one (NULL when stopped
+ * before the first). Refinement failing ends it as rend_session_acquire does. */
+lm_result rend_session_wait(rend_session *rs, const rend_session_wait_desc *w, const cache_snapshot **snap,
+                            lm_error *err);
+
+/* The renderer `kind`, made now if it was not: for rend_frame_get_output, its
+ * components and emission. Owned by the session. out may be NULL (just make it). */
+lm_result rend_session_renderer(rend_session *rs, rend_session_renderer_kind kind, rend_frame **out, lm_error *err);
+/* Frees renderer `kind` (its GL images); made again at its next use. */
+void rend_session_drop_renderer(rend_session *rs, rend_session_renderer_kind kind);
+/* Draws the last acquired snapshot (none: emission only) seen from cam (at the
+ * session's width × height) with renderer `kind`, read back into rgb (width·height·3
+ * floats, linear, top row first) unless rgb is NULL (rend_frame_draw). */
+lm_result rend_session_draw(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam, float *rgb,
+                            lm_error *err);
+
+typedef struct rend_session_info {
+    int width, height;              /* pixels of the ID pass and the renderers */
+    uint64_t id_passes;             /* ID passes run */
+    double id_seconds;              /* the last one's wall time; 0 before the first */
+    rend_frame_times times[REND_SESSION_RENDERER_COUNT]; /* each renderer's last draw (zeros: none) */
+    uint64_t draws[REND_SESSION_RENDERER_COUNT];          /* draws by each renderer */
+} rend_session_info;
+
+void rend_session_get_info(const rend_session *rs, rend_session_info *out);
+
+/* The worker, for pause / resume / set_light / set_publish_debug (not destroy). */
+cache_worker *rend_session_worker(rend_session *rs);
+/* The GL table every GL object of the session uses (the made or borrowed one). */
+const GladGLContext *rend_session_gl(const rend_session *rs);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
