@@ -1,5 +1,5 @@
 /* analytic.h — closed-form, unoccluded geometric term G of a one-sided polygonal
- * light, in double precision (DESIGN.md "Sampling": Analytic). Used by tests as
+ * light, in double precision (docs/sampling.md: the control variate). Used by tests as
  * ground truth and by the samplers as a control variate.
  *
  *     G(x) = ∫_P max(0,cosθ_x)·max(0,cosθ_y) / r² dA_y      (no visibility term)

@@ -1,7 +1,7 @@
 /* reference.h — the ground-truth renderer: a progressive, multi-threaded Embree
  * path tracer with two transports.
  *
- * REF_TRANSPORT_MODEL computes exactly the light transport of DESIGN.md (what the
+ * REF_TRANSPORT_MODEL computes exactly the light transport of docs/architecture.md (what the
  * previewer caches), without its approximations:
  *     pixel = Le + kd·(L_dd + L_id) + ks·L_ds
  *   L_dd  direct diffuse radiance, (1/π)·Σ_ℓ E_ℓ, with visibility, area and point lights;

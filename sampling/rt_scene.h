@@ -1,5 +1,5 @@
 /* rt_scene.h — the scene's triangles in an Embree 3 BVH, for the CPU samplers and
- * the reference renderer (DESIGN.md "Sampling": CPU ray tracing with Embree).
+ * the reference renderer (docs/sampling.md, docs/reference.md).
  *
  * One Embree triangle geometry holds every scene triangle in scene order, so a
  * hit's primitive id IS the scene triangle id.

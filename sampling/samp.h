@@ -1,5 +1,5 @@
 /* samp.h — irradiance samplers: one interface, several back ends (paper §5;
- * DESIGN.md "Sampling").
+ * docs/sampling.md).
  *
  * Two quantities, for a batch of receiver points x with unit normals n:
  *   direct    G_ℓ(x) = ∫_ℓ V(x,y) cosθ_x cosθ_y / r² dA_y   for one light ℓ

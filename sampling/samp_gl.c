@@ -1,5 +1,5 @@
 /* samp_gl.c — the GL rasterization sampler ("hardware sampling", Fournier &
- * Péroche 2005 §5; DESIGN.md "Sampling"): creation and destruction (context,
+ * Péroche 2005 §5; docs/sampling.md): creation and destruction (context,
  * shaders, the scene's vertices). Calls go down from here: to samp_gl_direct.c
  * (area lights through a small frustum per point), samp_gl_indirect.c (the
  * coarse radiance mesh through a hemicube or the paper's 160° plane) and

@@ -1,6 +1,6 @@
 /* samp_gl_indirect.c — one-bounce indirect irradiance E_i(x) = ∫ L cosθ dω by
  * rasterizing the coarse radiance mesh around x (Fournier & Péroche 2005 §5,
- * "Indirect irradiance sampling"; DESIGN.md eq. 7).
+ * "Indirect irradiance sampling"; docs/architecture.md, eq. 7).
  *
  * SAMP_INDIRECT_HEMICUBE (default): a hemicube on x's normal, the front face
  * res×res and four half faces res×res/2, packed in one 3res×res tile:

@@ -1,5 +1,5 @@
 /* gl_context.h — a headless OpenGL 4.5 core context and its function table
- * (DESIGN.md "Contexts and threads"). One file per platform: gl_context_egl.c
+ * (docs/architecture.md "Threads and who owns what"). One file per platform: gl_context_egl.c
  * (EGL surfaceless or device platform), gl_context_osmesa.c (Mesa's off-screen
  * renderer); gl_context.c holds what they share (dispatch, KHR_debug, the
  * "which context is current on this thread" bookkeeping).

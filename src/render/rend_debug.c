@@ -23,7 +23,7 @@ rend_debug_desc rend_debug_defaults(const rend_debug_desc *d)
     return o;
 }
 
-/* ---- projection: the shared camera's matrix (rend_camera.h) ---------------------- */
+/* ---- projection: the shared camera's matrix (src/scene/camera.h) ---------------------- */
 
 typedef struct proj {
     double m[16];   /* world -> clip, column-major */

@@ -5,7 +5,7 @@
  * Input is only what the display side has: a published cache_snapshot_mesh (with
  * corner data: cache_worker_desc.publish_debug), the camera, the ID image
  * (rend_id_read_image) and a tone-mapped RGB8 image. Projection is the shared
- * pinhole camera (rend_camera.h).
+ * pinhole camera (src/scene/camera.h).
  *
  * Occlusion, without depth: a wire pixel is drawn only where the ID image shows,
  * at that pixel or one of its 8 neighbours, a scene triangle the segment belongs

@@ -495,7 +495,7 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
     GLboolean scissor_on = gl->IsEnabled(GL_SCISSOR_TEST);
     gl->Disable(GL_SCISSOR_TEST);
     gl->Viewport(0, 0, f->sw, f->sh);
-    gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); /* reversed Z (rend_camera.h) */
+    gl->ClipControl(GL_LOWER_LEFT, GL_ZERO_TO_ONE); /* reversed Z (src/scene/camera.h) */
     gl->Enable(GL_DEPTH_TEST);
     gl->DepthFunc(GL_GREATER);
     const GLfloat zero[4] = {0, 0, 0, 0}, far_depth = 0.0f;

@@ -14,7 +14,7 @@
  * Either way the id image can be had too (rend_id_read_image), top row first,
  * 0 = no triangle, else triangle id + 1, pixel for pixel the triangle the
  * reference path tracer's primary ray hits through the pixel centre (same
- * camera, rend_camera.h).
+ * camera, src/scene/camera.h).
  *
  * Usage:
  *     rend_id *ip;

@@ -1,4 +1,5 @@
-/* scene.h — the scene model: exactly what the light transport of DESIGN.md needs.
+/* scene.h — the scene model: exactly what the light transport needs
+ * (docs/architecture.md "The light transport").
  *
  * Triangles over one welded vertex table, per-corner shading normals, one
  * modified-Phong material per triangle (kd, ks, n, Le), area lights (connected

@@ -3,7 +3,7 @@
  * One place for every cleaning rule, so all formats are treated alike:
  *  1. triangles with a NaN/Inf corner are dropped and counted;
  *  2. corners are welded by exact position (bitwise, -0 == +0): cache vertices are
- *     keyed by scene vertex ids (DESIGN.md "Caches"), so shared corners must share ids;
+ *     keyed by scene vertex ids (docs/cache.md, mesh/vtable.h), so shared corners must share ids;
  *  3. zero-area triangles (repeated or collinear corners) are dropped and counted;
  *  4. duplicate triangles (same three corners, either winding) are dropped and
  *     counted: coincident surfaces z-fight and self-shadow in every renderer;

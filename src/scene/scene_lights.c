@@ -1,7 +1,7 @@
 /* scene_lights.c — area lights from emissive triangles.
  *
  * Every connected group of coplanar emissive triangles with one material is one
- * area light (DESIGN.md: lights are isotropic polygonal emitters). A curved
+ * area light (docs/scene-model.md "Lights: one side, one plane"). A curved
  * emitter breaks into one light per planar patch: the region grows from a seed
  * triangle across shared edges (the topology's neighbours) only to triangles in
  * the seed's plane, so each light has one normal and one facing side, which is

@@ -1,7 +1,8 @@
 /* view_glfw.h — the viewer's window: GLFW, an OpenGL 4.5 core context with its
  * glad MX function table loaded from glfwGetProcAddress, and the input gathered
  * between two polls (drag, wheel, keys as view_action). The only file that
- * includes GLFW (CONVENTIONS: each platform in its own file).
+ * includes GLFW: the platform stays in one file, so the rest of the viewer
+ * (and its tests) never sees a window system.
  *
  * Usage:
  *     view_window *win;
