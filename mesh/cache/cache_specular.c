@@ -1,7 +1,7 @@
 /* cache_specular.c — the values of the direct specular mesh (cache.h, eq. 5 of the
  * paper with V_ℓ out of the integral): the area lights' outlines (cache_outlines,
  * this file's part of the cache), built once per cache, and the Phong lobe
- * integrated over them (samp_polygon_phong). Calls only cache_site.c below it.
+ * integrated over them (samp_polygon_phong). Calls no other file of the cache.
  * Worker thread, like the rest of the cache. */
 #include "mesh/cache/cache_internal.h"
 
