@@ -68,24 +68,14 @@ mesh_bary mesh_qmesh_node_corner(const mesh_qnode *n, int c)
 static lm_result ensure_vcap(mesh_qmesh *m, uint32_t need, lm_error *err)
 {
     if (need <= m->vcap) return LM_OK;
-    uint32_t ncap = m->vcap ? m->vcap : 256;
-    while (ncap < need) ncap = ncap > UINT32_MAX / 2 ? need : 2 * ncap;
-    uint32_t *nu = realloc(m->use, (size_t)ncap * sizeof *nu);
-    if (!nu) goto oom;
-    m->use = nu;
-    float *nv = realloc(m->values, (size_t)ncap * m->channels * sizeof *nv);
-    if (!nv) goto oom;
-    m->values = nv;
-    uint8_t *ns = realloc(m->sampled, (size_t)ncap);
-    if (!ns) goto oom;
-    m->sampled = ns;
-    memset(m->use + m->vcap, 0, (size_t)(ncap - m->vcap) * sizeof *nu);
-    memset(m->values + (size_t)m->vcap * m->channels, 0, (size_t)(ncap - m->vcap) * m->channels * sizeof *nv);
-    memset(m->sampled + m->vcap, 0, (size_t)(ncap - m->vcap));
-    m->vcap = ncap;
+    /* Three arrays share one uint32_t capacity (values: `channels` floats per id). */
+    size_t ncap = lm_grow_capacity(m->vcap, need, 256, UINT32_MAX);
+    if (!lm_realloc_array(&m->use, m->vcap, ncap, sizeof *m->use) ||
+        !lm_realloc_array(&m->values, m->vcap, ncap, m->channels * sizeof *m->values) ||
+        !lm_realloc_array(&m->sampled, m->vcap, ncap, sizeof *m->sampled))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu vertex values", ncap);
+    m->vcap = (uint32_t)ncap;
     return LM_OK;
-oom:
-    return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u vertex values", ncap);
 }
 
 /* Gets the vertex at `p` with one vtable reference held by this mesh. *fresh says
@@ -255,21 +245,19 @@ static lm_result alloc_block(mesh_qmesh *m, uint32_t *first, lm_error *err)
     }
     if (m->node_hw > UINT32_MAX - 8)
         return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: node id space exhausted");
-    if (m->node_hw + 4 > m->node_alloc) {
-        uint32_t na = m->node_alloc > UINT32_MAX / 2 ? UINT32_MAX - 4 : 2 * m->node_alloc;
-        mesh_qnode *nn = realloc(m->nodes, (size_t)na * sizeof *nn);
-        if (!nn) return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u nodes", na);
-        m->nodes = nn;
-        m->node_alloc = na;
+    if (m->node_hw + 4 > m->node_alloc) { /* a uint32_t capacity */
+        size_t na = lm_grow_capacity(m->node_alloc, (size_t)m->node_hw + 4, 16, UINT32_MAX - 4);
+        if (!na || !lm_realloc_array(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
+        m->node_alloc = (uint32_t)na;
     }
     /* Room on the free list for every block there is, so merge never allocates. */
     const uint32_t blocks = (m->node_hw + 4 - m->root_count) / 4;
     if (blocks > m->free_alloc) {
-        uint32_t fa = m->free_alloc ? 2 * m->free_alloc : 64;
-        uint32_t *nf = realloc(m->free_blocks, (size_t)fa * sizeof *nf);
-        if (!nf) return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for the free list");
-        m->free_blocks = nf;
-        m->free_alloc = fa;
+        size_t fa = lm_grow_capacity(m->free_alloc, blocks, 64, UINT32_MAX);
+        if (!lm_realloc_array(&m->free_blocks, m->free_alloc, fa, sizeof *m->free_blocks))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for the free list");
+        m->free_alloc = (uint32_t)fa;
     }
     *first = m->node_hw;
     m->node_hw += 4;
@@ -480,15 +468,9 @@ typedef struct emitter {
 static void emit(emitter *e, pt a, pt b, pt c)
 {
     if (e->r != LM_OK) return;
-    if (e->count == *e->cap) {
-        size_t nc = *e->cap ? 2 * *e->cap : 1024;
-        mesh_qmesh_tri *nb = realloc(*e->buf, nc * sizeof *nb);
-        if (!nb) {
-            e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu triangles", nc);
-            return;
-        }
-        *e->buf = nb;
-        *e->cap = nc;
+    if (e->count == *e->cap && !LM_GROW(*e->buf, *e->cap, e->count + 1)) {
+        e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu triangles", e->count + 1);
+        return;
     }
     mesh_qmesh_tri *t = &(*e->buf)[e->count++];
     t->tri = e->tri, t->leaf = e->leaf;
@@ -499,15 +481,9 @@ static void emit(emitter *e, pt a, pt b, pt c)
 static void line_push(emitter *e, pt p)
 {
     if (e->r != LM_OK) return;
-    if (e->line_len == e->line_cap) {
-        size_t nc = e->line_cap ? 2 * e->line_cap : 64;
-        pt *nl = realloc(e->line, nc * sizeof *nl);
-        if (!nl) {
-            e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
-            return;
-        }
-        e->line = nl;
-        e->line_cap = nc;
+    if (e->line_len == e->line_cap && !LM_GROW(e->line, e->line_cap, e->line_len + 1)) {
+        e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
+        return;
     }
     e->line[e->line_len++] = p;
 }
@@ -595,6 +571,10 @@ lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, s
     *count = e.r == LM_OK ? e.count : 0;
     return e.r;
 }
+
+uint32_t mesh_qmesh_node_count(const mesh_qmesh *m) { return m ? m->nodes_live : 0; }
+
+int64_t mesh_qmesh_net_splits(const mesh_qmesh *m) { return m ? (int64_t)m->splits - (int64_t)m->merges : 0; }
 
 void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out)
 {

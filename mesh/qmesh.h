@@ -158,7 +158,12 @@ lm_result mesh_qmesh_interpolate(const mesh_qmesh *m, uint32_t tri, double w1, d
 lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, size_t *cap,
                                     size_t *count, lm_error *err);
 
+/* Walks every vertex (for bytes_vtable_share): statistics, not for hot paths. */
 void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out);
+/* Running counts kept on every split and merge, O(1): the live nodes (stats.nodes)
+ * and splits − merges since creation (stats.splits − stats.merges). */
+uint32_t mesh_qmesh_node_count(const mesh_qmesh *m);
+int64_t mesh_qmesh_net_splits(const mesh_qmesh *m);
 
 #ifdef __cplusplus
 }

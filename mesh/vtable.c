@@ -280,19 +280,13 @@ static lm_result grow_slots(mesh_vtable *vt, uint32_t nslots, lm_error *err)
 
 static lm_result grow_records(mesh_vtable *vt, uint32_t ncap, lm_error *err)
 {
-    mesh_vertex *nv = realloc(vt->v, (size_t)ncap * sizeof *nv);
-    if (!nv) goto oom;
-    vt->v = nv;
-    vkey *nk = realloc(vt->keys, (size_t)ncap * sizeof *nk);
-    if (!nk) goto oom;
-    vt->keys = nk;
-    uint32_t *nf = realloc(vt->freed, (size_t)ncap * sizeof *nf);
-    if (!nf) goto oom;
-    vt->freed = nf;
+    /* Three arrays share one capacity. */
+    if (!lm_realloc_array(&vt->v, vt->cap, ncap, sizeof *vt->v) ||
+        !lm_realloc_array(&vt->keys, vt->cap, ncap, sizeof *vt->keys) ||
+        !lm_realloc_array(&vt->freed, vt->cap, ncap, sizeof *vt->freed))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: out of memory (%u vertices)", ncap);
     vt->cap = ncap;
     return LM_OK;
-oom:
-    return lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: out of memory (%u vertices)", ncap);
 }
 
 /* ---- public ---- */
@@ -431,9 +425,9 @@ lm_result mesh_vtable_acquire(mesh_vtable *vt, uint32_t tri, mesh_bary p, uint32
         i = probe(vt, &k, h, &found);
     }
     if (vt->free_count == 0 && vt->id_limit == vt->cap) {
-        if (vt->cap >= UINT32_MAX / 2)
-            return lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: vertex id space exhausted");
-        r = grow_records(vt, 2 * vt->cap, err);
+        size_t ncap = lm_grow_capacity(vt->cap, (size_t)vt->cap + 1, 16, UINT32_MAX / 2);
+        if (!ncap) return lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: vertex id space exhausted");
+        r = grow_records(vt, (uint32_t)ncap, err);
         if (r != LM_OK) return r;
     }
     uint32_t id = vt->free_count ? vt->freed[--vt->free_count] : vt->id_limit++;

@@ -111,6 +111,12 @@ static lm_result converge(run *u, int rounds, cache_refine_result *total)
         total->split += res.split;
         total->undone += res.undone;
         total->remaining = res.remaining;
+        /* The running count the indirect source is rebuilt by equals the walk. */
+        cache_stats st;
+        cache_get_stats(u->c, &st);
+        CHECK(cache_direct_changes(u->c) ==
+              (int64_t)st.direct.mesh.splits - (int64_t)st.direct.mesh.merges + (int64_t)st.revised);
+        CHECK(mesh_qmesh_node_count(cache_direct_mesh(u->c)) == st.direct.mesh.nodes);
         if (r != LM_OK) {
             printf("  refinement stopped: %s\n", err.msg);
             return r;
@@ -813,9 +819,9 @@ static void test_specular_outline(void)
     const mesh_qmesh *m = cache_specular_mesh(u.c);
     CHECK(m != NULL);
     /* two loops of four corners: the outer square and the hole, reversed */
-    CHECK(u.c->spec_light_loop[0] == 0 && u.c->spec_light_loop[1] == 2);
-    CHECK(u.c->spec_loop[1] == 4 && u.c->spec_loop[2] == 8);
-    CHECK(u.c->spec_loop_sign[0] * u.c->spec_loop_sign[1] == -1);
+    CHECK(u.c->outl.light_loop[0] == 0 && u.c->outl.light_loop[1] == 2);
+    CHECK(u.c->outl.loop[1] == 4 && u.c->outl.loop[2] == 8);
+    CHECK(u.c->outl.loop_sign[0] * u.c->outl.loop_sign[1] == -1);
     if (m) {
         /* the root's corners (the vertex table outlives the specular mesh, which
          * every cache_set_camera below replaces) */
@@ -1152,6 +1158,58 @@ static void test_cornell_box(void)
     scene_destroy(s);
 }
 
+/* Which side of an emitter emits: the composite adds Le only where the front of
+ * the surface is seen (rend_material.frag: gl_FrontFacing; rend_composite.frag),
+ * so the cache's JND tests must judge an emitter seen from the back without it.
+ * A quad light with kd > 0 facing down onto the plane: its direct and indirect
+ * meshes are judged with Le from below, without from above. */
+static void test_emitter_side(void)
+{
+    char light[256];
+    snprintf(light, sizeof light,
+             "{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0], \"edge2\": [0, 0, 1],"
+             " \"radiance\": [%g, %g, %g], \"kd\": [0.8, 0.8, 0.8]}",
+             LE, LE, LE);
+    scene *s = load_lights("cache_emitter_side.json", 0, light);
+    CHECK(s != NULL && s->area_light_count == 1);
+    if (!s) return;
+    const uint32_t lt = s->light_tris[s->area_lights[0].first];
+    const scene_material *m = &s->materials[s->tris[lt].material];
+    uint32_t leaves[2] = {0, 0};
+    for (int above = 0; above < 2; ++above) {
+        run u;
+        if (!start(&u, s, 40000, 0)) break;
+        for (uint32_t t = 2; t < s->tri_count; ++t) u.pixels[t] = 400; /* the light is seen too */
+        lm_error err;
+        const float eye[3] = {0.3f, above ? 3.0f : 0.5f, 0.2f};
+        CHECK(cache_set_camera(u.c, eye, &err) == LM_OK);
+        CHECK(cache_sees_front(u.c, lt) == !above);
+        cache_refine_result tot;
+        CHECK(converge(&u, 200, &tot) == LM_OK);
+        /* What the edge test compares equals the composite's formula for the side seen. */
+        float ldd[3], ei[3], rgb[3], lab[3], want_lab[3], disp[3];
+        CHECK(cache_eval_direct(u.c, lt, 0.3, 0.3, ldd, &err) == LM_OK);
+        CHECK(cache_eval_indirect(u.c, lt, 0.3, 0.3, ei, &err) == LM_OK);
+        CHECK(ei[0] > 0.0f); /* the plane below lights the light's front */
+        cache_seen_lab(u.c, lt, ldd, ei, NULL, lab);
+        for (int k = 0; k < 3; ++k)
+            rgb[k] = (above ? 0.0f : m->le[k]) + m->kd[k] * (ldd[k] + ei[k] * 0.31830988618379067f);
+        tm_to_display(&(tm_desc){.exposure = s->exposure}, rgb, disp);
+        tm_display_to_lab(disp, want_lab);
+        for (int k = 0; k < 3; ++k)
+            CHECK_MSG(fabsf(lab[k] - want_lab[k]) < 1e-4f, "side %d: L* %g, want %g (E_i %g)", above, lab[k],
+                      want_lab[k], ei[k]);
+        cache_stats st;
+        cache_get_stats(u.c, &st);
+        leaves[above] = st.direct.mesh.leaves + st.indirect.mesh.leaves;
+        stop(&u);
+    }
+    /* Without Le masking it, the light's own shading is judged as seen: no fewer leaves. */
+    printf("  emitter side: %u leaves (direct + indirect) seen from the front, %u from the back\n", leaves[0], leaves[1]);
+    CHECK(leaves[1] >= leaves[0]);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     test_lone_light();
@@ -1165,6 +1223,7 @@ int main(void)
     test_specular();
     test_sphere_indirect(1);
     test_sphere_indirect(2);
+    test_emitter_side();
     test_cornell_box();
     return test_finish("cache_test");
 }

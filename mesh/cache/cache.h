@@ -1,6 +1,7 @@
 /* cache.h — the multi-mesh cache (paper §4; DESIGN.md "Caches"): per-light
- * direct irradiance meshes, the indirect irradiance mesh and the direct diffuse
- * radiance mesh over one shared vertex table, and the values at their vertices.
+ * direct irradiance meshes, the indirect irradiance mesh, the direct diffuse
+ * radiance mesh and (for glossy materials) the direct specular radiance mesh over
+ * one shared vertex table, and the values at their vertices.
  *
  * Meshes (quadtree forests over the scene's triangles, qmesh.h):
  *   light[ℓ]   per light, 1 channel: the VISIBLE FRACTION V_ℓ = G_ℓ / G_ℓ,unoccluded
@@ -107,8 +108,8 @@ typedef struct cache_refine_result {
     uint32_t remaining;              /* leaves still waiting to be tested */
 } cache_refine_result;
 
-/* Tests the edges of the highest-priority leaves of the direct and indirect
- * meshes (§4.3): splits where the tone-mapped fresh value differs from the
+/* Tests the edges of the highest-priority leaves of the direct, indirect and
+ * specular meshes (§4.3; the coarse cache first if cache_init was not called): splits where the tone-mapped fresh value differs from the
  * interpolated one by more than the JND, or where a leaf covers more than
  * min_leaf_pixels; undoes splits that found nothing. */
 lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);

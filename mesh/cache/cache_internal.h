@@ -1,7 +1,30 @@
-/* cache_internal.h — what mesh/cache.c (meshes, values), mesh/cache_source.c
- * (indirect light), mesh/cache_specular.c (specular values) and src/cache_refine.c
- * (the refinement scheduler) share. Not a public header. Everything belongs to
- * the refinement worker thread. */
+/* cache_internal.h — what the files of the multi-mesh cache (mesh/cache/) share.
+ * Not a public header (tests/layers.py keeps it inside mesh/cache/).
+ *
+ * The files, lowest first; each calls only the files below it (and the layers
+ * below mesh/cache/), never up or sideways, so there is no cycle:
+ *   cache_site.c      points, leaves and regions of the meshes; what the viewer
+ *                     sees (cache_seen_radiance)
+ *   cache_specular.c  the area lights' outlines and the specular values (eq. 5)
+ *   cache_light.c     visibility from the light meshes (§4.3.4), the direct values
+ *                     (eq. 4), falsified light leaves
+ *   cache_source.c    indirect light (eq. 7): the radiance source, gathers,
+ *                     outdated values
+ *   cache_refine.c    the refinement scheduler (§4.3)
+ *   cache.c           the public face (cache.h): create, init, edits, evaluation,
+ *                     statistics, cache_refine()
+ * Upward calls go through function pointers only (cache_changed_fn,
+ * cache_node_fn), given by the caller.
+ *
+ * struct cache is a shared core (the scene, the sampler, the meshes; set by
+ * cache.c) and one part per file that writes it: cache_light_state
+ * (cache_light.c), cache_source_state (cache_source.c), cache_outlines
+ * (cache_specular.c), cache_sched (cache_refine.c). A part's fields are written
+ * by its owner only; other files may read them where said.
+ *
+ * Threads: a cache and everything in it belongs to the thread that refines it
+ * (the refinement worker, cache_worker.c, or a test's own thread). Nothing here
+ * locks; the display reads snapshots the worker publishes (cache_snapshot.h). */
 #ifndef LUMESH_CACHE_INTERNAL_H
 #define LUMESH_CACHE_INTERNAL_H
 
@@ -50,50 +73,46 @@ typedef struct cache_queue {
     size_t n, cap;
 } cache_queue;
 
-struct cache {
-    cache_desc desc;           /* defaults filled in */
-    const scene *s;
-    samp_sampler *sp;
-    tm_desc tm;
-    mesh_vtable *vt;
-    uint32_t light_count;      /* area lights, then point lights */
-    mesh_qmesh **light;        /* per light, NULL when no triangle can see it */
-    mesh_qmesh *direct, *indirect;
-    mesh_qmesh *specular;      /* NULL when no material has ks > 0 */
-    mesh_qmesh *indirect1;     /* bounces = 2: the first bounce E_1 at the coarse vertices (roots only),
-                                  the source of the second; NULL otherwise */
-    float eye[3];              /* the specular mesh's viewpoint, scene units */
-    /* The area lights' outlines for the specular integral (only with a specular
-     * mesh): loop k is spec_outline[3·spec_loop[k] .. 3·spec_loop[k+1]) (xyz,
-     * counter-clockwise seen from the light's front; spec_loop_sign[k] −1 for a
-     * hole, stored reversed), light l owns loops spec_light_loop[l] .. [l+1]. */
-    double *spec_outline;
-    uint32_t *spec_loop, *spec_light_loop;
-    int8_t *spec_loop_sign;
-    size_t spec_outline_bytes;
-    cache_mesh_stats *light_stats;
-    cache_mesh_stats direct_stats, indirect_stats, specular_stats; /* .mesh filled by cache_get_stats */
-    uint64_t undone;
-    /* Falsified light leaves (cache_region) waiting for their radiance values to be
-     * recomputed, and what that has done so far. */
-    cache_region *falsified;
-    size_t falsified_n, falsified_cap;
-    uint64_t falsified_total, revised;
-    int initialised;
-    float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
+/* ---- the parts -------------------------------------------------------------- */
+
+/* Visibility and direct values (written by cache_light.c). */
+typedef struct cache_light_state {
     /* G_ℓ at every vertex of the direct mesh (vtable id × light_count), kept so a
      * light's colour or power can change with no new sample (cache_set_light). */
     float *vertex_G;
     size_t vertex_G_cap;       /* vertex ids with room */
+    /* Falsified light leaves (cache_region) waiting for their radiance values to be
+     * recomputed, and what that has done so far. */
+    cache_region *falsified;
+    size_t falsified_n, falsified_cap;
+    uint64_t falsified_total;
+    uint64_t revised;          /* values recomputed; read by cache_source.c (direct mesh changes) */
+    cache_mesh_stats *light_stats;               /* light_count; .mesh filled by cache_get_stats */
+    cache_mesh_stats direct_stats, specular_stats; /* samples (.mesh filled by cache_get_stats) */
+} cache_light_state;
 
-    /* The radiance source of indirect samples: kd·L_dd over the direct mesh's
-     * leaves, rebuilt when the direct mesh has changed enough. */
+/* The area lights' outlines for the specular integral (written by cache_specular.c,
+ * once, at creation; only with a specular mesh): loop k is
+ * xyz[3·loop[k] .. 3·loop[k+1]) (counter-clockwise seen from the light's front;
+ * loop_sign[k] −1 for a hole, stored reversed), light l owns loops
+ * light_loop[l] .. light_loop[l+1]. */
+typedef struct cache_outlines {
+    double *xyz;
+    uint32_t *loop, *light_loop;
+    int8_t *loop_sign;
+    size_t bytes;
+} cache_outlines;
+
+/* Indirect light (written by cache_source.c). */
+typedef struct cache_source_state {
+    /* The radiance source of indirect samples: kd·L_dd over a cut of the direct
+     * mesh, rebuilt when the direct mesh has changed enough. */
     samp_radiance_mesh rmesh;
     uint32_t *rm_first;
     float *rm_bary, *rm_rad;
     size_t rm_cap;             /* triangles allocated */
     /* The source before the last rebuild (same layout), kept to bound how much the
-     * rebuild moved each indirect value (cache_source.c, "outdated indirect values"). */
+     * rebuild moved each indirect value ("outdated indirect values"). */
     uint32_t *rp_first;
     float *rp_bary, *rp_rad;
     size_t rp_cap, rp_count;
@@ -106,24 +125,26 @@ struct cache {
     uint32_t *outdated_list;
     size_t outdated_n, outdated_cap;
     uint64_t regathered;       /* indirect values gathered again because they were outdated */
-    uint64_t rm_built_at;      /* direct mesh kept splits + revised values when last built */
-    uint32_t rm_nodes;         /* direct mesh nodes when last built */
-    int rm_settle;             /* rebuild on any change (cache_settle_source) */
-    int rm_stale;              /* rebuild before the next indirect sample (a light changed) */
-    int rm_with_e1;            /* the source holds kd·(L_dd + E_1/π) (bounces = 2), not kd·L_dd */
-    mesh_qmesh_tri *leaf_buf;
+    int64_t built_at;          /* direct mesh changes (net splits + revised values) when last built */
+    uint32_t built_nodes;      /* direct mesh nodes when last built */
+    int settle;                /* rebuild on any change (cache_settle_source) */
+    int with_e1;               /* the source holds kd·(L_dd + E_1/π) (bounces = 2), not kd·L_dd */
+    mesh_qmesh_tri *leaf_buf;  /* the cut's triangles */
     size_t leaf_cap;
-    /* Choosing the source's cut (per direct node): error bound, opened flag, heap. */
-    float *src_err;
-    uint8_t *src_open;
-    struct source_pick *src_heap;
-    uint32_t src_cap;
+    /* Choosing the cut (per direct node): error bound, opened flag, heap. */
+    float *cut_err;
+    uint8_t *cut_open;
+    struct source_pick *cut_heap;
+    size_t cut_cap;
+    cache_mesh_stats indirect_stats; /* samples (.mesh filled by cache_get_stats) */
+} cache_source_state;
 
-    /* Scheduler (cache_refine.c), per radiance mesh (cache_kind).
-     * Heap: a max-heap of leaves, lazily invalidated, and per-node "done" flags.
-     * Random (the paper's §4.3.3): per-node priorities, a leaf's own (> 0 waiting,
-     * 0 done, < 0 being tested) and an inner node's the maximum of its children's;
-     * the visible roots, the current root, and how many leaves are waiting. */
+/* The scheduler (written by cache_refine.c), per radiance mesh (cache_kind).
+ * Heap: a max-heap of leaves, lazily invalidated, and per-node "done" flags.
+ * Random (the paper's §4.3.3): per-node priorities, a leaf's own (> 0 waiting,
+ * 0 done, < 0 being tested) and an inner node's the maximum of its children's;
+ * the visible roots, the current root, and how many leaves are waiting. */
+typedef struct cache_sched {
     cache_queue q[CACHE_KINDS];
     uint8_t *done[CACHE_KINDS];
     size_t done_cap[CACHE_KINDS];
@@ -133,49 +154,110 @@ struct cache {
     uint32_t root_count[CACHE_KINDS], cur_root[CACHE_KINDS];
     uint64_t waiting[CACHE_KINDS];
     lm_rng rng;
-    int queues_seeded;
-    int requeue[CACHE_KINDS];  /* test every leaf of that mesh again (a light or the camera changed) */
+    int seeded;
+    int requeue[CACHE_KINDS];  /* test every leaf of that mesh again (cache_sched_requeue) */
+    uint64_t undone;           /* splits undone */
+} cache_sched;
+
+struct cache {
+    /* The core (written by cache.c: at creation, cache_set_camera, cache_set_light,
+     * cache_set_sampler; read by every file). */
+    cache_desc desc;           /* defaults filled in */
+    const scene *s;
+    samp_sampler *sp;
+    tm_desc tm;
+    mesh_vtable *vt;
+    uint32_t light_count;      /* area lights, then point lights */
+    mesh_qmesh **light;        /* per light, NULL when no triangle can see it */
+    mesh_qmesh *direct, *indirect;
+    mesh_qmesh *specular;      /* NULL when no material has ks > 0 */
+    mesh_qmesh *indirect1;     /* bounces = 2: the first bounce E_1 at the coarse vertices (roots only),
+                                  the source of the second; NULL otherwise */
+    float eye[3];              /* the viewpoint (scene units): the specular mesh's, and the side of
+                                  an emitter the viewer sees (cache_sees_front) */
+    float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
+    int initialised;
+    /* The parts. The meshes' values are written by the part that computes them
+     * (light meshes, direct and specular: cache_light.c; indirect: cache_source.c)
+     * and their trees by cache_refine.c (splits) and cache_light.c (light meshes). */
+    cache_light_state vis;
+    cache_outlines outl;
+    cache_source_state src;
+    cache_sched sched;
 };
 
-/* G_ℓ,unoccluded at vertex vid (analytic; point lights cosθ/r²). */
-double cache_unoccluded(const cache *c, uint32_t light, uint32_t vid);
+/* ---- cache_site.c: points, leaves, regions, what the viewer sees ----------------- */
+
+/* The mesh of a kind (NULL: the scene has none). */
+mesh_qmesh *cache_kind_mesh(const cache *c, cache_kind kind);
 /* The sampler's receiver for vertex vid. */
 samp_point cache_vertex_point(const cache *c, uint32_t vid);
+/* G_ℓ,unoccluded at point p with unit normal n (analytic; point lights cosθ/r²). */
+double cache_unoccluded_at(const scene *s, uint32_t light, const float p[3], const float n[3]);
+/* The same at vertex vid. */
+double cache_unoccluded(const cache *c, uint32_t light, uint32_t vid);
 
+/* Barycentrics (w1, w2) of corner k of a node. */
+void cache_node_corner_bary(const mesh_qnode *n, int k, double *w1, double *w2);
+/* Leaf lookup: the leaf of mesh m holding barycentric (w1, w2) of scene triangle tri. */
+uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2);
+/* Calls visit for every node of m's tree over rg->tri whose closed triangle can
+ * touch the region's (bounding boxes in barycentric space overlap), parents first. */
+typedef lm_result (*cache_node_fn)(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user, lm_error *err);
+lm_result cache_region_walk(const mesh_qmesh *m, const cache_region *rg, cache_node_fn visit, void *user, lm_error *err);
+/* Is barycentric point (w1, w2) inside the region's closed triangle? */
+int cache_region_contains(const cache_region *rg, double w1, double w2);
+
+/* What the viewer sees of material m (RGB radiance, linear, before tone mapping):
+ * Le + kd·(L_dd + E_i/π) + ks·L_ds, the composite's formula
+ * (shaders/rend_composite.frag, paper §6). Emission leaves the front side only
+ * (docs/scene-model.md; rend_material.frag marks the side seen): from the back
+ * (front 0) Le is not seen. lds NULL: no specular term. */
+void cache_seen_radiance(const scene_material *m, int front, const float ldd[3], const float ei[3],
+                         const float lds[3], float rgb[3]);
+/* Does the viewer (c->eye) see the front of scene triangle tri: is the eye on the
+ * side its geometric normal points to (the side GL calls front: the scene's
+ * triangles are counter-clockwise seen from their front, scene.h)? */
+int cache_sees_front(const cache *c, uint32_t tri);
+/* cache_seen_radiance on scene triangle tri, from the side the viewer sees, tone
+ * mapped (the display's own function, tonemap.h) and in CIELAB: what the JND
+ * tests compare. */
+void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const float ei[3], const float lds[3],
+                    float lab[3]);
+
+/* ---- cache_specular.c: outlines and specular values --------------------------------- */
+
+/* The area lights' boundary loops for the specular integral; 0 when memory runs
+ * out (o untouched). */
+int cache_build_outlines(cache_outlines *o, const scene *s, uint32_t light_count);
+void cache_outlines_free(cache_outlines *o);
+/* L_ds (RGB per unit ks) at vertex vid, seen from c->eye, from visible fractions
+ * V[0..light_count): Σ_ℓ V_ℓ·L_ℓ·S_ℓ, S_ℓ the Phong lobe integrated over the
+ * area light (eq. 5 with V_ℓ constant over the light; samp_polygon_phong), and
+ * for a point light the point's exact lobe·G. */
+void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3]);
+
+/* ---- cache_light.c: visibility, direct values, falsified light leaves --------------- */
+
+/* 0 when memory runs out. */
+int cache_light_state_init(cache_light_state *st, uint32_t light_count);
+void cache_light_state_free(cache_light_state *st);
+/* Bookkeeping bytes (the meshes not counted). */
+size_t cache_light_state_bytes(const cache_light_state *st, uint32_t light_count);
+/* Samples V of light l at the given vertices of its mesh and stores them. */
+lm_result cache_sample_light(cache *c, uint32_t l, const uint32_t *vids, uint32_t n, lm_error *err);
 /* Fills V_ℓ at every site (V[i·light_count + ℓ]), sampling light meshes where
  * they cannot interpolate confidently (see cache.h). */
 lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err);
 /* L_dd (RGB per unit albedo) at vertex vid from visible fractions V[0..light_count);
  * remembers G_ℓ there for cache_set_light. */
 lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err);
-/* L_ds (RGB per unit ks) at vertex vid, seen from c->eye, from visible fractions
- * V[0..light_count): Σ_ℓ V_ℓ·L_ℓ·S_ℓ, S_ℓ the Phong lobe integrated over the
- * area light (eq. 5 with V_ℓ constant over the light; samp_polygon_phong), and
- * for a point light the point's exact lobe·G. */
-void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3]);
-/* The mesh of a kind (NULL: the scene has none). */
-mesh_qmesh *cache_kind_mesh(const cache *c, cache_kind kind);
-
-/* E at the given vertices (batched) from the source of the kind asked (first
- * bounce: kd·L_dd; else the displayed indirect's, cache_sample_indirect). */
-lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
-/* Gathers every value of the indirect mesh(es) again from rebuilt sources (a light
- * edit, a better sampler); nothing is outdated afterwards. */
-lm_result cache_regather_all(cache *c, lm_error *err);
-/* The area lights' boundary loops for the specular integral (c->spec_*); 0 when
- * memory runs out. */
-int cache_build_outlines(cache *c);
-
-/* Samples E_i at the given vertices (batched): gathered from kd·L_dd, and with
- * bounces = 2 from kd·(L_dd + E_1/π), E_1 the first bounce (c->indirect1). */
-lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
-/* Rebuilds the radiance source from the direct mesh when it is stale or holds the
- * other kind (with_e1: kd·(L_dd + E_1/π), else kd·L_dd). */
-lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err);
-/* Rebuilds the displayed indirect's source if the direct mesh changed at all since
- * it was built (refinement has nothing left to test); the values it moves are
- * flagged for cache_regather_outdated. */
-lm_result cache_settle_source(cache *c, lm_error *err);
+/* The values (RGB) of the direct or the specular mesh at the sites, from the light
+ * meshes (cache_fetch_visibility), counted as that mesh's samples; not stored. */
+lm_result cache_light_values(cache *c, cache_kind kind, const cache_site *sites, uint32_t n, float *rgb,
+                             lm_error *err);
+/* The direct mesh's values again from the G_ℓ kept per vertex (c->light_le changed). */
+lm_result cache_relight_direct(cache *c, lm_error *err);
 
 /* The radiance vertices (of the direct and the specular mesh) inside the falsified
  * light leaves recorded so far get their visible fractions fetched again (the light
@@ -187,21 +269,45 @@ lm_result cache_settle_source(cache *c, lm_error *err);
 typedef lm_result (*cache_changed_fn)(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
                                       const uint32_t *vids, uint32_t n, void *user, lm_error *err);
 lm_result cache_revise_falsified(cache *c, cache_changed_fn changed, void *user, lm_error *err);
-/* Calls visit for every node of m's tree over rg->tri whose closed triangle can
- * touch the region's (bounding boxes in barycentric space overlap), parents first. */
-typedef lm_result (*cache_node_fn)(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user, lm_error *err);
-lm_result cache_region_walk(const mesh_qmesh *m, const cache_region *rg, cache_node_fn visit, void *user, lm_error *err);
-/* Is barycentric point (w1, w2) inside the region's closed triangle? */
-int cache_region_contains(const cache_region *rg, double w1, double w2);
 
+/* ---- cache_source.c: indirect light ----------------------------------------------------- */
+
+void cache_source_free(cache_source_state *st);
+/* Bookkeeping bytes (the meshes not counted). */
+size_t cache_source_bytes(const cache_source_state *st);
+/* Net splits of the direct mesh plus the values revised in it and the specular
+ * mesh: a running count of how much the source's mesh has changed (O(1)). */
+int64_t cache_direct_changes(const cache *c);
+/* E at the given vertices (batched) from the source of the kind asked (first
+ * bounce: kd·L_dd; else the displayed indirect's, cache_sample_indirect). */
+lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
+/* Samples E_i at the given vertices (batched): gathered from kd·L_dd, and with
+ * bounces = 2 from kd·(L_dd + E_1/π), E_1 the first bounce (c->indirect1). */
+lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
+/* Rebuilds the radiance source from the direct mesh when it is stale or holds the
+ * other kind (with_e1: kd·(L_dd + E_1/π), else kd·L_dd). */
+lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err);
+/* Rebuilds the displayed indirect's source if the direct mesh changed at all since
+ * it was built (refinement has nothing left to test); the values it moves are
+ * flagged for cache_regather_outdated. */
+lm_result cache_settle_source(cache *c, lm_error *err);
 /* Gathers again, in batches, the indirect values the source's rebuilds may have
  * moved by more than the JND (flagged by cache_update_radiance_source); calls
  * `changed` (regions NULL) with the vertices whose value changed. */
 lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, lm_error *err);
+/* Gathers every value of the indirect mesh(es) again from rebuilt sources (a light
+ * edit, a better sampler); nothing is outdated afterwards. */
+lm_result cache_regather_all(cache *c, lm_error *err);
 
-/* Leaf lookup: the leaf of mesh m holding barycentric (w1, w2) of scene triangle tri. */
-uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2);
-/* Barycentrics (w1, w2) of corner k of a node. */
-void cache_node_corner_bary(const mesh_qnode *n, int k, double *w1, double *w2);
+/* ---- cache_refine.c: the scheduler ------------------------------------------------------ */
+
+void cache_sched_init(cache_sched *st, uint32_t seed);
+void cache_sched_free(cache_sched *st);
+size_t cache_sched_bytes(const cache_sched *st);
+/* Every leaf of that mesh (kind; CACHE_KINDS: of every mesh) is scheduled afresh
+ * at the next cache_sched_refine (a light or the camera changed). */
+void cache_sched_requeue(cache_sched *st, int kind);
+/* cache_refine (cache.h) on an initialised cache. */
+lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
 
 #endif

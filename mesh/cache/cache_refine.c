@@ -4,10 +4,11 @@
  * A round takes the highest-priority leaves of one radiance mesh (direct or
  * indirect) from a max-heap, splits each tentatively, computes the values at the
  * new edge midpoints in one batch (direct: visible fractions from the light
- * meshes, sampling them only where they cannot interpolate, cache.c; indirect:
+ * meshes, sampling them only where they cannot interpolate, cache_light.c; indirect:
  * one samp_indirect batch), and compares at every midpoint the colour the viewer
  * would see with the fresh value and with the value interpolated from the edge's
- * ends, after tone mapping (tonemap.c, the display's own function), as CIELAB
+ * ends, after tone mapping (src/base/tonemap.c, the display's own function; what
+ * the viewer sees is cache_seen_lab, cache_site.c), as CIELAB
  * ΔE against the JND (§4.3.1–4.3.2). A split is kept when an edge differs
  * noticeably or the leaf still covers more than min_leaf_pixels (the size
  * criterion, so small discontinuities are not missed); otherwise it is undone
@@ -16,11 +17,15 @@
  * corners' colours). After each round, values that changed under the
  * refinement's feet — radiance values inside a light leaf that answered as
  * uniform and proved not to be, indirect values a rebuilt source moved by more
- * than the JND — are recomputed (cache.c, cache_source.c) and the leaves around them tested
- * again. Two schedulers pick the leaves (cache_desc.scheduler): a max-heap of
+ * than the JND — are recomputed (cache_light.c, cache_source.c) and the leaves
+ * around them tested again. Two schedulers pick the leaves (cache_desc.scheduler): a max-heap of
  * leaves, or the paper's randomized rule over node priorities kept as the
  * maximum of the children's (measured against each other in
  * bench/bench_cache.c, docs/cache.md).
+ *
+ * Owns cache_sched (cache_internal.h). Calls cache_site.c, cache_light.c and
+ * cache_source.c below it; cache.c (cache_refine, the edits) calls it, never the
+ * reverse (the coarse cache is made there, before cache_sched_refine).
  */
 #include <math.h>
 #include <stdlib.h>
@@ -41,13 +46,8 @@ typedef cache_kind refine_kind;
 
 static lm_result queue_push(cache_queue *q, float priority, uint32_t node, uint32_t v0, lm_error *err)
 {
-    if (q->n == q->cap) {
-        size_t nc = q->cap ? 2 * q->cap : 1024;
-        cache_queue_entry *e = realloc(q->e, nc * sizeof *e);
-        if (!e) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory growing the refinement queue");
-        q->e = e;
-        q->cap = nc;
-    }
+    if (q->n == q->cap && !LM_GROW(q->e, q->cap, q->n + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory growing the refinement queue");
     size_t i = q->n++;
     while (i > 0) {
         size_t p = (i - 1) / 2;
@@ -83,15 +83,8 @@ static cache_queue_entry queue_pop(cache_queue *q)
 
 static lm_result set_done(uint8_t **flags, size_t *cap, uint32_t node, uint8_t v, lm_error *err)
 {
-    if (node >= *cap) {
-        size_t nc = *cap ? *cap : 1024;
-        while (nc <= node) nc *= 2;
-        uint8_t *f = realloc(*flags, nc);
-        if (!f) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for refinement flags");
-        memset(f + *cap, 0, nc - *cap);
-        *flags = f;
-        *cap = nc;
-    }
+    if (node >= *cap && !LM_GROW(*flags, *cap, (size_t)node + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for refinement flags");
     (*flags)[node] = v;
     return LM_OK;
 }
@@ -102,9 +95,8 @@ static void seen_lab(const cache *c, refine_kind kind, uint32_t tri, double w1, 
                      float lab[3])
 {
     /* What the viewer sees at (tri, w1, w2) when the refined quantity has `value`
-     * there and the others are interpolated: Le + kd·(L_dd + E_i/π) + ks·L_ds. */
-    const scene_material *m = &c->s->materials[c->s->tris[tri].material];
-    float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, rgb[3], disp[3];
+     * there and the others are interpolated (cache_seen_lab). */
+    float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
     lm_error ignore;
     for (int k = 0; k < CACHE_KINDS; ++k) {
         if (k == (int)kind) {
@@ -114,21 +106,7 @@ static void seen_lab(const cache *c, refine_kind kind, uint32_t tri, double w1, 
         const mesh_qmesh *mk = cache_kind_mesh(c, (cache_kind)k);
         if (mk && mesh_qmesh_root(mk, tri) != MESH_QMESH_NONE) mesh_qmesh_interpolate(mk, tri, w1, w2, term[k], &ignore);
     }
-    for (int k = 0; k < 3; ++k)
-        rgb[k] = m->le[k] + m->kd[k] * (term[KIND_DIRECT][k] + term[KIND_INDIRECT][k] * (float)(1.0 / M_PI)) +
-                 m->ks[k] * term[KIND_SPECULAR][k];
-    tm_to_display(&c->tm, rgb, disp);
-    tm_display_to_lab(disp, lab);
-}
-
-/* The same with L_dd and E_i given (the single-mesh ablation's combined test). */
-static void seen_lab_of(const cache *c, uint32_t tri, const float ldd[3], const float ei[3], float lab[3])
-{
-    const scene_material *m = &c->s->materials[c->s->tris[tri].material];
-    float rgb[3], disp[3];
-    for (int k = 0; k < 3; ++k) rgb[k] = m->le[k] + m->kd[k] * (ldd[k] + ei[k] * (float)(1.0 / M_PI));
-    tm_to_display(&c->tm, rgb, disp);
-    tm_display_to_lab(disp, lab);
+    cache_seen_lab(c, tri, term[KIND_DIRECT], term[KIND_INDIRECT], term[KIND_SPECULAR], lab);
 }
 
 static float leaf_pixels(const uint32_t *pixels, const mesh_qnode *n)
@@ -159,15 +137,9 @@ static const mesh_qmesh *mesh_of(const cache *c, refine_kind kind) { return cach
 
 static lm_result grow_prio(cache *c, int kind, uint32_t node, lm_error *err)
 {
-    if (node < c->prio_cap[kind]) return LM_OK;
-    size_t nc = c->prio_cap[kind] ? c->prio_cap[kind] : 1024;
-    while (nc <= node) nc *= 2;
-    float *p = realloc(c->prio[kind], nc * sizeof *p);
-    if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for node priorities");
-    memset(p + c->prio_cap[kind], 0, (nc - c->prio_cap[kind]) * sizeof *p);
-    c->prio[kind] = p;
-    c->prio_cap[kind] = nc;
-    return LM_OK;
+    cache_sched *st = &c->sched;
+    if (node < st->prio_cap[kind] || LM_GROW(st->prio[kind], st->prio_cap[kind], (size_t)node + 1)) return LM_OK;
+    return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for node priorities");
 }
 
 /* Sets a leaf's own priority (> 0 waiting, 0 done, < 0 being tested) and carries
@@ -178,9 +150,9 @@ static lm_result set_leaf_priority(cache *c, refine_kind kind, uint32_t node, fl
     const mesh_qmesh *m = mesh_of(c, kind);
     lm_result r = grow_prio(c, kind, node, err);
     if (r != LM_OK) return r;
-    float *prio = c->prio[kind];
-    if (prio[node] > 0.0f) c->waiting[kind]--;
-    if (p > 0.0f) c->waiting[kind]++;
+    float *prio = c->sched.prio[kind];
+    if (prio[node] > 0.0f) c->sched.waiting[kind]--;
+    if (p > 0.0f) c->sched.waiting[kind]++;
     prio[node] = p;
     for (uint32_t up = mesh_qmesh_node(m, node)->parent; up != MESH_QMESH_NONE; up = mesh_qmesh_node(m, up)->parent) {
         uint32_t ch = mesh_qmesh_node(m, up)->child;
@@ -195,18 +167,18 @@ static lm_result set_leaf_priority(cache *c, refine_kind kind, uint32_t node, fl
 /* A new, or newly rescheduled, leaf with priority p (0: nothing to do there). */
 static lm_result sched_add(cache *c, refine_kind kind, uint32_t node, float p, lm_error *err)
 {
-    lm_result r = set_done(&c->done[kind], &c->done_cap[kind], node, p > 0.0f ? 0 : 1, err);
+    lm_result r = set_done(&c->sched.done[kind], &c->sched.done_cap[kind], node, p > 0.0f ? 0 : 1, err);
     if (r != LM_OK) return r;
     if (c->desc.scheduler == CACHE_SCHED_RANDOM) return set_leaf_priority(c, kind, node, p, err);
     if (!(p > 0.0f)) return LM_OK;
-    c->waiting[kind]++;
-    return queue_push(&c->q[kind], p, node, mesh_qmesh_node(mesh_of(c, kind), node)->v[0], err);
+    c->sched.waiting[kind]++;
+    return queue_push(&c->sched.q[kind], p, node, mesh_qmesh_node(mesh_of(c, kind), node)->v[0], err);
 }
 
 /* A leaf whose test found nothing (its split undone). */
 static lm_result sched_done(cache *c, refine_kind kind, uint32_t node, lm_error *err)
 {
-    lm_result r = set_done(&c->done[kind], &c->done_cap[kind], node, 1, err);
+    lm_result r = set_done(&c->sched.done[kind], &c->sched.done_cap[kind], node, 1, err);
     if (r == LM_OK && c->desc.scheduler == CACHE_SCHED_RANDOM) r = set_leaf_priority(c, kind, node, 0.0f, err);
     return r;
 }
@@ -216,39 +188,39 @@ static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_
 {
     const mesh_qmesh *m = mesh_of(c, kind);
     if (c->desc.scheduler != CACHE_SCHED_RANDOM) {
-        cache_queue *q = &c->q[kind];
+        cache_queue *q = &c->sched.q[kind];
         while (q->n) {
             cache_queue_entry e = queue_pop(q);
-            c->waiting[kind]--;
+            c->sched.waiting[kind]--;
             const mesh_qnode *n = mesh_qmesh_node(m, e.node);
             if (!n || n->child != MESH_QMESH_NONE || n->v[0] != e.v0) continue;
-            if (e.node < c->done_cap[kind] && c->done[kind][e.node]) continue;
+            if (e.node < c->sched.done_cap[kind] && c->sched.done[kind][e.node]) continue;
             if (leaf_pixels(pixels, n) <= 1.0f) continue; /* a one-pixel leaf never splits */
             *out = e.node;
             return 1;
         }
-        c->waiting[kind] = 0;
+        c->sched.waiting[kind] = 0;
         return 0;
     }
     /* Random (§4.3.3): keep to the current root while its priority beats a
      * random pick; descend to its highest-priority leaf. */
-    const float *prio = c->prio[kind];
-    uint32_t nroots = c->root_count[kind];
+    const float *prio = c->sched.prio[kind];
+    uint32_t nroots = c->sched.root_count[kind];
     lm_error ignore;
-    while (c->waiting[kind] > 0 && nroots > 0) {
-        uint32_t cur = c->cur_root[kind];
-        uint32_t pick = c->roots[kind][(uint32_t)(lm_rng_float(&c->rng) * (float)nroots) % nroots];
+    while (c->sched.waiting[kind] > 0 && nroots > 0) {
+        uint32_t cur = c->sched.cur_root[kind];
+        uint32_t pick = c->sched.roots[kind][(uint32_t)(lm_rng_float(&c->sched.rng) * (float)nroots) % nroots];
         if (cur == MESH_QMESH_NONE || prio[pick] > prio[cur]) cur = pick;
         if (!(prio[cur] > 0.0f)) { /* a finished root: find one still waiting */
             cur = MESH_QMESH_NONE;
             for (uint32_t i = 0; i < nroots && cur == MESH_QMESH_NONE; ++i)
-                if (prio[c->roots[kind][i]] > 0.0f) cur = c->roots[kind][i];
+                if (prio[c->sched.roots[kind][i]] > 0.0f) cur = c->sched.roots[kind][i];
             if (cur == MESH_QMESH_NONE) {
-                c->waiting[kind] = 0;
+                c->sched.waiting[kind] = 0;
                 return 0;
             }
         }
-        c->cur_root[kind] = cur;
+        c->sched.cur_root[kind] = cur;
         uint32_t node = cur;
         for (const mesh_qnode *n = mesh_qmesh_node(m, node); n->child != MESH_QMESH_NONE;
              n = mesh_qmesh_node(m, node)) {
@@ -268,8 +240,8 @@ static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_
 
 float cache_node_priority(const cache *c, int mesh, uint32_t node)
 {
-    if (mesh < 0 || mesh > 1 || node >= c->prio_cap[mesh]) return 0.0f;
-    return c->prio[mesh][node];
+    if (mesh < 0 || mesh >= CACHE_KINDS || node >= c->sched.prio_cap[mesh]) return 0.0f;
+    return c->sched.prio[mesh][node];
 }
 
 /* ---- one round ---------------------------------------------------------------- */
@@ -303,7 +275,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &cw1[k], &cw2[k]);
         r = mesh_qmesh_split(m, node, err);
         if (r == LM_ERR_NO_MEMORY || r == LM_ERR_UNSUPPORTED) {
-            res->remaining = (uint32_t)(c->waiting[0] + c->waiting[1] + c->waiting[2]);
+            res->remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2]);
             return r; /* cap or depth: refinement stops here, the cache stays valid */
         }
         if (r != LM_OK) break;
@@ -313,7 +285,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
              * stale priority leads a descent into this node while it is tested. */
             r = grow_prio(c, kind, n->child + 3, err);
             if (r != LM_OK) break;
-            for (uint32_t k = 0; k < 4; ++k) c->prio[kind][n->child + k] = 0.0f;
+            for (uint32_t k = 0; k < 4; ++k) c->sched.prio[kind][n->child + k] = 0.0f;
         }
         const mesh_qnode *centre = mesh_qmesh_node(m, n->child + 3); /* (m01, m12, m20) */
         round_leaf *rl = &leaves[nl++];
@@ -351,20 +323,11 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     }
     float *vals = malloc(3 * (size_t)(ns ? ns : 1) * sizeof *vals);
     int from_lights = kind != KIND_INDIRECT;
-    float *V = from_lights ? malloc(((size_t)ns * c->light_count + 1) * sizeof *V) : NULL;
     uint32_t *vids = malloc((ns ? ns : 1) * sizeof *vids);
-    if (!vals || !vids || (from_lights && !V)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
+    if (!vals || !vids) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
     for (uint32_t i = 0; r == LM_OK && i < ns; ++i) vids[i] = sites[i].vid;
     if (r == LM_OK && from_lights) {
-        r = cache_fetch_visibility(c, sites, ns, V, err);
-        for (uint32_t i = 0; r == LM_OK && i < ns; ++i) {
-            const float *Vi = V + (size_t)i * c->light_count;
-            if (kind == KIND_DIRECT)
-                r = cache_direct_from_visibility(c, sites[i].vid, Vi, vals + 3 * (size_t)i, err);
-            else
-                cache_specular_from_visibility(c, sites[i].vid, Vi, vals + 3 * (size_t)i);
-        }
-        if (r == LM_OK) (kind == KIND_DIRECT ? &c->direct_stats : &c->specular_stats)->samples += ns;
+        r = cache_light_values(c, kind, sites, ns, vals, err);
         if (r == LM_OK && kind == KIND_DIRECT && c->desc.single_mesh) {
             /* The combined mesh gathers indirect light at every new vertex. */
             float *E = malloc(3 * (size_t)(ns ? ns : 1) * sizeof *E);
@@ -385,7 +348,6 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     }
     for (uint32_t i = 0; r == LM_OK && i < ns; ++i) r = mesh_qmesh_set_value(m, vids[i], vals + 3 * (size_t)i, err);
     free(vals);
-    free(V);
     free(vids);
 
     /* Edge tests: keep or undo. */
@@ -409,8 +371,8 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 mesh_qmesh_get_value(c->indirect, corner[(k + 1) % 3], eb);
                 mesh_qmesh_get_value(c->indirect, leaves[i].mid[k], ef);
                 for (int ch = 0; ch < 3; ++ch) ei[ch] = 0.5f * (ea[ch] + eb[ch]);
-                seen_lab_of(c, tri, fresh, ef, lf);
-                seen_lab_of(c, tri, interp, ei, li);
+                cache_seen_lab(c, tri, fresh, ef, NULL, lf); /* L_ds left out, as before */
+                cache_seen_lab(c, tri, interp, ei, NULL, li);
             } else {
                 seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
                 seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
@@ -429,7 +391,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             if (r == LM_OK && combined) r = mesh_qmesh_merge(c->indirect, leaves[i].mirror, err);
             if (r == LM_OK) r = sched_done(c, kind, leaves[i].node, err);
             res->undone++;
-            c->undone++;
+            c->sched.undone++;
         }
     }
     return r;
@@ -482,7 +444,8 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
 }
 
 /* What changed under the refinement's feet: values inside falsified light leaves
- * (cache.c) and indirect values the source has moved (cache_source.c); their leaves are tested again. */
+ * (cache_light.c) and indirect values the source has moved (cache_source.c); their leaves are tested
+ * again. */
 static lm_result revise(cache *c, const uint32_t *pixels, lm_error *err)
 {
     lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
@@ -495,43 +458,45 @@ static lm_result revise(cache *c, const uint32_t *pixels, lm_error *err)
 static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pixels, lm_error *err)
 {
     mesh_qmesh *m = cache_kind_mesh(c, kind);
-    c->q[kind].n = 0;
-    if (c->done[kind]) memset(c->done[kind], 0, c->done_cap[kind]);
-    if (c->prio[kind]) memset(c->prio[kind], 0, c->prio_cap[kind] * sizeof *c->prio[kind]);
-    c->waiting[kind] = 0;
-    c->root_count[kind] = 0;
-    c->cur_root[kind] = MESH_QMESH_NONE;
-    c->requeue[kind] = 0;
+    c->sched.q[kind].n = 0;
+    if (c->sched.done[kind]) memset(c->sched.done[kind], 0, c->sched.done_cap[kind]);
+    if (c->sched.prio[kind]) memset(c->sched.prio[kind], 0, c->sched.prio_cap[kind] * sizeof *c->sched.prio[kind]);
+    c->sched.waiting[kind] = 0;
+    c->sched.root_count[kind] = 0;
+    c->sched.cur_root[kind] = MESH_QMESH_NONE;
+    c->sched.requeue[kind] = 0;
     if (!m || (kind == KIND_INDIRECT && c->desc.single_mesh)) return LM_OK; /* single mesh: it follows direct */
-    free(c->roots[kind]);
-    c->roots[kind] = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *c->roots[kind]);
-    if (!c->roots[kind]) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");
+    free(c->sched.roots[kind]);
+    c->sched.roots[kind] = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *c->sched.roots[kind]);
+    if (!c->sched.roots[kind]) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");
     for (uint32_t t = 0; t < c->s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(m, t);
-        if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0)) c->roots[kind][c->root_count[kind]++] = root;
+        if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0)) c->sched.roots[kind][c->sched.root_count[kind]++] = root;
     }
-    size_t count = 0;
-    lm_result r = mesh_qmesh_leaf_triangles(m, &c->leaf_buf, &c->leaf_cap, &count, err);
+    /* Rare (a start, an edit): a buffer of its own, not kept. */
+    mesh_qmesh_tri *tris = NULL;
+    size_t count = 0, cap = 0;
+    lm_result r = mesh_qmesh_leaf_triangles(m, &tris, &cap, &count, err);
     uint32_t last = MESH_QMESH_NONE;
     for (size_t i = 0; r == LM_OK && i < count; ++i) {
-        uint32_t leaf = c->leaf_buf[i].leaf;
+        uint32_t leaf = tris[i].leaf;
         if (leaf == last) continue; /* a fan emits several triangles per leaf */
         last = leaf;
         const mesh_qnode *n = mesh_qmesh_node(m, leaf);
         float p = pixels && pixels[n->tri] == 0 ? 0.0f : leaf_priority(c, m, kind, n, pixels);
         r = sched_add(c, kind, leaf, p, err);
     }
+    free(tris);
     return r;
 }
 
-lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err)
+lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err)
 {
     cache_refine_result res = {0};
-    if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
-    lm_result r = c->initialised ? LM_OK : cache_init(c, err);
+    lm_result r = LM_OK;
     for (int k = 0; r == LM_OK && k < CACHE_KINDS; ++k)
-        if (!c->queues_seeded || c->requeue[k]) r = schedule_leaves(c, (refine_kind)k, desc->pixels, err);
-    c->queues_seeded = 1;
+        if (!c->sched.seeded || c->sched.requeue[k]) r = schedule_leaves(c, (refine_kind)k, desc->pixels, err);
+    c->sched.seeded = 1;
     uint32_t budget = desc->budget ? desc->budget : 256;
     /* Direct light first; indirect (smoother, dearer samples) and specular get a
      * fifth of the leaves each; what a missing mesh would get goes to direct. */
@@ -544,12 +509,12 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
     while (r == LM_OK) {
         int kind = -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
-            if (left[k] && c->waiting[k]) kind = k;
+            if (left[k] && c->sched.waiting[k]) kind = k;
         if (kind < 0) {
             /* Nothing left to test (not just out of budget): bring the indirect
              * source up to date with the direct mesh; indirect values it moves are
              * gathered again and their leaves tested. */
-            if (settled || c->waiting[0] + c->waiting[1] + c->waiting[2] > 0) break;
+            if (settled || c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] > 0) break;
             settled = 1;
             r = cache_settle_source(c, err);
             if (r == LM_OK) r = revise(c, desc->pixels, err);
@@ -559,12 +524,46 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
         r = refine_round(c, (refine_kind)kind, desc->pixels, left[kind], &res, err);
         /* The round's light fetches may have found uniform light leaves that were
          * not, and its gathers a rebuilt source that moved older indirect values:
-         * recompute those values (cache.c) and test their leaves again. */
+         * recompute those values (cache_light.c) and test their leaves again. */
         if (r == LM_OK) r = revise(c, desc->pixels, err);
         uint32_t used = res.tested - before;
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
     }
-    res.remaining = (uint32_t)(c->waiting[0] + c->waiting[1] + c->waiting[2]);
+    res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2]);
     if (out) *out = res;
     return r;
+}
+
+/* ---- the part's life --------------------------------------------------------- */
+
+void cache_sched_init(cache_sched *st, uint32_t seed)
+{
+    memset(st, 0, sizeof *st);
+    lm_rng_seed(&st->rng, seed, 0x5c4ed, 0);
+    for (int k = 0; k < CACHE_KINDS; ++k) st->cur_root[k] = MESH_QMESH_NONE;
+}
+
+void cache_sched_free(cache_sched *st)
+{
+    for (int k = 0; k < CACHE_KINDS; ++k) {
+        free(st->q[k].e);
+        free(st->done[k]);
+        free(st->prio[k]);
+        free(st->roots[k]);
+    }
+    memset(st, 0, sizeof *st);
+}
+
+size_t cache_sched_bytes(const cache_sched *st)
+{
+    size_t b = 0;
+    for (int k = 0; k < CACHE_KINDS; ++k)
+        b += st->q[k].cap * sizeof(cache_queue_entry) + st->done_cap[k] + st->prio_cap[k] * sizeof(float);
+    return b;
+}
+
+void cache_sched_requeue(cache_sched *st, int kind)
+{
+    for (int k = 0; k < CACHE_KINDS; ++k)
+        if (kind == CACHE_KINDS || kind == k) st->requeue[k] = 1;
 }

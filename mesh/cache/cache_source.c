@@ -1,7 +1,11 @@
 /* cache_source.c — indirect light in the cache (cache.h, eq. 7): the radiance
  * source that indirect samples gather from (a cut of the direct mesh), the gathers
  * themselves, indirect values the source's rebuilds have outdated, and gathering
- * everything again after a light edit. Worker thread, like the rest of the cache. */
+ * everything again after a light edit. Owns cache_source_state (cache_internal.h);
+ * calls only cache_site.c below it (it reads the direct mesh and
+ * cache_light_state.revised, and calls no file above: the scheduler is told of
+ * moved values through the cache_changed_fn it passes). Worker thread, like the
+ * rest of the cache. */
 #include "mesh/cache/cache_internal.h"
 
 #include <math.h>
@@ -23,6 +27,37 @@
  * has nothing left to test (cache_settle_source). */
 #define CACHE_RMESH_STALE 256u
 
+/* An entry of the cut's heap (cache_source_state.cut_heap). */
+struct source_pick {
+    float key;
+    uint32_t node;
+};
+
+void cache_source_free(cache_source_state *st)
+{
+    free(st->rm_first);
+    free(st->rm_bary);
+    free(st->rm_rad);
+    free(st->rp_first);
+    free(st->rp_bary);
+    free(st->rp_rad);
+    free(st->drift);
+    free(st->outdated);
+    free(st->outdated_list);
+    free(st->leaf_buf);
+    free(st->cut_err);
+    free(st->cut_open);
+    free(st->cut_heap);
+    memset(st, 0, sizeof *st);
+}
+
+size_t cache_source_bytes(const cache_source_state *st)
+{
+    return st->cut_cap * (sizeof *st->cut_err + sizeof *st->cut_open + sizeof *st->cut_heap) +
+           (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (3 * sizeof(float) + 1) +
+           st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf;
+}
+
 /* ---- the cut ------------------------------------------------------------------
  *
  * Opened where linear interpolation over a node is worst: from the roots, the node
@@ -32,15 +67,11 @@
  * plus the largest deviation of the values at its edge midpoints from the mean of
  * the edge's ends (the children's planes differ from the parent's by at most that). */
 
-struct source_pick {
-    float key;
-    uint32_t node;
-};
 
 static float source_error(cache *c, uint32_t node)
 {
     const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
-    if (n->child == MESH_QMESH_NONE) return c->src_err[node] = 0.0f;
+    if (n->child == MESH_QMESH_NONE) return c->src.cut_err[node] = 0.0f;
     const uint32_t child = n->child, tri = n->tri, corner[3] = {n->v[0], n->v[1], n->v[2]};
     const float *kd = c->s->materials[c->s->tris[tri].material].kd;
     float worst = 0.0f;
@@ -55,7 +86,7 @@ static float source_error(cache *c, uint32_t node)
             continue;
         for (int ch = 0; ch < 3; ++ch) dev = fmaxf(dev, kd[ch] * fabsf(m[ch] - 0.5f * (a[ch] + b[ch])));
     }
-    return c->src_err[node] = worst + dev;
+    return c->src.cut_err[node] = worst + dev;
 }
 
 static void heap_push(struct source_pick *h, uint32_t *n, struct source_pick e)
@@ -85,49 +116,47 @@ static struct source_pick heap_pop(struct source_pick *h, uint32_t *n)
     return top;
 }
 
-/* Marks in c->src_open the nodes the cut opens. */
+/* Marks in c->src.cut_open the nodes the cut opens. */
 static lm_result choose_cut(cache *c, lm_error *err)
 {
     const scene *s = c->s;
+    cache_source_state *st = &c->src;
     uint32_t limit = mesh_qmesh_node_limit(c->direct);
-    if (limit > c->src_cap) {
-        float *e = realloc(c->src_err, limit * sizeof *e);
-        if (e) c->src_err = e;
-        uint8_t *o = e ? realloc(c->src_open, limit) : NULL;
-        if (o) c->src_open = o;
-        struct source_pick *h = o ? realloc(c->src_heap, limit * sizeof *h) : NULL;
-        if (h) c->src_heap = h;
-        if (!h) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-        c->src_cap = limit;
+    if (limit > st->cut_cap) { /* three arrays, one capacity: the node limit itself */
+        if (!lm_realloc_array(&st->cut_err, st->cut_cap, limit, sizeof *st->cut_err) ||
+            !lm_realloc_array(&st->cut_open, st->cut_cap, limit, sizeof *st->cut_open) ||
+            !lm_realloc_array(&st->cut_heap, st->cut_cap, limit, sizeof *st->cut_heap))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+        st->cut_cap = limit;
     }
-    memset(c->src_open, 0, limit);
+    memset(c->src.cut_open, 0, limit);
     uint32_t hn = 0, count = 0;
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(c->direct, t);
         if (root == MESH_QMESH_NONE) continue;
         count++;
         float e = source_error(c, root);
-        if (e > 0.0f) heap_push(c->src_heap, &hn, (struct source_pick){e * s->tri_areas[t], root});
+        if (e > 0.0f) heap_push(c->src.cut_heap, &hn, (struct source_pick){e * s->tri_areas[t], root});
     }
     while (hn && count + 3 <= CACHE_RMESH_TRIANGLES) {
-        struct source_pick p = heap_pop(c->src_heap, &hn);
+        struct source_pick p = heap_pop(c->src.cut_heap, &hn);
         const mesh_qnode *n = mesh_qmesh_node(c->direct, p.node);
-        c->src_open[p.node] = 1;
+        c->src.cut_open[p.node] = 1;
         count += 3;
         double area = s->tri_areas[n->tri] * ldexp(1.0, -2 * ((int)n->depth + 1));
         for (uint32_t k = 0; k < 4; ++k) {
-            float e = c->src_err[n->child + k];
-            if (e > 0.0f) heap_push(c->src_heap, &hn, (struct source_pick){e * (float)area, n->child + k});
+            float e = c->src.cut_err[n->child + k];
+            if (e > 0.0f) heap_push(c->src.cut_heap, &hn, (struct source_pick){e * (float)area, n->child + k});
         }
     }
     return LM_OK;
 }
 
-/* Appends the cut's triangles under `node` to c->leaf_buf. */
+/* Appends the cut's triangles under `node` to c->src.leaf_buf. */
 static lm_result collect_source(cache *c, uint32_t node, size_t *count, lm_error *err)
 {
     const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
-    if (n->child != MESH_QMESH_NONE && c->src_open[node]) {
+    if (n->child != MESH_QMESH_NONE && c->src.cut_open[node]) {
         uint32_t child = n->child;
         for (uint32_t k = 0; k < 4; ++k) {
             lm_result r = collect_source(c, child + k, count, err);
@@ -135,14 +164,9 @@ static lm_result collect_source(cache *c, uint32_t node, size_t *count, lm_error
         }
         return LM_OK;
     }
-    if (*count == c->leaf_cap) {
-        size_t nc = c->leaf_cap ? 2 * c->leaf_cap : 1024;
-        mesh_qmesh_tri *b = realloc(c->leaf_buf, nc * sizeof *b);
-        if (!b) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-        c->leaf_buf = b;
-        c->leaf_cap = nc;
-    }
-    mesh_qmesh_tri *t = &c->leaf_buf[(*count)++];
+    if (*count == c->src.leaf_cap && !LM_GROW(c->src.leaf_buf, c->src.leaf_cap, *count + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+    mesh_qmesh_tri *t = &c->src.leaf_buf[(*count)++];
     t->tri = n->tri;
     t->leaf = node;
     for (int k = 0; k < 3; ++k) {
@@ -163,34 +187,25 @@ static lm_result collect_source(cache *c, uint32_t node, size_t *count, lm_error
  * value whose drift could change what the viewer sees there by more than the JND
  * is flagged, and cache_regather_outdated gathers it again. */
 
-static lm_result grow_drift(cache *c, uint32_t limit, lm_error *err)
+static lm_result grow_drift(cache_source_state *st, uint32_t limit, lm_error *err)
 {
-    if (limit <= c->drift_cap) return LM_OK;
-    size_t cap = c->drift_cap ? c->drift_cap : 1024;
-    while (cap < limit) cap *= 2;
-    float *d = realloc(c->drift, 3 * cap * sizeof *d);
-    if (d) c->drift = d;
-    uint8_t *o = d ? realloc(c->outdated, cap) : NULL;
-    if (o) c->outdated = o;
-    if (!o) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
-    memset(c->drift + 3 * c->drift_cap, 0, 3 * (cap - c->drift_cap) * sizeof *d);
-    memset(c->outdated + c->drift_cap, 0, cap - c->drift_cap);
-    c->drift_cap = cap;
+    if (limit <= st->drift_cap) return LM_OK;
+    /* drift (RGB per id) and outdated share one capacity in vertex ids */
+    size_t cap = lm_grow_capacity(st->drift_cap, limit, 1024, SIZE_MAX / (3 * sizeof *st->drift));
+    if (!cap || !lm_realloc_array(&st->drift, st->drift_cap, cap, 3 * sizeof *st->drift) ||
+        !lm_realloc_array(&st->outdated, st->drift_cap, cap, sizeof *st->outdated))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
+    st->drift_cap = cap;
     return LM_OK;
 }
 
-static lm_result push_outdated(cache *c, uint32_t vid, lm_error *err)
+static lm_result push_outdated(cache_source_state *st, uint32_t vid, lm_error *err)
 {
-    if (c->outdated[vid]) return LM_OK;
-    if (c->outdated_n == c->outdated_cap) {
-        size_t nc = c->outdated_cap ? 2 * c->outdated_cap : 256;
-        uint32_t *p = realloc(c->outdated_list, nc * sizeof *p);
-        if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
-        c->outdated_list = p;
-        c->outdated_cap = nc;
-    }
-    c->outdated_list[c->outdated_n++] = vid;
-    c->outdated[vid] = 1;
+    if (st->outdated[vid]) return LM_OK;
+    if (st->outdated_n == st->outdated_cap && !LM_GROW(st->outdated_list, st->outdated_cap, st->outdated_n + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
+    st->outdated_list[st->outdated_n++] = vid;
+    st->outdated[vid] = 1;
     return LM_OK;
 }
 
@@ -284,26 +299,15 @@ static void drift_bound(const far_field *f, const changed_tri *ch, uint32_t n, c
     }
 }
 
-/* The value at vertex vid as the viewer sees it, with E replaced by `e`. */
-static void seen_indirect_lab(const cache *c, uint32_t vid, const float ldd[3], const float e[3], float lab[3])
-{
-    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
-    const scene_material *m = &c->s->materials[c->s->tris[mv->tri].material];
-    float rgb[3], disp[3];
-    for (int k = 0; k < 3; ++k) rgb[k] = m->le[k] + m->kd[k] * (ldd[k] + fmaxf(e[k], 0.0f) * (float)(1.0 / M_PI));
-    tm_to_display(&c->tm, rgb, disp);
-    tm_display_to_lab(disp, lab);
-}
-
-/* Compares the new source (c->rmesh) with the previous one (c->rp_*), adds the
+/* Compares the new source (c->src.rmesh) with the previous one (c->rp_*), adds the
  * bounds to the drift of every displayed indirect value and flags those that may
  * have moved by more than the JND. */
 static lm_result mark_outdated(cache *c, lm_error *err)
 {
     const scene *s = c->s;
-    const samp_radiance_mesh old = {.tri_count = (uint32_t)c->rp_count, .first = c->rp_first, .bary = c->rp_bary,
-                                    .radiance = c->rp_rad};
-    const samp_radiance_mesh *cur = &c->rmesh;
+    const samp_radiance_mesh old = {.tri_count = (uint32_t)c->src.rp_count, .first = c->src.rp_first, .bary = c->src.rp_bary,
+                                    .radiance = c->src.rp_rad};
+    const samp_radiance_mesh *cur = &c->src.rmesh;
     samp_radiance_index ix_old, ix_new;
     samp_radiance_index_build(s, &old, &ix_old);
     samp_radiance_index_build(s, cur, &ix_new);
@@ -368,17 +372,16 @@ static lm_result mark_outdated(cache *c, lm_error *err)
             memcpy(ct->d, di, sizeof ct->d);
         }
     /* Every displayed indirect value: its drift grows by Σ d·weight. */
-    mesh_vtable_stats vs;
-    mesh_vtable_get_stats(c->vt, &vs);
+    const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
     int any = nch || small[0] > 0.0f || small[1] > 0.0f || small[2] > 0.0f;
-    if (r == LM_OK && any) r = grow_drift(c, vs.id_limit, err);
+    if (r == LM_OK && any) r = grow_drift(&c->src, id_limit, err);
     far_field ff = {0};
     if (r == LM_OK && any && !far_field_make(&ff, ch, nch))
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
     const float eps = samp_origin_epsilon(c->sp);
-    for (uint32_t vid = 0; r == LM_OK && any && vid < vs.id_limit; ++vid) {
+    for (uint32_t vid = 0; r == LM_OK && any && vid < id_limit; ++vid) {
         float e[3];
-        if (c->outdated[vid] || mesh_qmesh_get_value(c->indirect, vid, e) != 1) continue;
+        if (c->src.outdated[vid] || mesh_qmesh_get_value(c->indirect, vid, e) != 1) continue;
         const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
         /* From where the gather looks (a point on a surface's plane sees none of it). */
         samp_point sp = cache_vertex_point(c, vid);
@@ -387,7 +390,7 @@ static lm_result mark_outdated(cache *c, lm_error *err)
         const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
         double add[3] = {M_PI * small[0], M_PI * small[1], M_PI * small[2]};
         drift_bound(&ff, ch, nch, x, nx, add);
-        float *dr = c->drift + 3 * (size_t)vid;
+        float *dr = c->src.drift + 3 * (size_t)vid;
         for (int k = 0; k < 3; ++k) dr[k] += (float)fmin(add[k], 3e38);
         /* Could the drift be seen? E ± drift against E, through the tone map. */
         float ldd[3] = {0, 0, 0}, lab0[3], lab1[3], up[3], down[3];
@@ -398,18 +401,21 @@ static lm_result mark_outdated(cache *c, lm_error *err)
                 LM_OK)
                 ldd[0] = ldd[1] = ldd[2] = 0.0f;
         }
+        /* (E cannot be negative: the bounds are clamped at 0; L_ds is left out.) */
+        float e0[3];
         for (int k = 0; k < 3; ++k) {
-            up[k] = e[k] + dr[k];
-            down[k] = e[k] - dr[k];
+            e0[k] = fmaxf(e[k], 0.0f);
+            up[k] = fmaxf(e[k] + dr[k], 0.0f);
+            down[k] = fmaxf(e[k] - dr[k], 0.0f);
         }
-        seen_indirect_lab(c, vid, ldd, e, lab0);
-        seen_indirect_lab(c, vid, ldd, up, lab1);
+        cache_seen_lab(c, mv->tri, ldd, e0, NULL, lab0);
+        cache_seen_lab(c, mv->tri, ldd, up, NULL, lab1);
         int seen = tm_delta_e(lab0, lab1) > c->desc.jnd;
         if (!seen) {
-            seen_indirect_lab(c, vid, ldd, down, lab1);
+            cache_seen_lab(c, mv->tri, ldd, down, NULL, lab1);
             seen = tm_delta_e(lab0, lab1) > c->desc.jnd;
         }
-        if (seen) r = push_outdated(c, vid, err);
+        if (seen) r = push_outdated(&c->src, vid, err);
     }
     far_field_free(&ff);
     free(ch);
@@ -429,11 +435,8 @@ static lm_result grow_source(const scene *s, uint32_t **first, float **bary, flo
         if (!*first) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
     }
     if (n <= *cap) return LM_OK;
-    float *b = realloc(*bary, n * 6 * sizeof *b);
-    if (b) *bary = b;
-    float *rd = b ? realloc(*rad, n * 9 * sizeof *rd) : NULL;
-    if (rd) *rad = rd;
-    if (!rd) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+    if (!lm_realloc_array(bary, *cap, n, 6 * sizeof **bary) || !lm_realloc_array(rad, *cap, n, 9 * sizeof **rad))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
     *cap = n;
     return LM_OK;
 }
@@ -442,25 +445,25 @@ static lm_result grow_source(const scene *s, uint32_t **first, float **bary, flo
 static lm_result keep_previous(cache *c, lm_error *err)
 {
     const scene *s = c->s;
-    size_t n = c->rmesh.tri_count;
-    lm_result r = grow_source(s, &c->rp_first, &c->rp_bary, &c->rp_rad, &c->rp_cap, n, err);
+    size_t n = c->src.rmesh.tri_count;
+    lm_result r = grow_source(s, &c->src.rp_first, &c->src.rp_bary, &c->src.rp_rad, &c->src.rp_cap, n, err);
     if (r != LM_OK) return r;
-    memcpy(c->rp_first, c->rm_first, ((size_t)s->tri_count + 1) * sizeof *c->rp_first);
-    memcpy(c->rp_bary, c->rm_bary, n * 6 * sizeof *c->rp_bary);
-    memcpy(c->rp_rad, c->rm_rad, n * 9 * sizeof *c->rp_rad);
-    c->rp_count = n;
-    c->rp_valid = 1;
-    c->rp_with_e1 = c->rm_with_e1;
+    memcpy(c->src.rp_first, c->src.rm_first, ((size_t)s->tri_count + 1) * sizeof *c->src.rp_first);
+    memcpy(c->src.rp_bary, c->src.rm_bary, n * 6 * sizeof *c->src.rp_bary);
+    memcpy(c->src.rp_rad, c->src.rm_rad, n * 9 * sizeof *c->src.rp_rad);
+    c->src.rp_count = n;
+    c->src.rp_valid = 1;
+    c->src.rp_with_e1 = c->src.with_e1;
     return LM_OK;
 }
 
 /* ---- the source ----------------------------------------------------------------- */
 
-static int64_t direct_changes(const cache *c)
+int64_t cache_direct_changes(const cache *c)
 {
-    mesh_qmesh_stats st;
-    mesh_qmesh_get_stats(c->direct, &st);
-    return (int64_t)st.splits - (int64_t)st.merges + (int64_t)c->revised;
+    /* Running counts, O(1): mesh_qmesh_get_stats walks every vertex (its byte
+     * share), and this is asked before every gather. */
+    return mesh_qmesh_net_splits(c->direct) + (int64_t)c->vis.revised;
 }
 
 /* Builds the source of the kind asked; track: compare it with the previous
@@ -476,21 +479,21 @@ static lm_result build_source(cache *c, int with_e1, int track, lm_error *err)
         if (root != MESH_QMESH_NONE) r = collect_source(c, root, &count, err);
     }
     if (r != LM_OK) return r;
-    r = grow_source(s, &c->rm_first, &c->rm_bary, &c->rm_rad, &c->rm_cap, count, err);
+    r = grow_source(s, &c->src.rm_first, &c->src.rm_bary, &c->src.rm_rad, &c->src.rm_cap, count, err);
     if (r != LM_OK) return r;
     /* Counting sort by scene triangle (the cut is collected in scene order already,
      * so this keeps the order: leaf_buf[i] is source triangle i). */
-    memset(c->rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->rm_first);
-    for (size_t i = 0; i < count; ++i) c->rm_first[c->leaf_buf[i].tri + 1]++;
-    for (uint32_t t = 0; t < s->tri_count; ++t) c->rm_first[t + 1] += c->rm_first[t];
+    memset(c->src.rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->src.rm_first);
+    for (size_t i = 0; i < count; ++i) c->src.rm_first[c->src.leaf_buf[i].tri + 1]++;
+    for (uint32_t t = 0; t < s->tri_count; ++t) c->src.rm_first[t + 1] += c->src.rm_first[t];
     for (size_t i = 0; i < count; ++i) {
-        const mesh_qmesh_tri *lt = &c->leaf_buf[i];
+        const mesh_qmesh_tri *lt = &c->src.leaf_buf[i];
         const float *kd = s->materials[s->tris[lt->tri].material].kd;
         for (int k = 0; k < 3; ++k) {
             double scale = ldexp(1.0, -(int)lt->bary[k].depth), w1 = lt->bary[k].w[1] * scale,
                    w2 = lt->bary[k].w[2] * scale;
-            c->rm_bary[6 * i + 2 * (size_t)k] = (float)w1;
-            c->rm_bary[6 * i + 2 * (size_t)k + 1] = (float)w2;
+            c->src.rm_bary[6 * i + 2 * (size_t)k] = (float)w1;
+            c->src.rm_bary[6 * i + 2 * (size_t)k + 1] = (float)w2;
             float L[3] = {0, 0, 0}, Ei[3] = {0, 0, 0};
             mesh_qmesh_get_value(c->direct, lt->v[k], L);
             lm_error ignore;
@@ -498,23 +501,20 @@ static lm_result build_source(cache *c, int with_e1, int track, lm_error *err)
                 mesh_qmesh_interpolate(c->indirect1, lt->tri, w1, w2, Ei, &ignore) != LM_OK)
                 Ei[0] = Ei[1] = Ei[2] = 0;
             for (int ch = 0; ch < 3; ++ch)
-                c->rm_rad[9 * i + 3 * (size_t)k + (size_t)ch] = kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
+                c->src.rm_rad[9 * i + 3 * (size_t)k + (size_t)ch] = kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
         }
     }
-    mesh_qmesh_stats st;
-    mesh_qmesh_get_stats(c->direct, &st);
-    c->rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->rm_first, .bary = c->rm_bary,
-                                    .radiance = c->rm_rad};
-    c->rm_built_at = (uint64_t)direct_changes(c);
-    c->rm_nodes = st.nodes;
-    c->rm_stale = 0;
-    c->rm_with_e1 = with_e1;
+    c->src.rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->src.rm_first, .bary = c->src.rm_bary,
+                                    .radiance = c->src.rm_rad};
+    c->src.built_at = cache_direct_changes(c);
+    c->src.built_nodes = mesh_qmesh_node_count(c->direct);
+    c->src.with_e1 = with_e1;
     /* The displayed indirect gathers from kd·(L_dd + E_1/π) with two bounces, from
      * kd·L_dd with one; the first bounce's source is not tracked (E_1 lives at the
      * coarse vertices only). The single-mesh ablation keeps what it gathered. */
     int displayed = with_e1 == (c->indirect1 != NULL);
     if (!displayed) return LM_OK;
-    if (track && !c->desc.single_mesh && c->initialised && c->rp_valid && c->rp_with_e1 == with_e1)
+    if (track && !c->desc.single_mesh && c->initialised && c->src.rp_valid && c->src.rp_with_e1 == with_e1)
         r = mark_outdated(c, err);
     return r == LM_OK ? keep_previous(c, err) : r;
 }
@@ -522,21 +522,21 @@ static lm_result build_source(cache *c, int with_e1, int track, lm_error *err)
 lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err)
 {
     with_e1 = with_e1 && c->indirect1;
-    int64_t changed = direct_changes(c) - (int64_t)c->rm_built_at;
+    int64_t changed = cache_direct_changes(c) - c->src.built_at;
     if (changed < 0) changed = -changed;
-    uint32_t stale = c->rm_nodes / 4;
+    uint32_t stale = c->src.built_nodes / 4;
     stale = stale < 16 ? 16 : stale > CACHE_RMESH_STALE ? CACHE_RMESH_STALE : stale;
-    int fresh = c->rmesh.first && c->rm_with_e1 == with_e1 && !c->rm_stale &&
-                (c->rm_settle ? changed == 0 : changed < (int64_t)stale);
+    int fresh = c->src.rmesh.first && c->src.with_e1 == with_e1 &&
+                (c->src.settle ? changed == 0 : changed < (int64_t)stale);
     if (!force && fresh) return LM_OK;
     return build_source(c, with_e1, 1, err);
 }
 
 lm_result cache_settle_source(cache *c, lm_error *err)
 {
-    c->rm_settle = 1;
+    c->src.settle = 1;
     lm_result r = cache_update_radiance_source(c, 0, c->indirect1 != NULL, err);
-    c->rm_settle = 0;
+    c->src.settle = 0;
     return r;
 }
 
@@ -550,15 +550,15 @@ lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_
     samp_point *pts = malloc(n * sizeof *pts);
     if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     for (uint32_t i = 0; i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
-    r = samp_indirect(c->sp, &c->rmesh, pts, n, E, err);
+    r = samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err);
     free(pts);
-    if (r == LM_OK) c->indirect_stats.samples += n;
+    if (r == LM_OK) c->src.indirect_stats.samples += n;
     /* A value gathered from the current source has not drifted. */
-    if (r == LM_OK && !first_bounce && c->drift)
+    if (r == LM_OK && !first_bounce && c->src.drift)
         for (uint32_t i = 0; i < n; ++i)
-            if (vids[i] < c->drift_cap) {
-                memset(c->drift + 3 * (size_t)vids[i], 0, 3 * sizeof *c->drift);
-                c->outdated[vids[i]] = 0;
+            if (vids[i] < c->src.drift_cap) {
+                memset(c->src.drift + 3 * (size_t)vids[i], 0, 3 * sizeof *c->src.drift);
+                c->src.outdated[vids[i]] = 0;
             }
     return r;
 }
@@ -581,7 +581,7 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
     uint32_t *ids = NULL, *moved = NULL;
     float *E = NULL;
     /* Gathering may rebuild the source and flag more: until none is left. */
-    while (r == LM_OK && c->outdated_n) {
+    while (r == LM_OK && c->src.outdated_n) {
         uint32_t n = 0;
         if (!ids) {
             ids = malloc(BATCH * sizeof *ids);
@@ -593,11 +593,11 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
             }
         }
         /* Take up to a batch from the end of the list (still flagged, still in the mesh). */
-        while (n < BATCH && c->outdated_n) {
-            uint32_t vid = c->outdated_list[--c->outdated_n];
+        while (n < BATCH && c->src.outdated_n) {
+            uint32_t vid = c->src.outdated_list[--c->src.outdated_n];
             float tmp[3];
-            if (!c->outdated[vid]) continue; /* gathered meanwhile */
-            c->outdated[vid] = 0;
+            if (!c->src.outdated[vid]) continue; /* gathered meanwhile */
+            c->src.outdated[vid] = 0;
             if (mesh_qmesh_get_value(c->indirect, vid, tmp) == 1) ids[n++] = vid;
         }
         if (n == 0) continue;
@@ -611,7 +611,7 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
             r = mesh_qmesh_set_value(c->indirect, ids[i], e, err);
             moved[nm++] = ids[i];
         }
-        c->regathered += n;
+        c->src.regathered += n;
         if (r == LM_OK && nm && changed) {
             qsort(moved, nm, sizeof *moved, cmp_vid);
             r = changed(c, CACHE_KIND_INDIRECT, NULL, 0, moved, nm, user, err);
@@ -633,16 +633,15 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
 static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err)
 {
     enum { BATCH = 4096 };
-    mesh_vtable_stats vs;
-    mesh_vtable_get_stats(c->vt, &vs);
+    const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
     lm_result r = build_source(c, !first_bounce, 0, err);
     uint32_t *ids = malloc(BATCH * sizeof *ids);
     float *E = malloc(3 * BATCH * sizeof *E), tmp[3];
     if (r == LM_OK && (!ids || !E)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory re-gathering indirect light");
     uint32_t n = 0;
-    for (uint32_t id = 0; r == LM_OK && id <= vs.id_limit; ++id) {
-        if (id < vs.id_limit && mesh_qmesh_get_value(m, id, tmp) == 1) ids[n++] = id;
-        if (n == BATCH || (id == vs.id_limit && n)) {
+    for (uint32_t id = 0; r == LM_OK && id <= id_limit; ++id) {
+        if (id < id_limit && mesh_qmesh_get_value(m, id, tmp) == 1) ids[n++] = id;
+        if (n == BATCH || (id == id_limit && n)) {
             r = cache_gather(c, first_bounce, ids, n, E, err);
             for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(m, ids[i], E + 3 * (size_t)i, err);
             n = 0;
@@ -660,11 +659,11 @@ lm_result cache_regather_all(cache *c, lm_error *err)
     lm_result r = c->indirect1 ? regather_mesh(c, c->indirect1, 1, err) : LM_OK;
     if (r == LM_OK) r = regather_mesh(c, c->indirect, 0, err);
     if (r == LM_OK) {
-        if (c->drift) {
-            memset(c->drift, 0, 3 * c->drift_cap * sizeof *c->drift);
-            memset(c->outdated, 0, c->drift_cap);
+        if (c->src.drift) {
+            memset(c->src.drift, 0, 3 * c->src.drift_cap * sizeof *c->src.drift);
+            memset(c->src.outdated, 0, c->src.drift_cap);
         }
-        c->outdated_n = 0;
+        c->src.outdated_n = 0;
     }
     return r;
 }

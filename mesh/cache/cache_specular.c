@@ -1,7 +1,8 @@
 /* cache_specular.c — the values of the direct specular mesh (cache.h, eq. 5 of the
- * paper with V_ℓ out of the integral): the area lights' outlines, built once per
- * cache, and the Phong lobe integrated over them (samp_polygon_phong). Worker
- * thread, like the rest of the cache. */
+ * paper with V_ℓ out of the integral): the area lights' outlines (cache_outlines,
+ * this file's part of the cache), built once per cache, and the Phong lobe
+ * integrated over them (samp_polygon_phong). Calls no other file of the cache.
+ * Worker thread, like the rest of the cache. */
 #include "mesh/cache/cache_internal.h"
 
 #include <math.h>
@@ -48,13 +49,10 @@ static int cmp_edge(const void *a, const void *b) { return cmp_u64(&((const outl
 
 static int push_point(outline_buf *b, const float p[3])
 {
-    if (b->xyz_n == b->xyz_cap) {
-        size_t nc = b->xyz_cap ? 2 * b->xyz_cap : 64;
-        double *q = realloc(b->xyz, 3 * nc * sizeof *q);
-        if (!q) return 0;
-        b->xyz = q;
-        b->xyz_cap = nc;
-    }
+    /* xyz holds points of three doubles: one capacity in points. */
+    size_t nc = lm_grow_capacity(b->xyz_cap, b->xyz_n + 1, 64, SIZE_MAX / (3 * sizeof *b->xyz));
+    if (!nc || !lm_realloc_array(&b->xyz, b->xyz_cap, nc, 3 * sizeof *b->xyz)) return 0;
+    b->xyz_cap = nc;
     for (int k = 0; k < 3; ++k) b->xyz[3 * b->xyz_n + (size_t)k] = p[k];
     b->xyz_n++;
     return 1;
@@ -98,13 +96,11 @@ static int close_loop(outline_buf *b, size_t start, const float front[3])
                 P[3 * i + (size_t)k] = P[3 * (m - 1 - i) + (size_t)k];
                 P[3 * (m - 1 - i) + (size_t)k] = t;
             }
-    if (b->loop_n + 2 > b->loop_cap) {
-        size_t nc = b->loop_cap ? 2 * b->loop_cap : 16;
-        uint32_t *q = realloc(b->loop, nc * sizeof *q);
-        if (q) b->loop = q;
-        int8_t *sg = q ? realloc(b->sign, nc * sizeof *sg) : NULL;
-        if (sg) b->sign = sg;
-        if (!q || !sg) return 0;
+    if (b->loop_n + 2 > b->loop_cap) { /* loop and sign share one capacity */
+        size_t nc = lm_grow_capacity(b->loop_cap, b->loop_n + 2, 16, SIZE_MAX / sizeof *b->loop);
+        if (!nc || !lm_realloc_array(&b->loop, b->loop_cap, nc, sizeof *b->loop) ||
+            !lm_realloc_array(&b->sign, b->loop_cap, nc, sizeof *b->sign))
+            return 0;
         b->loop_cap = nc;
     }
     b->sign[b->loop_n] = sign;
@@ -179,20 +175,19 @@ static int outline_light(const scene *s, const scene_area_light *L, outline_buf 
     return ok;
 }
 
-int cache_build_outlines(cache *c)
+int cache_build_outlines(cache_outlines *o, const scene *s, uint32_t light_count)
 {
-    const scene *s = c->s;
     outline_buf b = {0};
-    b.light_loop = calloc((size_t)c->light_count + 1, sizeof *b.light_loop);
+    b.light_loop = calloc((size_t)light_count + 1, sizeof *b.light_loop);
     b.loop = calloc(16, sizeof *b.loop);
     b.sign = calloc(16, sizeof *b.sign);
     b.loop_cap = 16;
     int ok = b.light_loop && b.loop && b.sign;
-    for (uint32_t l = 0; ok && l < c->light_count; ++l) {
+    for (uint32_t l = 0; ok && l < light_count; ++l) {
         b.light_loop[l] = (uint32_t)b.loop_n;
         if (l < s->area_light_count) ok = outline_light(s, &s->area_lights[l], &b);
     }
-    if (ok) b.light_loop[c->light_count] = (uint32_t)b.loop_n;
+    if (ok) b.light_loop[light_count] = (uint32_t)b.loop_n;
     if (!ok) {
         free(b.xyz);
         free(b.loop);
@@ -200,13 +195,22 @@ int cache_build_outlines(cache *c)
         free(b.light_loop);
         return 0;
     }
-    c->spec_outline = b.xyz;
-    c->spec_loop = b.loop;
-    c->spec_loop_sign = b.sign;
-    c->spec_light_loop = b.light_loop;
-    c->spec_outline_bytes = b.xyz_cap * 3 * sizeof(double) + b.loop_cap * (sizeof(uint32_t) + 1) +
-                            ((size_t)c->light_count + 1) * sizeof(uint32_t);
+    o->xyz = b.xyz;
+    o->loop = b.loop;
+    o->loop_sign = b.sign;
+    o->light_loop = b.light_loop;
+    o->bytes = b.xyz_cap * 3 * sizeof(double) + b.loop_cap * (sizeof(uint32_t) + 1) +
+               ((size_t)light_count + 1) * sizeof(uint32_t);
     return 1;
+}
+
+void cache_outlines_free(cache_outlines *o)
+{
+    free(o->xyz);
+    free(o->loop);
+    free(o->light_loop);
+    free(o->loop_sign);
+    memset(o, 0, sizeof *o);
 }
 
 /* ---- values ------------------------------------------------------------------- */
@@ -228,11 +232,12 @@ static double light_phong(const cache *c, uint32_t l, const double x[3], const d
         double cosa = dv3_dot(mirror, w);
         return cosa > 0.0 ? (n + 2.0) / (2.0 * M_PI) * pow(cosa, n) * g : 0.0;
     }
+    const cache_outlines *o = &c->outl;
     double sum = 0.0;
-    for (uint32_t k = c->spec_light_loop[l]; k < c->spec_light_loop[l + 1]; ++k) {
-        const double(*P)[3] = (const double(*)[3])(c->spec_outline + 3 * (size_t)c->spec_loop[k]);
-        int np = (int)(c->spec_loop[k + 1] - c->spec_loop[k]);
-        sum += c->spec_loop_sign[k] * samp_polygon_phong(P, np, x, nx, wo, n);
+    for (uint32_t k = o->light_loop[l]; k < o->light_loop[l + 1]; ++k) {
+        const double(*P)[3] = (const double(*)[3])(o->xyz + 3 * (size_t)o->loop[k]);
+        int np = (int)(o->loop[k + 1] - o->loop[k]);
+        sum += o->loop_sign[k] * samp_polygon_phong(P, np, x, nx, wo, n);
     }
     return sum > 0.0 ? sum : 0.0; /* a hole's round-off cannot make light negative */
 }

@@ -1,0 +1,407 @@
+/* cache_light.c — what the light meshes give the cache (cache.h; paper §4.3.4):
+ * visible fractions V_ℓ at radiance vertices (interpolated where a light leaf can
+ * answer confidently, else the light mesh split and sampled), the direct values
+ * L_dd from them (eq. 4) with G_ℓ kept per vertex for light edits, the specular
+ * values through cache_specular.c, and the falsified light leaves whose answers
+ * are recomputed. Owns cache_light_state (cache_internal.h); calls cache_site.c
+ * and cache_specular.c below it. Worker thread, like the rest of the cache. */
+#include "mesh/cache/cache_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "sampling/samp.h"
+#include "src/base/vecmath.h" /* M_PI */
+
+/* V within this of 1 (or of 0) at a light leaf's corners counts as wholly visible
+ * (hidden): the control-variate samplers return exactly 1 and 0 there, up to float
+ * rounding of G/G_unocc. */
+#define CACHE_V_EPS 1e-4f
+
+int cache_light_state_init(cache_light_state *st, uint32_t light_count)
+{
+    memset(st, 0, sizeof *st);
+    st->light_stats = calloc(light_count ? light_count : 1, sizeof *st->light_stats);
+    return st->light_stats != NULL;
+}
+
+void cache_light_state_free(cache_light_state *st)
+{
+    free(st->vertex_G);
+    free(st->falsified);
+    free(st->light_stats);
+    memset(st, 0, sizeof *st);
+}
+
+size_t cache_light_state_bytes(const cache_light_state *st, uint32_t light_count)
+{
+    return st->falsified_cap * sizeof(cache_region) + st->vertex_G_cap * light_count * sizeof(float);
+}
+
+/* ---- visibility (§4.3.4) ----------------------------------------------------- */
+
+/* 1 (0) when V is uniformly 1 (0) at the leaf's three sampled corners, else -1. */
+static int uniform_V(const mesh_qmesh *m, const mesh_qnode *leaf)
+{
+    float v[3];
+    for (int k = 0; k < 3; ++k)
+        if (mesh_qmesh_get_value(m, leaf->v[k], &v[k]) != 1) return -1;
+    if (v[0] >= 1.0f - CACHE_V_EPS && v[1] >= 1.0f - CACHE_V_EPS && v[2] >= 1.0f - CACHE_V_EPS) return 1;
+    if (v[0] <= CACHE_V_EPS && v[1] <= CACHE_V_EPS && v[2] <= CACHE_V_EPS) return 0;
+    return -1;
+}
+
+/* Interpolated V at (w1, w2) when leaf can answer confidently, else -1. */
+static float confident_V(const mesh_qmesh *m, const mesh_qnode *leaf, uint32_t asking_depth)
+{
+    if ((uint32_t)leaf->depth + CACHE_LIGHT_LAG < asking_depth) return -1.0f;
+    int u = uniform_V(m, leaf);
+    return u < 0 ? -1.0f : (float)u;
+}
+
+/* Records light leaf n (just split, its corners uniform) as falsified. */
+static lm_result push_falsified(cache *c, uint32_t l, const mesh_qnode *n, lm_error *err)
+{
+    cache_light_state *st = &c->vis;
+    if (!LM_GROW(st->falsified, st->falsified_cap, st->falsified_n + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory recording a falsified light leaf");
+    cache_region *rg = &st->falsified[st->falsified_n++];
+    rg->light = l;
+    rg->tri = n->tri;
+    for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &rg->w1[k], &rg->w2[k]);
+    st->falsified_total++;
+    return LM_OK;
+}
+
+/* Samples V of light l at the given vertices of its mesh and stores them. */
+lm_result cache_sample_light(cache *c, uint32_t l, const uint32_t *vids, uint32_t n, lm_error *err)
+{
+    if (n == 0) return LM_OK;
+    samp_point *pts = calloc(n, sizeof *pts);
+    float *G = calloc(n, sizeof *G);
+    lm_result r = pts && G ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling a light");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
+    if (r == LM_OK) r = samp_direct(c->sp, l, pts, n, G, err);
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        double g0 = cache_unoccluded(c, l, vids[i]);
+        /* Where the light is below the horizon V is moot (G = V·0); 1 keeps such
+         * corners from making a lit leaf look uncertain. */
+        float V = g0 > 0.0 ? (float)fmin(1.0, fmax(0.0, G[i] / g0)) : 1.0f;
+        r = mesh_qmesh_set_value(c->light[l], vids[i], &V, err);
+    }
+    if (r == LM_OK) c->vis.light_stats[l].samples += n;
+    free(pts);
+    free(G);
+    return r;
+}
+
+/* Appends to *need (deduplicated by a sampled check) the corners of node that
+ * light mesh m uses but has not sampled. */
+static lm_result want_unsampled(const mesh_qmesh *m, const mesh_qnode *n, uint32_t **need, uint32_t *count,
+                                uint32_t *cap, lm_error *err)
+{
+    for (int k = 0; k < 3; ++k) {
+        float dummy;
+        if (mesh_qmesh_get_value(m, n->v[k], &dummy) == 1) continue;
+        int dup = 0;
+        for (uint32_t i = 0; i < *count && !dup; ++i) dup = (*need)[i] == n->v[k];
+        if (dup) continue;
+        if (*count == *cap) { /* a uint32_t capacity */
+            size_t nc = lm_grow_capacity(*cap, (size_t)*count + 1, 64, UINT32_MAX);
+            if (!nc || !lm_realloc_array(need, *cap, nc, sizeof **need))
+                return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining a light mesh");
+            *cap = (uint32_t)nc;
+        }
+        (*need)[(*count)++] = n->v[k];
+    }
+    return LM_OK;
+}
+
+/* Single-mesh ablation: V of every light sampled at every site. */
+static lm_result fetch_visibility_single(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err)
+{
+    const uint32_t L = c->light_count;
+    samp_point *pts = calloc(n ? n : 1, sizeof *pts);
+    float *G = calloc(n ? n : 1, sizeof *G);
+    lm_result r = pts && G ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling lights");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) pts[i] = cache_vertex_point(c, sites[i].vid);
+    for (uint32_t l = 0; r == LM_OK && l < L; ++l) {
+        r = samp_direct(c->sp, l, pts, n, G, err);
+        for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+            double g0 = cache_unoccluded(c, l, sites[i].vid);
+            V[(size_t)i * L + l] = g0 > 0.0 ? (float)fmin(1.0, fmax(0.0, G[i] / g0)) : 1.0f;
+        }
+        if (r == LM_OK) c->vis.light_stats[l].samples += n;
+    }
+    free(pts);
+    free(G);
+    return r;
+}
+
+lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err)
+{
+    const uint32_t L = c->light_count;
+    if (c->desc.single_mesh) return fetch_visibility_single(c, sites, n, V, err);
+    uint8_t *resolved = calloc(n ? n : 1, 1);
+    uint32_t *need = NULL, need_n = 0, need_cap = 0;
+    /* Leaves split in a round whose corners were uniform (they could have answered
+     * before, at a shallower site): checked once their midpoints are sampled. */
+    uint32_t *split_uniform = malloc((n ? n : 1) * sizeof *split_uniform), split_n = 0;
+    int *split_u = malloc((n ? n : 1) * sizeof *split_u);
+    lm_result r = resolved && split_uniform && split_u
+                      ? LM_OK
+                      : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory fetching visibility");
+    for (uint32_t l = 0; r == LM_OK && l < L; ++l) {
+        mesh_qmesh *m = c->light[l];
+        memset(resolved, 0, n);
+        /* Each round splits, once, the light leaves that hold an unresolved site
+         * and cannot answer, and samples their new corners in one batch. */
+        for (int round = 0; r == LM_OK && round <= MESH_DEPTH_MAX + 1; ++round) {
+            need_n = 0;
+            split_n = 0;
+            uint32_t splits = 0;
+            for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+                if (resolved[i]) continue;
+                const cache_site *st = &sites[i];
+                float v;
+                /* A vertex shared with a triangle that sees the light has its value
+                 * there even when the asking triangle does not. */
+                if (m && mesh_qmesh_get_value(m, st->vid, &v) == 1) {
+                    V[(size_t)i * L + l] = v;
+                    resolved[i] = 1;
+                    continue;
+                }
+                if (!m || mesh_qmesh_root(m, st->tri) == MESH_QMESH_NONE) {
+                    V[(size_t)i * L + l] = 0.0f; /* this triangle cannot see the light */
+                    resolved[i] = 1;
+                    continue;
+                }
+                uint32_t leaf = cache_find_leaf(m, st->tri, st->w1, st->w2);
+                const mesh_qnode *ln = mesh_qmesh_node(m, leaf);
+                int corners_known = 1;
+                for (int k = 0; k < 3; ++k) corners_known &= mesh_qmesh_get_value(m, ln->v[k], &v) == 1;
+                if (!corners_known) {
+                    /* Split earlier in this round: its corners are in this round's
+                     * batch; ask again once they are sampled. */
+                    r = want_unsampled(m, ln, &need, &need_n, &need_cap, err);
+                    continue;
+                }
+                float cv = confident_V(m, ln, st->depth);
+                if (cv >= 0.0f) {
+                    V[(size_t)i * L + l] = cv;
+                    resolved[i] = 1;
+                    c->vis.light_stats[l].interpolated++;
+                    continue;
+                }
+                if (ln->depth > st->depth) { /* cannot happen: sites lie on the lattice of depth+1 */
+                    r = lm_fail(err, LM_ERR_RUNTIME, "light mesh deeper than its radiance site");
+                    break;
+                }
+                int u = uniform_V(m, ln); /* read before the split: the pool may move */
+                r = mesh_qmesh_split(m, leaf, err);
+                splits += r == LM_OK;
+                if (r == LM_OK && u >= 0 && split_n < n) {
+                    split_uniform[split_n] = leaf;
+                    split_u[split_n++] = u;
+                }
+                if (r == LM_OK) {
+                    const mesh_qnode *p = mesh_qmesh_node(m, leaf);
+                    for (uint32_t k = 0; r == LM_OK && k < 4; ++k)
+                        r = want_unsampled(m, mesh_qmesh_node(m, p->child + k), &need, &need_n, &need_cap, err);
+                }
+            }
+            /* A split whose new corners all have values already (shared with a
+             * neighbour that sampled them) needs no samples, but its sites are
+             * not resolved yet: another round, else their V would be left unset. */
+            if (r != LM_OK || (need_n == 0 && splits == 0)) break;
+            if (need_n) r = cache_sample_light(c, l, need, need_n, err);
+            /* A uniform leaf whose midpoints disagree was wrong wherever it answered. */
+            for (uint32_t j = 0; r == LM_OK && j < split_n; ++j) {
+                const mesh_qnode *p = mesh_qmesh_node(m, split_uniform[j]);
+                if (uniform_V(m, mesh_qmesh_node(m, p->child + 3)) != split_u[j]) r = push_falsified(c, l, p, err);
+            }
+        }
+    }
+    free(split_uniform);
+    free(split_u);
+    free(need);
+    free(resolved);
+    return r;
+}
+
+
+/* ---- values ------------------------------------------------------------------ */
+
+/* L_dd = (1/π)·Σ_ℓ L_ℓ·G_ℓ from the G row of one vertex. */
+static void direct_from_G(const cache *c, const float *G, float rgb[3])
+{
+    double e[3] = {0, 0, 0};
+    for (uint32_t l = 0; l < c->light_count; ++l)
+        for (int k = 0; k < 3; ++k) e[k] += (double)c->light_le[3 * l + (uint32_t)k] * G[l];
+    for (int k = 0; k < 3; ++k) {
+        double v = e[k] / M_PI;
+        rgb[k] = v < 3e38 ? (float)v : 3e38f;
+    }
+}
+
+lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err)
+{
+    const size_t L = c->light_count;
+    cache_light_state *st = &c->vis;
+    if (vid >= st->vertex_G_cap) { /* a row of L floats per vertex id */
+        size_t row = (L ? L : 1) * sizeof *st->vertex_G;
+        size_t cap = lm_grow_capacity(st->vertex_G_cap, (size_t)vid + 1, 1024, SIZE_MAX / row);
+        if (!cap || !lm_realloc_array(&st->vertex_G, st->vertex_G_cap, cap, row))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the cache's G values");
+        st->vertex_G_cap = cap;
+    }
+    float *G = st->vertex_G + (size_t)vid * L;
+    for (uint32_t l = 0; l < L; ++l) {
+        double g = V[l] > 0.0f ? V[l] * cache_unoccluded(c, l, vid) : 0.0;
+        G[l] = g < 3e38 ? (float)g : 3e38f;
+    }
+    direct_from_G(c, G, rgb);
+    return LM_OK;
+}
+
+/* The direct or specular values at the sites (cache_light_values, not counted). */
+static lm_result light_values(cache *c, cache_kind kind, const cache_site *sites, uint32_t n, float *rgb,
+                              lm_error *err)
+{
+    float *V = malloc(((size_t)n * c->light_count + 1) * sizeof *V);
+    lm_result r = V ? cache_fetch_visibility(c, sites, n, V, err)
+                    : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory fetching visibility");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        const float *Vi = V + (size_t)i * c->light_count;
+        if (kind == CACHE_KIND_DIRECT)
+            r = cache_direct_from_visibility(c, sites[i].vid, Vi, rgb + 3 * (size_t)i, err);
+        else
+            cache_specular_from_visibility(c, sites[i].vid, Vi, rgb + 3 * (size_t)i);
+    }
+    free(V);
+    return r;
+}
+
+lm_result cache_light_values(cache *c, cache_kind kind, const cache_site *sites, uint32_t n, float *rgb,
+                             lm_error *err)
+{
+    lm_result r = light_values(c, kind, sites, n, rgb, err);
+    if (r == LM_OK) (kind == CACHE_KIND_DIRECT ? &c->vis.direct_stats : &c->vis.specular_stats)->samples += n;
+    return r;
+}
+
+lm_result cache_relight_direct(cache *c, lm_error *err)
+{
+    const cache_light_state *st = &c->vis;
+    uint32_t limit = mesh_vtable_id_limit(c->vt);
+    for (uint32_t id = 0; id < limit && id < st->vertex_G_cap; ++id) {
+        float old[3], rgb[3];
+        if (mesh_qmesh_get_value(c->direct, id, old) != 1) continue;
+        direct_from_G(c, st->vertex_G + (size_t)id * c->light_count, rgb);
+        lm_result r = mesh_qmesh_set_value(c->direct, id, rgb, err);
+        if (r != LM_OK) return r;
+    }
+    return LM_OK;
+}
+
+/* ---- falsified light leaves -------------------------------------------------- */
+
+typedef struct revise_sites {
+    const cache *c;
+    const cache_region *rg;
+    cache_site *s;
+    uint32_t n, cap;
+} revise_sites;
+
+/* The corners of a node that lie in the region and have a value in m: sites to
+ * fetch again, asked at the depth that made them (a vertex of reduced depth k is
+ * the midpoint of an edge of a depth k−1 leaf), so the lag allowed is the same. */
+static lm_result collect_region_sites(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user,
+                                      lm_error *err)
+{
+    (void)node;
+    revise_sites *rs = user;
+    for (int k = 0; k < 3; ++k) {
+        float tmp[3];
+        double w1, w2;
+        if (mesh_qmesh_get_value(m, n->v[k], tmp) != 1) continue;
+        cache_node_corner_bary(n, k, &w1, &w2);
+        if (!cache_region_contains(rs->rg, w1, w2)) continue;
+        if (rs->n == rs->cap) { /* a uint32_t capacity */
+            size_t nc = lm_grow_capacity(rs->cap, (size_t)rs->n + 1, 256, UINT32_MAX);
+            if (!nc || !lm_realloc_array(&rs->s, rs->cap, nc, sizeof *rs->s))
+                return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory revising the cache");
+            rs->cap = (uint32_t)nc;
+        }
+        uint32_t d = mesh_vtable_vertex(rs->c->vt, n->v[k])->bary.depth;
+        rs->s[rs->n++] = (cache_site){.vid = n->v[k], .tri = n->tri, .w1 = w1, .w2 = w2, .depth = d ? d - 1 : 0};
+    }
+    return LM_OK;
+}
+
+static int site_by_vid(const void *a, const void *b)
+{
+    uint32_t x = ((const cache_site *)a)->vid, y = ((const cache_site *)b)->vid;
+    return (x > y) - (x < y);
+}
+
+lm_result cache_revise_falsified(cache *c, cache_changed_fn changed, void *user, lm_error *err)
+{
+    lm_result r = LM_OK;
+    revise_sites rs = {.c = c};
+    float *vals = NULL;
+    uint32_t *ids = NULL;
+    cache_light_state *st = &c->vis;
+    while (r == LM_OK && st->falsified_n) {
+        /* Take the list: fetching again may record more. */
+        uint32_t nreg = (uint32_t)st->falsified_n;
+        cache_region *regions = malloc(nreg * sizeof *regions);
+        if (!regions) {
+            r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory revising the cache");
+            break;
+        }
+        memcpy(regions, st->falsified, nreg * sizeof *regions);
+        st->falsified_n = 0;
+        for (int kind = CACHE_KIND_DIRECT; r == LM_OK && kind < CACHE_KINDS; ++kind) {
+            mesh_qmesh *m = cache_kind_mesh(c, (cache_kind)kind);
+            if (kind == CACHE_KIND_INDIRECT || !m) continue; /* indirect values do not come from V */
+            rs.n = 0;
+            for (uint32_t i = 0; r == LM_OK && i < nreg; ++i) {
+                rs.rg = &regions[i];
+                r = cache_region_walk(m, &regions[i], collect_region_sites, &rs, err);
+            }
+            if (r != LM_OK || rs.n == 0) continue;
+            qsort(rs.s, rs.n, sizeof *rs.s, site_by_vid);
+            uint32_t ns = 0;
+            for (uint32_t i = 0; i < rs.n; ++i)
+                if (ns == 0 || rs.s[ns - 1].vid != rs.s[i].vid) rs.s[ns++] = rs.s[i];
+            free(vals);
+            free(ids);
+            vals = malloc(3 * (size_t)ns * sizeof *vals);
+            ids = malloc(ns * sizeof *ids);
+            if (!vals || !ids) {
+                r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory revising the cache");
+                break;
+            }
+            r = light_values(c, (cache_kind)kind, rs.s, ns, vals, err); /* not new samples of the mesh */
+            uint32_t nchanged = 0;
+            for (uint32_t i = 0; r == LM_OK && i < ns; ++i) {
+                float old[3];
+                const float *rgb = vals + 3 * (size_t)i;
+                mesh_qmesh_get_value(m, rs.s[i].vid, old);
+                if (rgb[0] == old[0] && rgb[1] == old[1] && rgb[2] == old[2]) continue;
+                r = mesh_qmesh_set_value(m, rs.s[i].vid, rgb, err);
+                ids[nchanged++] = rs.s[i].vid;
+            }
+            st->revised += nchanged;
+            if (r == LM_OK && nchanged && changed)
+                r = changed(c, (cache_kind)kind, regions, nreg, ids, nchanged, user, err);
+        }
+        free(regions);
+    }
+    free(rs.s);
+    free(vals);
+    free(ids);
+    return r;
+}

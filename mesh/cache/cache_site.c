@@ -1,0 +1,159 @@
+/* cache_site.c — the lowest file of the cache (cache_internal.h): where values are
+ * asked (a vertex as the sampler's receiver, its unoccluded G), the leaves and
+ * regions of the meshes in barycentric space, and what the viewer sees of a value
+ * (the composite's formula, paper §6), which every JND test of the cache uses.
+ * Calls nothing of the cache's other files. Worker thread, like the rest. */
+#include "mesh/cache/cache_internal.h"
+
+#include <math.h>
+#include <string.h>
+
+#include "sampling/analytic.h"
+#include "src/base/vecmath.h"
+
+mesh_qmesh *cache_kind_mesh(const cache *c, cache_kind kind)
+{
+    return kind == CACHE_KIND_DIRECT ? c->direct : kind == CACHE_KIND_INDIRECT ? c->indirect : c->specular;
+}
+
+samp_point cache_vertex_point(const cache *c, uint32_t vid)
+{
+    const mesh_vertex *v = mesh_vtable_vertex(c->vt, vid);
+    samp_point p = {.tri_plus_one = v->tri + 1};
+    memcpy(p.p, v->position, sizeof p.p);
+    memcpy(p.n, v->normal, sizeof p.n);
+    return p;
+}
+
+double cache_unoccluded_at(const scene *s, uint32_t l, const float p[3], const float n[3])
+{
+    if (l < s->area_light_count) return samp_area_light_unoccluded(s, l, p, n);
+    const float *q = s->point_lights[l - s->area_light_count].position;
+    const double Q[3] = {q[0], q[1], q[2]}, X[3] = {p[0], p[1], p[2]}, N[3] = {n[0], n[1], n[2]};
+    return samp_point_G(Q, X, N);
+}
+
+double cache_unoccluded(const cache *c, uint32_t l, uint32_t vid)
+{
+    const mesh_vertex *v = mesh_vtable_vertex(c->vt, vid);
+    return cache_unoccluded_at(c->s, l, v->position, v->normal);
+}
+
+/* ---- leaves and regions ------------------------------------------------------- */
+
+void cache_node_corner_bary(const mesh_qnode *n, int k, double *w1, double *w2)
+{
+    mesh_bary b = mesh_qmesh_node_corner(n, k);
+    double scale = ldexp(1.0, -(int)b.depth);
+    *w1 = b.w[1] * scale;
+    *w2 = b.w[2] * scale;
+}
+
+/* Is (w1, w2) inside the closed triangle (a, b, c) of barycentric space, either winding? */
+static int bary_in_triangle(const double a[2], const double b[2], const double c[2], double w1, double w2)
+{
+    const double eps = 1e-12;
+    double d0 = (b[0] - a[0]) * (w2 - a[1]) - (b[1] - a[1]) * (w1 - a[0]);
+    double d1 = (c[0] - b[0]) * (w2 - b[1]) - (c[1] - b[1]) * (w1 - b[0]);
+    double d2 = (a[0] - c[0]) * (w2 - c[1]) - (a[1] - c[1]) * (w1 - c[0]);
+    int neg = d0 < -eps || d1 < -eps || d2 < -eps, pos = d0 > eps || d1 > eps || d2 > eps;
+    return !(neg && pos);
+}
+
+/* Is (w1, w2) inside the node's triangle (barycentric space of its scene triangle)? */
+static int node_contains(const mesh_qnode *n, double w1, double w2)
+{
+    double a[2], b[2], c[2];
+    cache_node_corner_bary(n, 0, &a[0], &a[1]);
+    cache_node_corner_bary(n, 1, &b[0], &b[1]);
+    cache_node_corner_bary(n, 2, &c[0], &c[1]);
+    return bary_in_triangle(a, b, c, w1, w2);
+}
+
+int cache_region_contains(const cache_region *rg, double w1, double w2)
+{
+    const double a[2] = {rg->w1[0], rg->w2[0]}, b[2] = {rg->w1[1], rg->w2[1]}, c[2] = {rg->w1[2], rg->w2[2]};
+    return bary_in_triangle(a, b, c, w1, w2);
+}
+
+uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2)
+{
+    uint32_t node = mesh_qmesh_root(m, tri);
+    if (node == MESH_QMESH_NONE) return MESH_QMESH_NONE;
+    for (;;) {
+        const mesh_qnode *n = mesh_qmesh_node(m, node);
+        if (n->child == MESH_QMESH_NONE) return node;
+        uint32_t next = n->child + 3; /* the centre child when rounding leaves no other */
+        for (uint32_t k = 0; k < 4; ++k)
+            if (node_contains(mesh_qmesh_node(m, n->child + k), w1, w2)) {
+                next = n->child + k;
+                break;
+            }
+        node = next;
+    }
+}
+
+lm_result cache_region_walk(const mesh_qmesh *m, const cache_region *rg, cache_node_fn visit, void *user, lm_error *err)
+{
+    uint32_t root = mesh_qmesh_root(m, rg->tri);
+    if (root == MESH_QMESH_NONE) return LM_OK;
+    const double eps = 1e-12;
+    double lo1 = fmin(rg->w1[0], fmin(rg->w1[1], rg->w1[2])) - eps, hi1 = fmax(rg->w1[0], fmax(rg->w1[1], rg->w1[2])) + eps;
+    double lo2 = fmin(rg->w2[0], fmin(rg->w2[1], rg->w2[2])) - eps, hi2 = fmax(rg->w2[0], fmax(rg->w2[1], rg->w2[2])) + eps;
+    uint32_t stack[4 * (MESH_DEPTH_MAX + 2)];
+    uint32_t top = 0;
+    stack[top++] = root;
+    lm_result r = LM_OK;
+    while (r == LM_OK && top) {
+        uint32_t node = stack[--top];
+        const mesh_qnode *n = mesh_qmesh_node(m, node);
+        double a1 = INFINITY, b1 = -INFINITY, a2 = INFINITY, b2 = -INFINITY;
+        for (int k = 0; k < 3; ++k) {
+            double w1, w2;
+            cache_node_corner_bary(n, k, &w1, &w2);
+            a1 = fmin(a1, w1);
+            b1 = fmax(b1, w1);
+            a2 = fmin(a2, w2);
+            b2 = fmax(b2, w2);
+        }
+        if (b1 < lo1 || a1 > hi1 || b2 < lo2 || a2 > hi2) continue;
+        r = visit(m, node, n, user, err);
+        if (r == LM_OK && n->child != MESH_QMESH_NONE)
+            for (uint32_t k = 0; k < 4; ++k) stack[top++] = n->child + k;
+    }
+    return r;
+}
+
+/* ---- what the viewer sees (paper §6) ------------------------------------------ */
+
+void cache_seen_radiance(const scene_material *m, int front, const float ldd[3], const float ei[3],
+                         const float lds[3], float rgb[3])
+{
+    /* The composite's order of operations, so the cache judges the colour the
+     * display shows (a float added as 0 where a term is absent changes nothing). */
+    for (int k = 0; k < 3; ++k) {
+        float le = front ? m->le[k] : 0.0f, spec = lds ? m->ks[k] * lds[k] : 0.0f;
+        rgb[k] = le + m->kd[k] * (ldd[k] + ei[k] * (float)(1.0 / M_PI)) + spec;
+    }
+}
+
+int cache_sees_front(const cache *c, uint32_t tri)
+{
+    const scene *s = c->s;
+    const float *n = s->tri_normals + 3 * (size_t)tri, *p = s->positions + 3 * (size_t)s->tris[tri].v[0];
+    double d = 0.0;
+    for (int k = 0; k < 3; ++k) d += ((double)c->eye[k] - p[k]) * n[k];
+    return d > 0.0;
+}
+
+void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const float ei[3], const float lds[3],
+                    float lab[3])
+{
+    const scene_material *m = &c->s->materials[c->s->tris[tri].material];
+    /* Only an emitter's side matters; the others skip the plane test. */
+    int front = m->le[0] > 0.0f || m->le[1] > 0.0f || m->le[2] > 0.0f ? cache_sees_front(c, tri) : 1;
+    float rgb[3], disp[3];
+    cache_seen_radiance(m, front, ldd, ei, lds, rgb);
+    tm_to_display(&c->tm, rgb, disp);
+    tm_display_to_lab(disp, lab);
+}
