@@ -19,14 +19,14 @@
 #include <time.h>
 
 #include "mesh/cache/cache.h"
-#include "src/gpu/gl_context.h"
-#include "src/base/rng.h"
-#include "src/scene/camera.h"
-#include "src/render/rend_id.h"
 #include "sampling/rt_scene.h"
 #include "sampling/samp.h"
+#include "src/base/rng.h"
 #include "src/base/tonemap.h"
 #include "src/base/vecmath.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_id.h"
+#include "src/scene/camera.h"
 
 static void print_mesh(const char *name, const cache_mesh_stats *m)
 {

@@ -7,8 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/scene/scene.h"
 #include "src/base/vecmath.h"
+#include "src/scene/scene.h"
 
 /* Writes an emissive lat-long sphere (nlat x nlon) as OBJ+MTL into dir. */
 static int write_emissive_sphere(const char *dir, int nlat, int nlon, char *path, size_t n)

@@ -19,8 +19,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/base/rng.h"
 #include "sampling/samp.h"
+#include "src/base/rng.h"
 #include "src/scene/scene.h"
 
 enum { BATCH = 256, BATCHES = 5, MAX_POINTS = 64 };

@@ -39,9 +39,9 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "src/scene/scene.h"
-#include "src/base/util.h"
 #include "mesh/vtable.h"
+#include "src/base/util.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {

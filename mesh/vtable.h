@@ -1,5 +1,5 @@
-/* vtable.h — the vertex table shared by all cache meshes (paper §4.1–4.2; DESIGN.md,
- * "Caches: many meshes over one geometric mesh").
+/* vtable.h — the vertex table shared by all cache meshes (paper §4.1–4.2;
+ * docs/cache.md).
  *
  * Every vertex a cache mesh creates by midpoint splits lies at an exact dyadic
  * barycentric address in a scene triangle T = (A,B,C): (w0, w1, w2) / 2^depth with
@@ -45,8 +45,8 @@
 
 #include <stddef.h>
 #include <stdint.h>
-#include "src/scene/scene.h"
 #include "src/base/util.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {

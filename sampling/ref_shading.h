@@ -7,10 +7,10 @@
 
 #include <stdint.h>
 
-#include "src/base/rng.h"
 #include "sampling/rt_scene.h"
-#include "src/scene/scene.h"
+#include "src/base/rng.h"
 #include "src/base/vecmath.h"
+#include "src/scene/scene.h"
 
 
 /* Light selection tables built once per renderer; read-only afterwards. */

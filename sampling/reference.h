@@ -33,8 +33,8 @@
 #include <signal.h>
 #include <stdint.h>
 
-#include "src/scene/scene.h"
 #include "src/base/util.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -21,8 +21,8 @@
 #ifndef LUMESH_RT_SCENE_H
 #define LUMESH_RT_SCENE_H
 
-#include "src/scene/scene.h"
 #include "src/base/util.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -7,9 +7,9 @@
 #ifndef LUMESH_SAMP_GL_INTERNAL_H
 #define LUMESH_SAMP_GL_INTERNAL_H
 
-#include "src/gpu/gl_context.h"
 #include "sampling/samp_internal.h"
 #include "src/base/vecmath.h"
+#include "src/gpu/gl_context.h"
 
 /* One instance of a draw: a view of the scene rendered into a rectangle of the
  * atlas framebuffer. Layout = the instanced vertex attributes of

@@ -16,9 +16,9 @@
  * Prints a table of the largest error per case family.
  */
 #include "sampling/analytic.h"
-#include "tests/test_util.h"
 #include "src/base/util.h"
 #include "src/base/vecmath.h"
+#include "tests/test_util.h"
 
 #include <float.h>
 #include <limits.h>

@@ -24,15 +24,15 @@
 #include <string.h>
 #include <time.h>
 
-#include "sampling/analytic.h"
 #include "mesh/cache/cache.h"
 #include "mesh/cache/cache_internal.h"
-#include "src/base/rng.h"
+#include "sampling/analytic.h"
 #include "sampling/rt_scene.h"
 #include "sampling/samp.h"
-#include "tests/test_util.h"
+#include "src/base/rng.h"
 #include "src/base/tonemap.h"
 #include "src/base/vecmath.h"
+#include "tests/test_util.h"
 
 #define KD 0.6f
 #define LE 5.0f

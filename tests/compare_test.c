@@ -7,10 +7,10 @@
  * of compare_cli.cmake use (DIR/a.exr, DIR/b.exr: 4x3 RGB; DIR/small.exr:
  * 2x2) and exits; it is the ctest fixture those tests require. */
 #define _POSIX_C_SOURCE 200809L
+#include "src/base/tonemap.h"
 #include "src/image/compare.h"
 #include "src/image/image.h"
 #include "tests/test_util.h"
-#include "src/base/tonemap.h"
 
 #include <errno.h>
 #include <math.h>

@@ -3,8 +3,8 @@
  * file nor a temporary file and never touches an existing target. All files
  * go to a private directory under LUMESH_TMP_DIR. */
 #define _XOPEN_SOURCE 700
-#include "src/image/image.h"
 #include "src/base/util.h"
+#include "src/image/image.h"
 #include "tests/test_util.h"
 
 #include <dirent.h>

@@ -3,8 +3,8 @@
  * crease sides and box-corner faces kept apart, reference counts and id recycling,
  * growth to a million vertices through many rehashes with no key conflated, exact
  * positions, and argument errors. */
-#include "tests/test_util.h"
 #include "mesh/vtable.h"
+#include "tests/test_util.h"
 
 #include <math.h>
 #include <stdio.h>

@@ -22,9 +22,9 @@
 #include <string.h>
 
 #include "sampling/reference.h"
+#include "src/base/vecmath.h"
 #include "src/scene/scene.h"
 #include "tests/test_util.h"
-#include "src/base/vecmath.h"
 
 enum { W = 24, H = 24, SPP = 256, SUB = 8 };
 static const test_plane plane = {.kd = {0.6, 0.4, 0.2}, .le = {5.0, 7.0, 9.0}, .light_half = 0.5,

@@ -20,9 +20,9 @@
 #include <string.h>
 
 #include "sampling/reference.h"
+#include "src/base/vecmath.h"
 #include "src/scene/scene.h"
 #include "tests/test_util.h"
-#include "src/base/vecmath.h"
 
 enum { W = 16, H = 16 };
 #define RHO 0.5

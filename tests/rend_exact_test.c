@@ -22,12 +22,12 @@
 #include <stdlib.h>
 
 #include "mesh/cache/cache_worker.h"
+#include "src/base/tonemap.h"
+#include "src/base/vecmath.h"
 #include "src/gpu/gl_context.h"
 #include "src/render/rend_frame.h"
 #include "src/render/rend_id.h"
 #include "tests/test_util.h"
-#include "src/base/tonemap.h"
-#include "src/base/vecmath.h"
 
 enum { W = 64, H = 48, SS = 3 };
 #define JND 2.0f

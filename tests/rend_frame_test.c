@@ -27,10 +27,10 @@
 #include <string.h>
 
 #include "mesh/cache/cache_worker.h"
-#include "src/image/compare.h"
-#include "src/gpu/gl_context.h"
-#include "src/image/image.h"
 #include "sampling/reference.h"
+#include "src/gpu/gl_context.h"
+#include "src/image/compare.h"
+#include "src/image/image.h"
 #include "src/render/rend_frame.h"
 #include "src/render/rend_id.h"
 #include "tests/test_util.h"

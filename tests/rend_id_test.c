@@ -14,12 +14,12 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/gpu/gl_context.h"
-#include "src/scene/camera.h"
-#include "src/render/rend_id.h"
 #include "sampling/rt_scene.h"
-#include "tests/test_util.h"
 #include "src/base/vecmath.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_id.h"
+#include "src/scene/camera.h"
+#include "tests/test_util.h"
 
 enum { W = 160, H = 120 };
 

@@ -15,8 +15,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/base/rng.h"
 #include "sampling/samp.h"
+#include "src/base/rng.h"
 #include "tests/test_util.h"
 
 enum { N = 24, RES = 64, RAYS = 4096 };

@@ -21,9 +21,9 @@
 
 #include "sampling/analytic.h"
 #include "sampling/samp.h"
+#include "src/base/vecmath.h"
 #include "src/scene/scene.h"
 #include "tests/test_util.h"
-#include "src/base/vecmath.h"
 
 /* A closed unit room [0,1]³, faces wound to face inwards, as OBJ text. */
 static const char room_obj[] =

@@ -24,9 +24,9 @@
 
 #include "sampling/analytic.h"
 #include "sampling/samp.h"
+#include "src/base/vecmath.h"
 #include "src/scene/scene.h"
 #include "tests/test_util.h"
-#include "src/base/vecmath.h"
 
 enum { SKIP = 77 };
 

@@ -7,8 +7,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "src/scene/scene.h"
 #include "src/base/vecmath.h"
+#include "src/scene/scene.h"
 #include "tests/test_util.h"
 
 typedef struct expect {

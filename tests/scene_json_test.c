@@ -6,9 +6,9 @@
 #include <string.h>
 #include <sys/stat.h>
 
+#include "src/base/vecmath.h"
 #include "src/scene/scene.h"
 #include "tests/test_util.h"
-#include "src/base/vecmath.h"
 
 static scene *load_ok(const char *path)
 {

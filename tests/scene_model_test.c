@@ -8,9 +8,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "src/base/vecmath.h"
 #include "src/scene/scene.h"
 #include "tests/test_util.h"
-#include "src/base/vecmath.h"
 
 static scene *load(const char *path, lm_result expect)
 {

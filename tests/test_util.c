@@ -6,10 +6,10 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "sampling/analytic.h"
 #include "mesh/cache/cache_worker.h"
-#include "src/scene/scene.h"
+#include "sampling/analytic.h"
 #include "src/base/vecmath.h"
+#include "src/scene/scene.h"
 
 int test_failures = 0;
 int test_checks = 0;

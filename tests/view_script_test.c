@@ -7,9 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "tests/test_util.h"
 #include "src/view/view_camera.h"
 #include "src/view/view_script.h"
+#include "tests/test_util.h"
 
 static void test_script(void)
 {

@@ -5,10 +5,10 @@
 #include <math.h>
 #include <stdlib.h>
 
-#include "src/gpu/gl_context.h"
-#include "tests/test_util.h"
 #include "src/base/tonemap.h"
+#include "src/gpu/gl_context.h"
 #include "src/view/view_tonemap.h"
+#include "tests/test_util.h"
 
 enum { W = 256, H = 3 };
 

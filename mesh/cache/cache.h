@@ -1,4 +1,4 @@
-/* cache.h — the multi-mesh cache (paper §4; DESIGN.md "Caches"): per-light
+/* cache.h — the multi-mesh cache (paper §4; docs/cache.md): per-light
  * direct irradiance meshes, the indirect irradiance mesh, the direct diffuse
  * radiance mesh and (for glossy materials) the direct specular radiance mesh over
  * one shared vertex table, and the values at their vertices.
@@ -54,10 +54,10 @@
 #include <stdint.h>
 
 #include "mesh/qmesh.h"
-#include "sampling/samp.h"
-#include "src/scene/scene.h"
-#include "src/base/util.h"
 #include "mesh/vtable.h"
+#include "sampling/samp.h"
+#include "src/base/util.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {

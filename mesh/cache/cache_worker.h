@@ -1,7 +1,7 @@
 /* cache_worker.h — the refinement worker: a thread that owns a sampler and a
  * multi-mesh cache, refines continuously, and publishes what it has to the
- * display side (DESIGN.md "Contexts and threads"; CONVENTIONS: set → commit →
- * query).
+ * display side (docs/architecture.md "Threads and who owns what"): edits are set,
+ * then committed by the worker, then queried in a snapshot.
  *
  * Publication is a triple buffer of snapshots: the worker fills its own, then
  * commits it under a short lock (a pointer swap); the display acquires the latest

@@ -15,8 +15,8 @@
 #include <cjson/cJSON.h>
 
 #include "mesh/cache/cache_worker.h"
-#include "src/render/rend_frame.h"
 #include "src/base/util.h"
+#include "src/render/rend_frame.h"
 
 typedef struct app_stats_desc {
     const char *command;          /* "render", "converge", "view" */

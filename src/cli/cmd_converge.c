@@ -29,15 +29,15 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "sampling/reference.h"
+#include "src/base/tonemap.h"
 #include "src/cli/app_stats.h"
 #include "src/cli/cli.h"
+#include "src/cli/plot.h"
 #include "src/image/compare.h"
 #include "src/image/image.h"
-#include "src/cli/plot.h"
-#include "sampling/reference.h"
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
-#include "src/base/tonemap.h"
 
 enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64 };
 

@@ -10,9 +10,9 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "sampling/reference.h"
 #include "src/cli/cli.h"
 #include "src/image/image.h"
-#include "sampling/reference.h"
 #include "src/scene/scene.h"
 
 /* Written by the SIGINT handler, read by the render loop and the workers. */

@@ -11,13 +11,13 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "src/base/tonemap.h"
 #include "src/cli/app_stats.h"
 #include "src/cli/cli.h"
 #include "src/image/image.h"
 #include "src/render/rend_debug.h"
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
-#include "src/base/tonemap.h"
 
 enum { DEFAULT_SECONDS_LIMIT = 600 }; /* without --seconds or --samples: until converged, at most this */
 

@@ -34,8 +34,8 @@
 
 #include <glad/gl.h>
 
-#include "src/gpu/gl_platform.h"
 #include "src/base/util.h"
+#include "src/gpu/gl_platform.h"
 
 #ifdef __cplusplus
 extern "C" {

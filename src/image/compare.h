@@ -55,8 +55,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#include "src/image/image.h"
 #include "src/base/util.h"
+#include "src/image/image.h"
 
 #ifdef __cplusplus
 extern "C" {

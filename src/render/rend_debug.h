@@ -38,8 +38,8 @@
 #include <stdint.h>
 
 #include "mesh/cache/cache_snapshot.h"
-#include "src/scene/scene.h"
 #include "src/base/util.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {

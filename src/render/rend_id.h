@@ -35,8 +35,8 @@
 
 #include <glad/gl.h>
 
-#include "src/scene/scene.h"
 #include "src/base/util.h"
+#include "src/scene/scene.h"
 
 #ifdef __cplusplus
 extern "C" {

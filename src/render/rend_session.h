@@ -58,10 +58,10 @@
 
 #include "mesh/cache/cache_worker.h"
 #include "sampling/samp.h"
+#include "src/base/util.h"
 #include "src/gpu/gl_platform.h"
 #include "src/render/rend_frame.h"
 #include "src/scene/scene.h"
-#include "src/base/util.h"
 
 #ifdef __cplusplus
 extern "C" {

@@ -6,8 +6,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/scene/scene_internal.h"
 #include "src/base/vfs.h"
+#include "src/scene/scene_internal.h"
 
 /* Grows the array *ptr_to_ptr (any T **; elements of size elem, capacity in a
  * uint32_t) so that index `need-1` fits: lm_grow_capacity with the uint32_t limit. */

@@ -23,8 +23,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/scene/scene_internal.h"
 #include "src/base/vfs.h"
+#include "src/scene/scene_internal.h"
 
 enum { MAX_MESH_FILE_BYTES = 1 << 30, MAX_MISSING = 8 };
 

@@ -17,8 +17,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/scene/scene_internal.h"
 #include "src/base/vecmath.h"
+#include "src/scene/scene_internal.h"
 
 enum { DEFAULT_WIDTH = 640, DEFAULT_HEIGHT = 480 };
 #define DEFAULT_CREASE_DEG 30.0f

@@ -20,9 +20,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/scene/scene_internal.h"
 #include "src/base/vecmath.h"
 #include "src/base/vfs.h"
+#include "src/scene/scene_internal.h"
 
 enum { MAX_JSON_BYTES = 64 << 20 };
 

@@ -12,8 +12,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/scene/scene_internal.h"
 #include "src/base/vecmath.h"
+#include "src/scene/scene_internal.h"
 
 /* Coplanar: normals within ~0.5 degree and corners within this fraction of the
  * scene's diagonal of the seed's plane. */

@@ -8,9 +8,9 @@
 #include <string.h>
 #include <time.h>
 
+#include "src/base/tonemap.h"
 #include "src/image/image.h"
 #include "src/render/rend_session.h"
-#include "src/base/tonemap.h"
 #include "src/view/view_camera.h"
 #include "src/view/view_glfw.h"
 #include "src/view/view_hud.h"

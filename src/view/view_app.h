@@ -31,10 +31,10 @@
 #include <stdint.h>
 
 #include "mesh/cache/cache_worker.h"
+#include "src/base/util.h"
 #include "src/render/rend_frame.h"
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
-#include "src/base/util.h"
 #include "src/view/view_script.h"
 
 #ifdef __cplusplus

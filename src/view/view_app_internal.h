@@ -6,8 +6,8 @@
 
 #include <stdint.h>
 
-#include "src/render/rend_session.h"
 #include "src/base/tonemap.h"
+#include "src/render/rend_session.h"
 #include "src/view/view_app.h"
 #include "src/view/view_glfw.h"
 #include "src/view/view_hud.h"
