@@ -97,6 +97,25 @@ static void test_set_view(const uint32_t *pixels)
         CHECK(b && b->stats.direct.mesh.nodes >= nodes);
         float bad[3] = {NAN, 0, 0};
         CHECK(cache_worker_set_view(w, pixels, bad, &err) == LM_ERR_INVALID_ARG);
+        /* A cache created at that eye (cache_desc.eye_set, what a front end rendering
+         * another camera than the scene's first does) has the moved eye's value at
+         * the corner from the start: a root corner's value is eq. 5 at that eye. */
+        cache_worker *w2 = NULL;
+        cache_desc at_eye = {.eye_set = 1, .eye = {eye[0], eye[1], eye[2]}};
+        CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = pixels, .step_budget = 256,
+                                                       .max_tested = 4000, .cache = at_eye},
+                                  &w2, &err) == LM_OK);
+        const cache_snapshot *c2 = w2 ? test_wait_finished(w2, 60.0) : NULL;
+        float created = c2 ? specular_at(c2, corner) : -1.0f;
+        printf("cache created at the moved eye: specular at the corner %.6f (after set_view %.6f)\n", created, after);
+        CHECK(created >= 0.0f && fabsf(created - after) <= 1e-5f * fmaxf(after, 1e-3f));
+        cache_worker_destroy(w2);
+        at_eye.eye[0] = NAN;
+        CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = pixels, .cache = at_eye},
+                                  &w2, &err) == LM_OK);
+        const cache_snapshot *bad_eye = w2 ? test_wait_finished(w2, 60.0) : NULL;
+        CHECK(bad_eye && bad_eye->failed && strstr(bad_eye->error, "eye") != NULL);
+        cache_worker_destroy(w2);
         /* Debug data on, then off: each a new snapshot, with and without corners. */
         const cache_snapshot *on = NULL, *off = NULL;
         if (b) {

@@ -157,7 +157,12 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
         r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap},
                               &c->specular, err);
     if (r == LM_OK && glossy && !cache_build_outlines(&c->outl, c->s, c->light_count)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
-    if (c->s->camera_count) memcpy(c->eye, c->s->cameras[0].position, sizeof c->eye);
+    if (desc->eye_set && !(isfinite(desc->eye[0]) && isfinite(desc->eye[1]) && isfinite(desc->eye[2])))
+        r = lm_fail(err, LM_ERR_INVALID_ARG, "cache_create: the eye must be a finite point");
+    if (desc->eye_set)
+        memcpy(c->eye, desc->eye, sizeof c->eye);
+    else if (c->s->camera_count)
+        memcpy(c->eye, c->s->cameras[0].position, sizeof c->eye);
     if (r != LM_OK) {
         cache_destroy(c);
         return r;

@@ -87,6 +87,10 @@ typedef struct cache_desc {
                                  per-light meshes (every new vertex samples every light), and
                                  indirect gathered at every new vertex, split for split with
                                  direct, judged together by one edge test */
+    int eye_set;              /* non-zero: eye is the specular mesh's first viewpoint; 0 = the
+                                 scene's first camera (a front end rendering another camera
+                                 sets it, or its highlights are refined for the wrong eye) */
+    float eye[3];             /* scene units; finite */
 } cache_desc;
 
 typedef struct cache cache;

@@ -563,6 +563,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         r = lm_fail(&err, LM_ERR_UNSUPPORTED, "%s: converge reports at most %d lights", c.s->source, MAX_MESHES - 3);
     if (r == LM_OK) r = app_make_dir(dir, &err);
     sd.scene = c.s;
+    if (c.cam >= 0) sd.camera = &c.s->cameras[c.cam]; /* the specular mesh's eye */
     sd.width = c.w;
     sd.height = c.h;
     c.tty = isatty(STDERR_FILENO);

@@ -71,10 +71,14 @@ static lm_result make_context(rend_session *rs, lm_error *err)
 static lm_result make_worker(rend_session *rs, const uint32_t *pixels, lm_error *err)
 {
     const rend_session_desc *d = &rs->d;
+    cache_desc cd = {.single_mesh = d->single_mesh};
+    if (d->camera) { /* the specular mesh starts at this camera's eye, not the scene's first */
+        cd.eye_set = 1;
+        memcpy(cd.eye, d->camera->position, sizeof cd.eye);
+    }
     return cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels = pixels,
                                                     .pixels_later = pixels == NULL, .max_tested = d->max_tested,
-                                                    .publish_debug = d->publish_debug,
-                                                    .cache = {.single_mesh = d->single_mesh}},
+                                                    .publish_debug = d->publish_debug, .cache = cd},
                                &rs->wk, err);
 }
 
