@@ -69,6 +69,10 @@ if(EXISTS ${CB}/CornellBox-Original.obj)
     lumesh_cli_test(info_cornell_${variant} 0 ARGS info ${CB}/CornellBox-${variant}.obj
       OUT "triangles   ${tris} .*lights      1 \\(1 area, 0 point\\)")
   endforeach()
+  # The Veach door (bench/scenes/veach-door.json, converted from its scene.xml): one
+  # lamp, turned to face the door (+Z after the file's Z-up rotation), and its camera.
+  lumesh_cli_test(info_veach_door 0 ARGS info ${CMAKE_SOURCE_DIR}/bench/scenes/veach-door.json
+    OUT "triangles   20764 .*lights      1 \\(1 area, 0 point\\).*'lamp': 2 triangles, area 9095.18, radiance \\(1420, 1552, 1642\\).*facing \\+Z.*main .*fov_y 32.3792°, 320x180")
   lumesh_cli_test(info_bunny 0 ARGS info ${LUMESH_SCENES}/stanford-bunny/stanford-bunny.obj
     OUT "triangles   69451 .*lights      0 \\(0 area, 0 point\\).*none: no triangle emits")
 endif()
