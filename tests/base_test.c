@@ -1,9 +1,11 @@
 /* base_test.c — the foundation layer's helpers: growing arrays (lm_grow_capacity,
- * lm_realloc_array, LM_GROW) and the random number generator (lm_rng). */
+ * lm_realloc_array, LM_GROW), lm_sleep_seconds and the random number generator
+ * (lm_rng). */
 #include "src/base/rng.h"
 #include "src/base/util.h"
 #include "tests/test_util.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 
@@ -67,8 +69,21 @@ static void test_rng(void)
     CHECK_NEAR(sum / 100000.0, 0.5, 0.005); /* 5 standard errors of a uniform mean (0.0009) */
 }
 
+static void test_sleep(void)
+{
+    double t0 = lm_now_seconds();
+    lm_sleep_seconds(0.02);
+    double slept = lm_now_seconds() - t0;
+    CHECK_MSG(slept >= 0.0199, "slept %.4f s", slept); /* never less than asked (no signal here) */
+    t0 = lm_now_seconds();
+    lm_sleep_seconds(-1.0);
+    lm_sleep_seconds(NAN);
+    CHECK(lm_now_seconds() - t0 < 0.5); /* nothing to wait for: returns at once */
+}
+
 int main(void)
 {
+    test_sleep();
     test_grow_capacity();
     test_grow_array();
     test_rng();

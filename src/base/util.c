@@ -46,6 +46,13 @@ double lm_now_seconds(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+void lm_sleep_seconds(double seconds)
+{
+    if (!(seconds > 0)) return;
+    struct timespec t = {(time_t)seconds, (long)((seconds - (double)(time_t)seconds) * 1e9)};
+    nanosleep(&t, NULL);
+}
+
 lm_result lm_read_file(const char *path, size_t max_bytes, char **out_data, size_t *out_size,
                        lm_error *err)
 {

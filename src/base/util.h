@@ -44,6 +44,8 @@ const char *lm_result_name(lm_result r);
 
 /* Monotonic wall clock in seconds. */
 double lm_now_seconds(void);
+/* Sleeps this many seconds (nothing for seconds <= 0; a signal may end it early). */
+void lm_sleep_seconds(double seconds);
 
 /* Reads a whole file into a NUL-terminated buffer (the NUL is not counted in
  * *size). Refuses files larger than max_bytes (0 means 1 GiB). */

@@ -96,12 +96,6 @@ typedef struct conv_ctx {
     int have_final;
 } conv_ctx;
 
-static void nap_ms(int ms)
-{
-    struct timespec t = {ms / 1000, (long)(ms % 1000) * 1000000L};
-    nanosleep(&t, NULL);
-}
-
 /* "0.1,0.2,1" into increasing positive times ≤ limit (limit itself added last). */
 static int parse_times(const char *list, double limit, double *out, int *count)
 {
@@ -255,7 +249,7 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
             double now = lm_now_seconds() - t0;
             if (now >= row->target) break;
             progress(c, run->method, now, run->count ? &run->rows[run->count - 1] : NULL, 0);
-            nap_ms(now + 0.02 < row->target ? 10 : 1);
+            lm_sleep_seconds(now + 0.02 < row->target ? 0.010 : 0.001);
         }
         if (interrupted) break;
         if (ar != LM_OK) {

@@ -1,12 +1,9 @@
 /* rend_session.c — the GL context, ID pass, worker and renderers wired once
  * (rend_session.h). */
-#define _POSIX_C_SOURCE 200809L /* nanosleep */
 #include "src/render/rend_session.h"
 
-#include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "src/gpu/gl_context.h"
 #include "src/render/rend_id.h"
@@ -206,12 +203,6 @@ const cache_snapshot *rend_session_snapshot(const rend_session *rs)
     return rs ? rs->snap : NULL;
 }
 
-static void nap(double seconds)
-{
-    struct timespec t = {(time_t)seconds, (long)((seconds - floor(seconds)) * 1e9)};
-    nanosleep(&t, NULL);
-}
-
 lm_result rend_session_wait(rend_session *rs, const rend_session_wait_desc *w, const cache_snapshot **snap,
                             lm_error *err)
 {
@@ -225,7 +216,7 @@ lm_result rend_session_wait(rend_session *rs, const rend_session_wait_desc *w, c
         if (snap) *snap = s;
         if (r != LM_OK) return r;
         if (s && (s->finished || w->first || (w->until > 0 && lm_now_seconds() >= w->until))) break;
-        nap(period);
+        lm_sleep_seconds(period);
     }
     return LM_OK;
 }

@@ -1,12 +1,10 @@
 /* view_app.c — `lumesh view`'s display loop (view_app.h). */
-#define _POSIX_C_SOURCE 200809L /* nanosleep */
 #include "src/view/view_app_internal.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 #include "src/base/tonemap.h"
 #include "src/image/image.h"
@@ -38,13 +36,6 @@ static const double k_motion_rest = 0.15;
 static cache_worker *worker(const view_state *v)
 {
     return rend_session_worker(v->rs);
-}
-
-static void nap(double seconds)
-{
-    if (seconds <= 0) return;
-    struct timespec t = {(time_t)seconds, (long)((seconds - floor(seconds)) * 1e9)};
-    nanosleep(&t, NULL);
 }
 
 void view_app_report_of(const view_state *v, view_app_report *r)
@@ -548,7 +539,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
          * rather than drawing a burst to catch up. */
         next += period;
         if (next < now) next = now;
-        nap(next - now);
+        lm_sleep_seconds(next - now);
     }
     if (r == LM_OK && d->finished) {
         view_app_report rep;
