@@ -206,4 +206,18 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
     return r;
 }
 
+lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                                const samp_source_hits *out, lm_error *err)
+{
+    if (!sp || !out || (n && (!pts || !out->count || !out->tri || !out->weight)))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_sources: missing arguments");
+    if (out->rays < 1 || out->rays > 4096)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_sources: %u rays a point (1..4096)", out->rays);
+    if (!samp_radiance_mesh_valid(sp->s, mesh, err)) return LM_ERR_INVALID_ARG;
+    if (!points_valid(pts, n))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_sources: non-finite point or normal");
+    samp_sources_trace(sp->s, sp->rt, sp->desc.seed, sp->desc.threads, mesh, pts, n, out);
+    return LM_OK;
+}
+
 void samp_get_stats(const samp_sampler *sp, samp_stats *out) { *out = sp->stats; }

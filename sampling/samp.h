@@ -141,6 +141,25 @@ lm_result samp_direct(samp_sampler *sp, uint32_t light, const samp_point *pts, u
 lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                         float *E, lm_error *err);
 
+/* Where the indirect light of each point comes from (the cache's importance,
+ * docs/cache.md): `rays` stratified cosine-weighted rays per point, traced with
+ * Embree whichever back end serves samp_indirect, each hit on the front of a
+ * triangle of `mesh` counted. Point i's entries are (tri[i·rays + j],
+ * weight[i·rays + j]) for j < count[i], source triangles in increasing order:
+ * the fraction of the point's rays that met that source triangle, an estimate of
+ * ∂E_i(x)/∂L̄ / π for a change L̄ of the radiance over that triangle (E_i =
+ * π·Σ_t w_t·L̄_t). The weights sum to at most 1 (the rest left the scene or met
+ * the back of a surface). Deterministic per point, like samp_indirect. */
+typedef struct samp_source_hits {
+    uint32_t rays;      /* per point, 1..4096 */
+    uint32_t *count;    /* n */
+    uint32_t *tri;      /* n × rays */
+    float *weight;      /* n × rays */
+} samp_source_hits;
+
+lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                                const samp_source_hits *out, lm_error *err);
+
 /* Which back ends serve a sampler. Decide by the enums (backend, gl_platform);
  * the names are for display and the statistics JSON only. A zeroed samp_stats
  * (backend AUTO, names NULL) stands for "no sampler". */

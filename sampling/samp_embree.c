@@ -17,21 +17,17 @@
  * Random numbers: a point's stream is seeded by (seed, light, the bits of its
  * position and normal), so a value depends on the point alone, not on the batch
  * it came in or the thread that computed it.
- * Threads: a batch is split over desc.threads workers (each takes chunks of
- * points from an atomic counter); the caller's thread waits for them.
+ * Threads: a batch is split over desc.threads workers (samp_parallel_for);
+ * the caller's thread waits for them.
  */
 #include <math.h>
-#include <pthread.h>
-#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "sampling/ref_shading.h"
 #include "sampling/samp_internal.h"
 #include "src/base/vecmath.h"
 
-enum { MAX_THREADS = 64, CHUNK = 16 };
 
 typedef struct light_table {
     double *cdf;         /* per triangle of the light, cumulative area fraction; last = 1 */
@@ -58,22 +54,9 @@ typedef struct embree_impl {
 
 /* ---- random streams -------------------------------------------------------- */
 
-static uint64_t hash_point(const samp_point *x)
-{
-    uint64_t h = 0x84222325cbf29ce4ull;
-    const float *f[2] = {x->p, x->n};
-    for (int a = 0; a < 2; ++a)
-        for (int k = 0; k < 3; ++k) {
-            uint32_t bits;
-            memcpy(&bits, &f[a][k], sizeof bits);
-            h = (h ^ bits) * 0x100000001b3ull;
-        }
-    return h;
-}
-
 static void point_rng(const embree_impl *e, uint64_t stream, const samp_point *x, lm_rng *g)
 {
-    lm_rng_seed(g, e->desc.seed, hash_point(x), stream);
+    lm_rng_seed(g, e->desc.seed, samp_point_hash(x), stream);
 }
 
 /* ---- direct ---------------------------------------------------------------- */
@@ -150,11 +133,7 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
 {
     float origin[3];
     samp_point_origin(e->s, x, e->eps, origin);
-    lm_vec3 n = v3_normalize(v3_load(x->n));
-    /* Orthonormal basis around n (Duff et al., "Building an orthonormal basis, revisited"). */
-    float sign = copysignf(1.0f, n.z), a = -1.0f / (sign + n.z), b = n.x * n.y * a;
-    lm_vec3 t1 = v3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x);
-    lm_vec3 t2 = v3(b, sign + n.y * n.y * a, -n.y);
+    samp_frame f = samp_frame_make(x->n);
     lm_rng g;
     point_rng(e, 0, x, &g);
     int k = e->indirect_k;
@@ -162,9 +141,7 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     for (int j = 0; j < k; ++j)
         for (int i = 0; i < k; ++i) {
             float u = (i + lm_rng_float(&g)) / k, v = (j + lm_rng_float(&g)) / k;
-            float r = sqrtf(u), phi = 2.0f * (float)M_PI * v;
-            float lx = r * cosf(phi), ly = r * sinf(phi), lz = sqrtf(fmaxf(0.0f, 1.0f - u));
-            lm_vec3 d = v3_add(v3_add(v3_scale(t1, lx), v3_scale(t2, ly)), v3_scale(n, lz));
+            lm_vec3 d = samp_frame_cosine(&f, u, v);
             float dir[3];
             v3_store(dir, d);
             rt_hit h;
@@ -191,38 +168,18 @@ typedef struct batch {
     const samp_point *pts;
     uint32_t n;
     float *out;
-    atomic_uint next;               /* next chunk start; shared by the workers */
 } batch;
 
-static void *batch_worker(void *arg)
+static void batch_one(void *user, uint32_t i)
 {
-    batch *b = arg;
-    for (;;) {
-        uint32_t start = atomic_fetch_add(&b->next, CHUNK);
-        if (start >= b->n) break;
-        uint32_t end = start + CHUNK < b->n ? start + CHUNK : b->n;
-        for (uint32_t i = start; i < end; ++i) {
-            if (b->mesh)
-                indirect_one(b->e, b->mesh, b->index, &b->pts[i], b->out + 3 * (size_t)i);
-            else
-                b->out[i] = direct_one(b->e, b->light, &b->pts[i]);
-        }
-    }
-    return NULL;
+    const batch *b = user;
+    if (b->mesh)
+        indirect_one(b->e, b->mesh, b->index, &b->pts[i], b->out + 3 * (size_t)i);
+    else
+        b->out[i] = direct_one(b->e, b->light, &b->pts[i]);
 }
 
-static void run_batch(const embree_impl *e, batch *b)
-{
-    atomic_init(&b->next, 0);
-    int want = (int)((b->n + CHUNK - 1) / CHUNK);
-    int nt = e->threads < want ? e->threads : want;
-    pthread_t tid[MAX_THREADS];
-    int started = 0;
-    for (int i = 1; i < nt; ++i)
-        if (pthread_create(&tid[started], NULL, batch_worker, b) == 0) started++;
-    batch_worker(b); /* the caller works too; if threads failed it does it all */
-    for (int i = 0; i < started; ++i) pthread_join(tid[i], NULL);
-}
+static void run_batch(const embree_impl *e, batch *b) { samp_parallel_for(e->threads, b->n, batch_one, b); }
 
 static lm_result embree_direct(void *impl, uint32_t light, const samp_point *pts, uint32_t n, float *G,
                                lm_error *err)
@@ -308,9 +265,7 @@ lm_result samp_embree_create(const samp_desc *desc, const rt_scene *rt, const sa
     e->s = desc->scene;
     e->rt = rt;
     e->eps = rt_scene_epsilon(rt);
-    long cores = sysconf(_SC_NPROCESSORS_ONLN);
-    e->threads = desc->threads > 0 ? desc->threads : (cores > 0 ? (int)cores : 1);
-    if (e->threads > MAX_THREADS) e->threads = MAX_THREADS;
+    e->threads = samp_thread_count(desc->threads);
     e->direct_k = strata_per_side(desc->direct_rays);
     e->indirect_k = strata_per_side(desc->indirect_rays);
     const scene *s = e->s;

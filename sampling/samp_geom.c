@@ -6,7 +6,11 @@
  * src/base, so calls run one way, samp.c → back ends → here (samp_internal.h).
  * Pure functions of their arguments: any thread. */
 #include <math.h>
+#include <pthread.h>
+#include <stdatomic.h>
 #include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
 
 #include "sampling/analytic.h"
 #include "sampling/samp_internal.h"
@@ -87,4 +91,74 @@ samp_point samp_random_receiver(const scene *s, const double *area_cdf, lm_rng *
         x.n[k] = s->tri_normals[3 * (size_t)t + (size_t)k];
     }
     return x;
+}
+
+uint64_t samp_point_hash(const samp_point *x)
+{
+    uint64_t h = 0x84222325cbf29ce4ull;
+    const float *f[2] = {x->p, x->n};
+    for (int a = 0; a < 2; ++a)
+        for (int k = 0; k < 3; ++k) {
+            uint32_t bits;
+            memcpy(&bits, &f[a][k], sizeof bits);
+            h = (h ^ bits) * 0x100000001b3ull;
+        }
+    return h;
+}
+
+samp_frame samp_frame_make(const float normal[3])
+{
+    lm_vec3 n = v3_normalize(v3_load(normal));
+    float sign = copysignf(1.0f, n.z), a = -1.0f / (sign + n.z), b = n.x * n.y * a;
+    return (samp_frame){v3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), v3(b, sign + n.y * n.y * a, -n.y), n};
+}
+
+lm_vec3 samp_frame_cosine(const samp_frame *f, float u, float v)
+{
+    float r = sqrtf(u), phi = 2.0f * (float)M_PI * v;
+    float lx = r * cosf(phi), ly = r * sinf(phi), lz = sqrtf(fmaxf(0.0f, 1.0f - u));
+    return v3_add(v3_add(v3_scale(f->t1, lx), v3_scale(f->t2, ly)), v3_scale(f->n, lz));
+}
+
+int samp_thread_count(int threads)
+{
+    long cores = sysconf(_SC_NPROCESSORS_ONLN);
+    int t = threads > 0 ? threads : (cores > 0 ? (int)cores : 1);
+    return t > SAMP_MAX_THREADS ? SAMP_MAX_THREADS : t;
+}
+
+typedef struct parallel_job {
+    void (*fn)(void *user, uint32_t i);
+    void *user;
+    uint32_t n;
+    atomic_uint next; /* next chunk start; shared by the workers */
+} parallel_job;
+
+enum { PARALLEL_CHUNK = 16 };
+
+static void *parallel_worker(void *arg)
+{
+    parallel_job *job = arg;
+    for (;;) {
+        uint32_t start = atomic_fetch_add(&job->next, PARALLEL_CHUNK);
+        if (start >= job->n) break;
+        uint32_t end = start + PARALLEL_CHUNK < job->n ? start + PARALLEL_CHUNK : job->n;
+        for (uint32_t i = start; i < end; ++i) job->fn(job->user, i);
+    }
+    return NULL;
+}
+
+void samp_parallel_for(int threads, uint32_t n, void (*fn)(void *user, uint32_t i), void *user)
+{
+    parallel_job job = {.fn = fn, .user = user, .n = n};
+    atomic_init(&job.next, 0);
+    int want = (int)((n + PARALLEL_CHUNK - 1) / PARALLEL_CHUNK);
+    int nt = threads < want ? threads : want;
+    if (nt > SAMP_MAX_THREADS) nt = SAMP_MAX_THREADS;
+    pthread_t tid[SAMP_MAX_THREADS];
+    int started = 0;
+    for (int i = 1; i < nt; ++i)
+        if (pthread_create(&tid[started], NULL, parallel_worker, &job) == 0) started++;
+    parallel_worker(&job); /* the caller works too; if threads failed it does it all */
+    for (int i = 0; i < started; ++i) pthread_join(tid[i], NULL);
 }

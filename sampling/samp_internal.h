@@ -17,6 +17,7 @@
 #include "sampling/ref_shading.h"
 #include "sampling/rt_scene.h"
 #include "sampling/samp.h"
+#include "src/base/vecmath.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -58,8 +59,34 @@ typedef struct samp_choice {
 lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choice *out, samp_stats *stats,
                            lm_error *err);
 
+/* samp_sources.c: samp_indirect_sources (samp.h) on the shared Embree scene, its
+ * arguments checked. */
+void samp_sources_trace(const scene *s, const rt_scene *rt, uint32_t seed, int threads, const samp_radiance_mesh *mesh,
+                        const samp_point *pts, uint32_t n, const samp_source_hits *out);
+
 /* samp_geom.c: index i with cdf[i-1] <= u < cdf[i] (cdf non-decreasing, cdf[n-1] = 1). */
 uint32_t samp_cdf_pick(const double *cdf, uint32_t n, double u);
+
+/* A hash of a receiver's position and normal bits: the key of its random stream,
+ * so that a value depends on the point alone, not on its batch or thread. */
+uint64_t samp_point_hash(const samp_point *x);
+
+/* An orthonormal frame around a unit normal (Duff et al. 2017, "Building an
+ * orthonormal basis, revisited"), and the cosine-weighted direction of the
+ * unit-square sample (u, v) in it (pdf cosθ/π): what every hemisphere gather draws. */
+typedef struct samp_frame {
+    lm_vec3 t1, t2, n;
+} samp_frame;
+samp_frame samp_frame_make(const float n[3]);
+lm_vec3 samp_frame_cosine(const samp_frame *f, float u, float v);
+
+/* Worker threads for `threads` asked (0: every core; at most SAMP_MAX_THREADS). */
+enum { SAMP_MAX_THREADS = 64 };
+int samp_thread_count(int threads);
+/* Calls fn(user, i) for every i < n, spread over `threads` threads (the caller's
+ * among them) in chunks of 16 taken from an atomic counter; returns when all are
+ * done. If threads cannot be started, the caller does it all. */
+void samp_parallel_for(int threads, uint32_t n, void (*fn)(void *user, uint32_t i), void *user);
 #ifdef __cplusplus
 }
 #endif

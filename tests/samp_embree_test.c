@@ -369,6 +369,61 @@ static void test_indirect(void)
     scene_destroy(s);
 }
 
+/* Where indirect light comes from (samp_indirect_sources): the fraction of a
+ * floor point's cosine-weighted hemisphere that each source triangle fills is
+ * its cosine-weighted solid angle over π, and π·Σ w_t·L_t is the gather. */
+static void test_sources(void)
+{
+    scene *s = load("room_src.json", inside_light(), NULL);
+    if (!s) return;
+    samp_sampler *sp = make(s, 4096, 0, 2);
+    mesh_buf *b = malloc(sizeof *b);
+    samp_point pts[16];
+    uint32_t n = floor_points(pts);
+    enum { RAYS = 4096 };
+    uint32_t *count = malloc(n * sizeof *count), *tri = malloc((size_t)n * RAYS * sizeof *tri);
+    float *weight = malloc((size_t)n * RAYS * sizeof *weight), E[48];
+    lm_error err;
+    make_mesh(s, 3.0f, 1.0f, b);
+    const samp_source_hits hits = {.rays = RAYS, .count = count, .tri = tri, .weight = weight};
+    CHECK(samp_indirect_sources(sp, &b->m, pts, n, &hits, &err) == LM_OK);
+    CHECK(samp_indirect(sp, &b->m, pts, n, E, &err) == LM_OK);
+    const double ceil_local[4][3] = {{0, 1, 0}, {1, 1, 0}, {1, 1, 1}, {0, 1, 1}};
+    double ceil_quad[4][3], worst_ceiling = 0.0, worst_total = 0.0, worst_gather = 0.0;
+    for (int i = 0; i < 4; ++i) rot(ceil_local[i], ceil_quad[i]);
+    for (uint32_t i = 0; i < n; ++i) {
+        const double x[3] = {pts[i].p[0], pts[i].p[1], pts[i].p[2]}, nx[3] = {pts[i].n[0], pts[i].n[1], pts[i].n[2]};
+        double ceiling = 0.0, total = 0.0, gather = 0.0;
+        for (uint32_t j = 0; j < count[i]; ++j) {
+            uint32_t t = tri[(size_t)i * RAYS + j];
+            double w = weight[(size_t)i * RAYS + j];
+            CHECK(t < b->m.tri_count && w > 0.0);
+            if (j) CHECK(t > tri[(size_t)i * RAYS + j - 1]);
+            total += w;
+            if (t == 2 || t == 3) ceiling += w;
+            gather += M_PI * w * b->rad[9 * t];
+        }
+        double want = (samp_polygon_G(ceil_quad, 4, x, nx) - unocc(s, 0, &pts[i])) / M_PI;
+        worst_ceiling = fmax(worst_ceiling, fabs(ceiling - want) / want);
+        worst_total = fmax(worst_total, fabs(total - 1.0));
+        worst_gather = fmax(worst_gather, fabs(gather - E[3 * i]) / E[3 * i]);
+    }
+    printf("sources (4096 rays): ceiling fraction max rel err %.2e, closed room total %.2e, "
+           "against the gather %.2e\n", worst_ceiling, worst_total, worst_gather);
+    CHECK_MSG(worst_ceiling <= 0.02, "ceiling fraction: %.3e", worst_ceiling);
+    /* (a ray or two in 4096 slips out where walls meet at a point's corner: 4.9e-4 measured) */
+    CHECK_MSG(worst_total <= 1e-3, "a closed room's fractions sum to 1: %.3e off", worst_total);
+    CHECK_MSG(worst_gather <= 0.01, "pi sum w L against the gather: %.3e", worst_gather);
+    CHECK(samp_indirect_sources(sp, &b->m, pts, n, &(samp_source_hits){.rays = 0, .count = count, .tri = tri,
+                                                                       .weight = weight}, &err) == LM_ERR_INVALID_ARG);
+    free(count);
+    free(tri);
+    free(weight);
+    free(b);
+    samp_destroy(sp);
+    scene_destroy(s);
+}
+
 static void test_determinism_and_garbage(void)
 {
     char lights[1024];
@@ -423,6 +478,7 @@ int main(void)
     test_behind_and_touching();
     test_half_blocker();
     test_indirect();
+    test_sources();
     test_determinism_and_garbage();
     return test_finish("samp_embree_test");
 }

@@ -1,0 +1,86 @@
+/* samp_sources.c — where indirect light comes from (samp_indirect_sources,
+ * samp.h): per receiver, the fraction of its cosine-weighted hemisphere that
+ * each triangle of a radiance mesh fills, by Embree rays on the shared scene.
+ * The cache weighs the refinement of its indirect source by these fractions
+ * (importance, Smits et al. 1992; docs/cache.md), whichever back end gathers.
+ *
+ * The rays are the gather's own estimator (samp_embree.c): k×k strata,
+ * cosine-weighted, a hit on a back or nothing counting nothing, so that the
+ * fractions w_t satisfy E_i ≈ π·Σ_t w_t·L̄_t with the same rays. Random streams
+ * are keyed by the point (samp_point_hash) and a stream of their own.
+ * Threads: the points are spread over the sampler's threads; each writes its own
+ * slots of the output only. */
+#include <math.h>
+#include <stdlib.h>
+
+#include "sampling/samp_internal.h"
+
+typedef struct sources_job {
+    const scene *s;
+    const rt_scene *rt;
+    const samp_radiance_mesh *mesh;
+    const samp_radiance_index *index;
+    const samp_point *pts;
+    const samp_source_hits *out;
+    uint32_t seed;
+    float eps;
+    int k; /* strata per side: k² ≤ rays */
+} sources_job;
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+static void sources_one(void *user, uint32_t i)
+{
+    const sources_job *job = user;
+    const samp_point *x = &job->pts[i];
+    uint32_t *tri = job->out->tri + (size_t)i * job->out->rays;
+    float *weight = job->out->weight + (size_t)i * job->out->rays;
+    float origin[3];
+    samp_point_origin(job->s, x, job->eps, origin);
+    samp_frame f = samp_frame_make(x->n);
+    lm_rng g;
+    lm_rng_seed(&g, job->seed, samp_point_hash(x), 0x50u);
+    const int k = job->k;
+    uint32_t hits = 0;
+    for (int b = 0; b < k; ++b)
+        for (int a = 0; a < k; ++a) {
+            float u = (a + lm_rng_float(&g)) / k, v = (b + lm_rng_float(&g)) / k;
+            lm_vec3 d = samp_frame_cosine(&f, u, v);
+            float dir[3], L[3];
+            v3_store(dir, d);
+            rt_hit h;
+            if (!rt_intersect(job->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
+            if (v3_dot(v3_load(job->s->tri_normals + 3 * (size_t)h.tri), d) >= 0.0f) continue;
+            uint32_t at = samp_radiance_at(job->mesh, job->index, h.tri, h.u, h.v, L);
+            if (at != UINT32_MAX) tri[hits++] = at;
+        }
+    /* Runs of equal source triangles become one entry each. */
+    qsort(tri, hits, sizeof *tri, cmp_u32);
+    uint32_t count = 0;
+    const float per_ray = 1.0f / (float)(k * k);
+    for (uint32_t j = 0; j < hits; ++j) {
+        if (count && tri[count - 1] == tri[j]) {
+            weight[count - 1] += per_ray;
+            continue;
+        }
+        tri[count] = tri[j];
+        weight[count++] = per_ray;
+    }
+    job->out->count[i] = count;
+}
+
+void samp_sources_trace(const scene *s, const rt_scene *rt, uint32_t seed, int threads, const samp_radiance_mesh *mesh,
+                        const samp_point *pts, uint32_t n, const samp_source_hits *out)
+{
+    samp_radiance_index ix;
+    samp_radiance_index_build(s, mesh, &ix); /* without it (no memory): linear search */
+    int k = (int)floor(sqrt((double)out->rays));
+    sources_job job = {.s = s, .rt = rt, .mesh = mesh, .index = &ix, .pts = pts, .out = out, .seed = seed,
+                       .eps = rt_scene_epsilon(rt), .k = k < 1 ? 1 : k};
+    samp_parallel_for(samp_thread_count(threads), n, sources_one, &job);
+    samp_radiance_index_free(&ix);
+}
