@@ -136,6 +136,17 @@ typedef struct cache_source_state {
     uint8_t *cut_open;
     struct source_pick *cut_heap;
     size_t cut_cap;
+    /* Importance (per node id of the direct mesh, recorded at the cut's nodes;
+     * cache_record_importance): how much what the viewer sees depends on the
+     * source's radiance over that node. imp_max: the largest, over the visible
+     * gathers, of the CIELAB ΔE a unit change of the node's source radiance causes
+     * there (ΔE per W·m⁻²·sr⁻¹); imp_sum: the same summed over the gathers, each
+     * weighted by the pixels its vertex stands for (pixel·ΔE per unit radiance). */
+    float *imp_max, *imp_sum;
+    size_t imp_cap;
+    int imp_any;               /* some importance has been recorded */
+    uint32_t *grown;           /* cache_record_importance's answer */
+    size_t grown_cap;
     cache_mesh_stats indirect_stats; /* samples (.mesh filled by cache_get_stats) */
 } cache_source_state;
 
@@ -298,6 +309,24 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
 /* Gathers every value of the indirect mesh(es) again from rebuilt sources (a light
  * edit, a better sampler); nothing is outdated afterwards. */
 lm_result cache_regather_all(cache *c, lm_error *err);
+
+/* Importance (Smits et al. 1992, "An importance-driven radiosity algorithm"):
+ * after the displayed indirect was gathered at the sites (pixels: per scene
+ * triangle, what the viewer sees of it), traces CACHE_IMPORTANCE_RAYS rays from
+ * each visible site (samp_indirect_sources) and records at the cut's nodes how
+ * much the site's tone-mapped colour depends on their radiance (cache_source_state
+ * imp_max, imp_sum). The direct-mesh nodes whose imp_max grew by half or more
+ * (0 to anything included) go to `grown` with their count (a buffer owned by
+ * the cache, valid until the next call), so the scheduler can refine the source
+ * where the viewer now depends on it. */
+enum { CACHE_IMPORTANCE_RAYS = 64 };
+lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
+                                  const uint32_t **grown, uint32_t *grown_n, lm_error *err);
+/* The importance of a node of the direct mesh: the largest over it and its
+ * ancestors of the recorded value times the node's share of that ancestor's
+ * area (hits spread by area), max and sum as in cache_source_state; 0 0 when
+ * nothing above it was recorded. */
+void cache_node_importance(const cache *c, uint32_t node, float *imp_max, float *imp_sum);
 
 /* ---- cache_refine.c: the scheduler ------------------------------------------------------ */
 

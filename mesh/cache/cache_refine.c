@@ -115,10 +115,41 @@ static float leaf_pixels(const uint32_t *pixels, const mesh_qnode *n)
     return ldexpf(p, -2 * (int)n->depth);
 }
 
-/* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners). */
-static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind, const mesh_qnode *n,
+/* A leaf of the direct mesh that no pixel sees: refined as the indirect source,
+ * for what the visible gathers draw from it (importance), not for its pixels. */
+static int source_only(const uint32_t *pixels, refine_kind kind, const mesh_qnode *n)
+{
+    return kind == KIND_DIRECT && pixels && pixels[n->tri] == 0;
+}
+
+/* The largest source radiance kd·L_dd (any channel) at a node's corners. */
+static float source_peak(const cache *c, const mesh_qnode *n)
+{
+    const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
+    float peak = 0.0f;
+    for (int k = 0; k < 3; ++k) {
+        float v[3];
+        if (mesh_qmesh_get_value(c->direct, n->v[k], v) != 1) continue;
+        for (int ch = 0; ch < 3; ++ch) peak = fmaxf(peak, kd[ch] * v[ch]);
+    }
+    return peak;
+}
+
+/* Priority of an unseen source leaf: pixel·ΔE the viewer would see if its
+ * whole radiance were wrong (imp_sum × its peak), the units of leaf_priority. */
+static float source_priority(const cache *c, uint32_t node, const mesh_qnode *n)
+{
+    float imax, isum;
+    cache_node_importance(c, node, &imax, &isum);
+    return isum * source_peak(c, n);
+}
+
+/* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners);
+ * an unseen source leaf's, source_priority. */
+static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind, uint32_t node, const mesh_qnode *n,
                            const uint32_t *pixels)
 {
+    if (source_only(pixels, kind, n)) return source_priority(c, node, n);
     float lab[3][3];
     for (int k = 0; k < 3; ++k) {
         double w1, w2;
@@ -195,7 +226,8 @@ static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_
             const mesh_qnode *n = mesh_qmesh_node(m, e.node);
             if (!n || n->child != MESH_QMESH_NONE || n->v[0] != e.v0) continue;
             if (e.node < c->sched.done_cap[kind] && c->sched.done[kind][e.node]) continue;
-            if (leaf_pixels(pixels, n) <= 1.0f) continue; /* a one-pixel leaf never splits */
+            /* A one-pixel leaf never splits (an unseen source leaf: by its importance). */
+            if (leaf_pixels(pixels, n) <= 1.0f && !source_only(pixels, kind, n)) continue;
             *out = e.node;
             return 1;
         }
@@ -243,6 +275,72 @@ float cache_node_priority(const cache *c, int mesh, uint32_t node)
     if (mesh < 0 || mesh >= CACHE_KINDS || node >= c->sched.prio_cap[mesh]) return 0.0f;
     return c->sched.prio[mesh][node];
 }
+
+/* ---- the indirect source: unseen leaves of the direct mesh ----------------------
+ *
+ * A split of an unseen source leaf is kept when the viewer could see it through
+ * the gathers (importance, cache_source.c): the deviations δ_k of kd·L_dd at the
+ * edge midpoints from the edges' means change the leaf's mean radiance by
+ * (Σ δ_k)/4 (the children's planes against the parent's, integrated), which
+ * changes a visible colour by at most imp_max × that; kept above
+ * SOURCE_EDGE_JND of the JND. The size criterion's counterpart: a leaf whose
+ * whole peak radiance would be seen above SOURCE_SIZE_JND JNDs is split anyway
+ * (a bright spot, such as a lamp's on the floor, may lie between corners that
+ * do not show it). */
+#define SOURCE_EDGE_JND 0.5f
+#define SOURCE_SIZE_JND 8.0f
+
+static int source_split_seen(const cache *c, uint32_t node, const mesh_qnode *n, const uint32_t mid[3])
+{
+    float imax, isum;
+    cache_node_importance(c, node, &imax, &isum);
+    if (!(imax > 0.0f)) return 0;
+    const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
+    float dev = 0.0f, peak = source_peak(c, n);
+    for (int k = 0; k < 3; ++k) {
+        float a[3], b[3], m[3], d = 0.0f;
+        mesh_qmesh_get_value(c->direct, n->v[k], a);
+        mesh_qmesh_get_value(c->direct, n->v[(k + 1) % 3], b);
+        mesh_qmesh_get_value(c->direct, mid[k], m);
+        for (int ch = 0; ch < 3; ++ch) {
+            d = fmaxf(d, kd[ch] * fabsf(m[ch] - 0.5f * (a[ch] + b[ch])));
+            peak = fmaxf(peak, kd[ch] * m[ch]);
+        }
+        dev += d;
+    }
+    /* The children's share of the importance is a quarter each: imp_max stays the
+     * parent's bound for the change over the whole leaf. */
+    return imax * 0.25f * dev > SOURCE_EDGE_JND * c->desc.jnd || imax * peak > SOURCE_SIZE_JND * c->desc.jnd;
+}
+
+/* Schedules every unseen leaf of the direct mesh under `node`. */
+static lm_result schedule_source_subtree(cache *c, uint32_t node, const uint32_t *pixels, lm_error *err)
+{
+    const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
+    if (n->child != MESH_QMESH_NONE) {
+        uint32_t child = n->child;
+        lm_result r = LM_OK;
+        for (uint32_t k = 0; r == LM_OK && k < 4; ++k) r = schedule_source_subtree(c, child + k, pixels, err);
+        return r;
+    }
+    if (!source_only(pixels, KIND_DIRECT, n)) return LM_OK;
+    /* (It may be waiting already: the heap drops a second entry when it is popped.) */
+    return sched_add(c, KIND_DIRECT, node, source_priority(c, node, n), err);
+}
+
+/* After visible gathers: record where they draw from, and schedule the unseen
+ * source leaves whose importance grew. */
+static lm_result schedule_important_sources(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
+                                            lm_error *err)
+{
+    if (c->desc.single_mesh || !pixels) return LM_OK;
+    const uint32_t *grown;
+    uint32_t gn;
+    lm_result r = cache_record_importance(c, sites, n, pixels, &grown, &gn, err);
+    for (uint32_t i = 0; r == LM_OK && i < gn; ++i) r = schedule_source_subtree(c, grown[i], pixels, err);
+    return r;
+}
+
 
 /* ---- one round ---------------------------------------------------------------- */
 
@@ -349,6 +447,8 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     for (uint32_t i = 0; r == LM_OK && i < ns; ++i) r = mesh_qmesh_set_value(m, vids[i], vals + 3 * (size_t)i, err);
     free(vals);
     free(vids);
+    /* What the new visible gathers draw from: the source is refined there. */
+    if (r == LM_OK && kind == KIND_INDIRECT) r = schedule_important_sources(c, sites, ns, pixels, err);
 
     /* Edge tests: keep or undo. */
     for (uint32_t i = 0; r == LM_OK && i < nl; ++i) {
@@ -357,7 +457,11 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         float px = leaf_pixels(pixels, n);
         int found = 0;
         int combined = leaves[i].mirror != MESH_QMESH_NONE;
-        for (int k = 0; k < 3 && !found; ++k) {
+        if (source_only(pixels, kind, n)) {
+            found = source_split_seen(c, leaves[i].node, n, leaves[i].mid);
+            px = 0.0f;
+        }
+        for (int k = 0; k < 3 && !found && !source_only(pixels, kind, n); ++k) {
             float a[3], b[3], fresh[3], interp[3], lf[3], li[3];
             mesh_qmesh_get_value(m, corner[k], a);
             mesh_qmesh_get_value(m, corner[(k + 1) % 3], b);
@@ -384,7 +488,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             res->split++;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
                 const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
-                r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, ch, pixels), err);
+                r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
             }
         } else {
             r = mesh_qmesh_merge(m, leaves[i].node, err);
@@ -421,8 +525,8 @@ static lm_result requeue_visit(const mesh_qmesh *m, uint32_t node, const mesh_qn
     if (n->child != MESH_QMESH_NONE) return LM_OK;
     int hit = 0;
     for (int k = 0; k < 3 && !hit; ++k) hit = bsearch(&n->v[k], q->vids, q->n, sizeof *q->vids, cmp_u32) != NULL;
-    if (!hit || (q->pixels && q->pixels[n->tri] == 0)) return LM_OK;
-    return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, n, q->pixels), err);
+    if (!hit || (q->pixels && q->pixels[n->tri] == 0 && !source_only(q->pixels, q->kind, n))) return LM_OK;
+    return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, node, n, q->pixels), err);
 }
 
 /* regions NULL: anywhere in the mesh. The single-mesh ablation schedules the
@@ -483,7 +587,7 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
         if (leaf == last) continue; /* a fan emits several triangles per leaf */
         last = leaf;
         const mesh_qnode *n = mesh_qmesh_node(m, leaf);
-        float p = pixels && pixels[n->tri] == 0 ? 0.0f : leaf_priority(c, m, kind, n, pixels);
+        float p = leaf_priority(c, m, kind, leaf, n, pixels); /* 0: unseen and nothing gathers from it */
         r = sched_add(c, kind, leaf, p, err);
     }
     free(tris);

@@ -16,7 +16,9 @@
 #include "sampling/samp.h"
 #include "src/base/vecmath.h"
 
-/* The source is a cut of the direct mesh of at most this many triangles: indirect
+/* The source is a cut of the direct mesh of the roots and at most this many more
+ * triangles (a scene of more triangles than this still gets a cut that follows
+ * the light where gathers see it, docs/cache.md): indirect
  * irradiance is smooth, and every indirect sample draws or searches the whole
  * source (the paper gathers from a coarse direct mesh, §5). With the full leaf set
  * of the built-in Cornell box (31,000 triangles) a GL hemicube sample cost 6 ms. */
@@ -48,6 +50,9 @@ void cache_source_free(cache_source_state *st)
     free(st->cut_err);
     free(st->cut_open);
     free(st->cut_heap);
+    free(st->imp_max);
+    free(st->imp_sum);
+    free(st->grown);
     memset(st, 0, sizeof *st);
 }
 
@@ -55,14 +60,18 @@ size_t cache_source_bytes(const cache_source_state *st)
 {
     return st->cut_cap * (sizeof *st->cut_err + sizeof *st->cut_open + sizeof *st->cut_heap) +
            (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (3 * sizeof(float) + 1) +
-           st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf;
+           st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf +
+           st->imp_cap * 2 * sizeof(float) + st->grown_cap * sizeof(uint32_t);
 }
 
 /* ---- the cut ------------------------------------------------------------------
  *
  * Opened where linear interpolation over a node is worst: from the roots, the node
  * with the largest bound on |fine mesh − the node's own plane| (of kd·L_dd) times
- * its area is replaced by its four children while the budget allows. The bound is
+ * its weight is replaced by its four children while the budget (the roots and
+ * CACHE_RMESH_TRIANGLES more) allows. The weight is the node's importance
+ * (imp_sum: what the viewer would see of the error) once any was recorded, its
+ * area before. The bound is
  * built bottom-up: 0 at a leaf; at an inner node, the largest of its children's
  * plus the largest deviation of the values at its edge midpoints from the mean of
  * the edge's ends (the children's planes differ from the parent's by at most that). */
@@ -116,6 +125,19 @@ static struct source_pick heap_pop(struct source_pick *h, uint32_t *n)
     return top;
 }
 
+/* What an error over a node weighs when the cut is chosen: its importance once
+ * any is known (a node nothing visible gathers from weighs nothing beyond a
+ * trace of its area, so ties still open the larger), its area before. */
+static float cut_weight(const cache *c, uint32_t node)
+{
+    const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
+    float area = (float)(c->s->tri_areas[n->tri] * ldexp(1.0, -2 * (int)n->depth));
+    if (!c->src.imp_any) return area;
+    float imax, isum;
+    cache_node_importance(c, node, &imax, &isum);
+    return isum + 1e-9f * area;
+}
+
 /* Marks in c->src.cut_open the nodes the cut opens. */
 static lm_result choose_cut(cache *c, lm_error *err)
 {
@@ -136,17 +158,18 @@ static lm_result choose_cut(cache *c, lm_error *err)
         if (root == MESH_QMESH_NONE) continue;
         count++;
         float e = source_error(c, root);
-        if (e > 0.0f) heap_push(c->src.cut_heap, &hn, (struct source_pick){e * s->tri_areas[t], root});
+        if (e > 0.0f) heap_push(c->src.cut_heap, &hn, (struct source_pick){e * cut_weight(c, root), root});
     }
-    while (hn && count + 3 <= CACHE_RMESH_TRIANGLES) {
+    const uint32_t budget = count + CACHE_RMESH_TRIANGLES;
+    while (hn && count + 3 <= budget) {
         struct source_pick p = heap_pop(c->src.cut_heap, &hn);
         const mesh_qnode *n = mesh_qmesh_node(c->direct, p.node);
         c->src.cut_open[p.node] = 1;
         count += 3;
-        double area = s->tri_areas[n->tri] * ldexp(1.0, -2 * ((int)n->depth + 1));
         for (uint32_t k = 0; k < 4; ++k) {
             float e = c->src.cut_err[n->child + k];
-            if (e > 0.0f) heap_push(c->src.cut_heap, &hn, (struct source_pick){e * (float)area, n->child + k});
+            if (e > 0.0f)
+                heap_push(c->src.cut_heap, &hn, (struct source_pick){e * cut_weight(c, n->child + k), n->child + k});
         }
     }
     return LM_OK;
@@ -665,5 +688,106 @@ lm_result cache_regather_all(cache *c, lm_error *err)
         }
         c->src.outdated_n = 0;
     }
+    return r;
+}
+
+/* ---- importance ------------------------------------------------------------------- */
+
+static lm_result grow_importance(cache_source_state *st, uint32_t limit, lm_error *err)
+{
+    if (limit <= st->imp_cap) return LM_OK;
+    size_t cap = lm_grow_capacity(st->imp_cap, limit, 1024, SIZE_MAX / sizeof(float));
+    if (!cap || !lm_realloc_array(&st->imp_max, st->imp_cap, cap, sizeof *st->imp_max) ||
+        !lm_realloc_array(&st->imp_sum, st->imp_cap, cap, sizeof *st->imp_sum))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source's importance");
+    memset(st->imp_max + st->imp_cap, 0, (cap - st->imp_cap) * sizeof *st->imp_max);
+    memset(st->imp_sum + st->imp_cap, 0, (cap - st->imp_cap) * sizeof *st->imp_sum);
+    st->imp_cap = cap;
+    return LM_OK;
+}
+
+void cache_node_importance(const cache *c, uint32_t node, float *imp_max, float *imp_sum)
+{
+    float mx = 0.0f, sm = 0.0f, share = 1.0f;
+    for (uint32_t a = node; a != MESH_QMESH_NONE; a = mesh_qmesh_node(c->direct, a)->parent, share *= 0.25f) {
+        if (a >= c->src.imp_cap) continue;
+        mx = fmaxf(mx, c->src.imp_max[a] * share);
+        sm = fmaxf(sm, c->src.imp_sum[a] * share);
+    }
+    *imp_max = mx;
+    *imp_sum = sm;
+}
+
+/* ΔE per unit change of the source radiance over the whole hemisphere of a
+ * visible site: the tone-mapped colour with E_i + π·h against E_i, over h. */
+static float site_sensitivity(const cache *c, const cache_site *st, const float ei[3])
+{
+    float ldd[3] = {0, 0, 0}, lab0[3], lab1[3], up[3];
+    lm_error ignore;
+    if (mesh_qmesh_interpolate(c->direct, st->tri, st->w1, st->w2, ldd, &ignore) != LM_OK) ldd[0] = ldd[1] = ldd[2] = 0;
+    float level = 0.0f;
+    for (int k = 0; k < 3; ++k) level = fmaxf(level, fmaxf(ei[k], 0.0f) + (float)M_PI * ldd[k]);
+    float h = fmaxf(0.01f * level / (float)M_PI, 1e-6f);
+    float e0[3];
+    for (int k = 0; k < 3; ++k) {
+        e0[k] = fmaxf(ei[k], 0.0f);
+        up[k] = e0[k] + (float)M_PI * h;
+    }
+    cache_seen_lab(c, st->tri, ldd, e0, NULL, lab0);
+    cache_seen_lab(c, st->tri, ldd, up, NULL, lab1);
+    return tm_delta_e(lab0, lab1) / h;
+}
+
+lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
+                                  const uint32_t **grown, uint32_t *grown_n, lm_error *err)
+{
+    *grown_n = 0;
+    *grown = c->src.grown;
+    if (!pixels || n == 0 || !c->src.rmesh.first || c->src.with_e1 != (c->indirect1 != NULL)) return LM_OK;
+    cache_source_state *st = &c->src;
+    lm_result r = grow_importance(st, mesh_qmesh_node_limit(c->direct), err);
+    if (r != LM_OK) return r;
+    enum { RAYS = CACHE_IMPORTANCE_RAYS };
+    samp_point *pts = malloc(n * sizeof *pts);
+    uint32_t *idx = malloc(n * sizeof *idx), *count = malloc(n * sizeof *count);
+    uint32_t *tri = malloc((size_t)n * RAYS * sizeof *tri);
+    float *weight = malloc((size_t)n * RAYS * sizeof *weight);
+    if (!pts || !idx || !count || !tri || !weight) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing importance");
+    uint32_t m = 0;
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i)
+        if (pixels[sites[i].tri] > 0 && mesh_qmesh_vertex_use(c->indirect, sites[i].vid)) {
+            idx[m] = i;
+            pts[m++] = cache_vertex_point(c, sites[i].vid);
+        }
+    if (r == LM_OK && m)
+        r = samp_indirect_sources(c->sp, &st->rmesh, pts, m,
+                                  &(samp_source_hits){.rays = RAYS, .count = count, .tri = tri, .weight = weight}, err);
+    for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
+        const cache_site *site = &sites[idx[j]];
+        float ei[3];
+        if (mesh_qmesh_get_value(c->indirect, site->vid, ei) != 1) continue;
+        float g = site_sensitivity(c, site, ei);
+        float px = ldexpf((float)pixels[site->tri], -2 * ((int)site->depth + 1));
+        if (!(g > 0.0f) || !isfinite(g)) continue;
+        for (uint32_t h = 0; r == LM_OK && h < count[j]; ++h) {
+            uint32_t node = st->leaf_buf[tri[(size_t)j * RAYS + h]].leaf;
+            float w = weight[(size_t)j * RAYS + h] * g, before = st->imp_max[node];
+            st->imp_sum[node] += px * w;
+            if (!(w > before)) continue;
+            st->imp_max[node] = w;
+            st->imp_any = 1;
+            if (w < 1.5f * before) continue;
+            if (*grown_n == st->grown_cap && !LM_GROW(st->grown, st->grown_cap, (size_t)*grown_n + 1))
+                r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing importance");
+            else
+                st->grown[(*grown_n)++] = node;
+        }
+    }
+    *grown = st->grown;
+    free(pts);
+    free(idx);
+    free(count);
+    free(tri);
+    free(weight);
     return r;
 }
