@@ -206,6 +206,32 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
     return r;
 }
 
+lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                              uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err)
+{
+    if (!sp || (n && (!pts || !E || !std_err)))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_noise: missing arguments");
+    if (scale < 1 || scale > 256) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_noise: scale %u (1..256)", scale);
+    if (!sp->be.indirect_ops->indirect_noise) {
+        lm_result r = samp_indirect(sp, mesh, pts, n, E, err);
+        if (r == LM_OK) memset(std_err, 0, 3 * (size_t)n * sizeof *std_err);
+        return r;
+    }
+    if (!samp_radiance_mesh_valid(sp->s, mesh, err)) return LM_ERR_INVALID_ARG;
+    if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_noise: non-finite point or normal");
+    if (n == 0) return LM_OK;
+    double t0 = lm_now_seconds();
+    lm_result r = sp->be.indirect_ops->indirect_noise(sp->be.indirect_impl, mesh, pts, n, pass, scale, E, std_err, err);
+    sp->stats.indirect_seconds += lm_now_seconds() - t0;
+    if (r == LM_OK) sp->stats.indirect_samples += n;
+    return r;
+}
+
+uint32_t samp_indirect_rays(const samp_sampler *sp)
+{
+    return sp->be.indirect_ops->indirect_rays ? sp->be.indirect_ops->indirect_rays(sp->be.indirect_impl) : 0;
+}
+
 lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                                 const samp_source_hits *out, lm_error *err)
 {

@@ -141,6 +141,19 @@ lm_result samp_direct(samp_sampler *sp, uint32_t light, const samp_point *pts, u
 lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                         float *E, lm_error *err);
 
+/* samp_indirect with each value's standard error (RGB, std_err[3·i ..]) and more
+ * rays: the Embree back end traces scale × indirect_rays rays a point (scale 1,
+ * 4, 16, ...: the strata refined) from random stream `pass` (0 is
+ * samp_indirect's own; passes are independent, so a caller may average them,
+ * weighted by their rays). The error is the rays' sample standard deviation over
+ * √rays (it ignores the strata, so it errs high). A back end without noise (GL's
+ * hemicube is deterministic; its discretisation is not estimated) gives its
+ * plain value and an error of 0, whatever scale. */
+lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                              uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err);
+/* Rays a point of one pass at scale 1 (0: the indirect back end casts none). */
+uint32_t samp_indirect_rays(const samp_sampler *sp);
+
 /* Where the indirect light of each point comes from (the cache's importance,
  * docs/cache.md): `rays` stratified cosine-weighted rays per point, traced with
  * Embree whichever back end serves samp_indirect, each hit on the front of a

@@ -128,16 +128,18 @@ static float direct_one(const embree_impl *e, uint32_t li, const samp_point *x)
 
 /* ---- indirect -------------------------------------------------------------- */
 
+/* k×k strata from random stream `pass` (0: the plain gather's); std_err: the
+ * standard error of E per channel, from the rays' sample variance (the strata
+ * ignored, so it errs high), or NULL. */
 static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_radiance_index *ix,
-                         const samp_point *x, float E[3])
+                         const samp_point *x, int k, uint32_t pass, float E[3], float *std_err)
 {
     float origin[3];
     samp_point_origin(e->s, x, e->eps, origin);
     samp_frame f = samp_frame_make(x->n);
     lm_rng g;
-    point_rng(e, 0, x, &g);
-    int k = e->indirect_k;
-    double sum[3] = {0, 0, 0};
+    point_rng(e, pass ? 0x1000000u + pass : 0, x, &g);
+    double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
     for (int j = 0; j < k; ++j)
         for (int i = 0; i < k; ++i) {
             float u = (i + lm_rng_float(&g)) / k, v = (j + lm_rng_float(&g)) / k;
@@ -150,11 +152,19 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
             if (v3_dot(v3_load(e->s->tri_normals + 3 * (size_t)h.tri), d) >= 0.0f) continue;
             float L[3];
             samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
-            for (int c = 0; c < 3; ++c) sum[c] += L[c];
+            for (int c = 0; c < 3; ++c) {
+                sum[c] += L[c];
+                sum2[c] += (double)L[c] * L[c];
+            }
         }
+    const double N = (double)k * k;
     for (int c = 0; c < 3; ++c) {
-        double v = M_PI * sum[c] / ((double)k * k);
+        double v = M_PI * sum[c] / N;
         E[c] = isfinite(v) ? (float)v : 0.0f;
+        if (!std_err) continue;
+        double mean = sum[c] / N, var = fmax(sum2[c] / N - mean * mean, 0.0) * N / (N > 1.0 ? N - 1.0 : 1.0);
+        double se = M_PI * sqrt(var / N);
+        std_err[c] = isfinite(se) ? (float)se : 0.0f;
     }
 }
 
@@ -168,13 +178,17 @@ typedef struct batch {
     const samp_point *pts;
     uint32_t n;
     float *out;
+    float *std_err;                 /* indirect: per point RGB, or NULL */
+    int k;                          /* indirect: strata per side */
+    uint32_t pass;                  /* indirect: random stream */
 } batch;
 
 static void batch_one(void *user, uint32_t i)
 {
     const batch *b = user;
     if (b->mesh)
-        indirect_one(b->e, b->mesh, b->index, &b->pts[i], b->out + 3 * (size_t)i);
+        indirect_one(b->e, b->mesh, b->index, &b->pts[i], b->k, b->pass, b->out + 3 * (size_t)i,
+                     b->std_err ? b->std_err + 3 * (size_t)i : NULL);
     else
         b->out[i] = direct_one(b->e, b->light, &b->pts[i]);
 }
@@ -190,17 +204,31 @@ static lm_result embree_direct(void *impl, uint32_t light, const samp_point *pts
     return LM_OK;
 }
 
-static lm_result embree_indirect(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
-                                 float *E, lm_error *err)
+static lm_result embree_indirect_noise(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                                       uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err)
 {
     (void)err;
     const embree_impl *e = impl;
     samp_radiance_index ix;
     samp_radiance_index_build(e->s, mesh, &ix); /* without it (no memory): linear search */
-    batch b = {.e = impl, .mesh = mesh, .index = &ix, .pts = pts, .n = n, .out = E};
+    int k = e->indirect_k * (int)ceil(sqrt((double)(scale ? scale : 1)) - 1e-9);
+    batch b = {.e = impl, .mesh = mesh, .index = &ix, .pts = pts, .n = n, .out = E, .std_err = std_err, .k = k,
+               .pass = pass};
     run_batch(impl, &b);
     samp_radiance_index_free(&ix);
     return LM_OK;
+}
+
+static lm_result embree_indirect(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                                 float *E, lm_error *err)
+{
+    return embree_indirect_noise(impl, mesh, pts, n, 0, 1, E, NULL, err);
+}
+
+static uint32_t embree_indirect_rays(const void *impl)
+{
+    const embree_impl *e = impl;
+    return (uint32_t)(e->indirect_k * e->indirect_k);
 }
 
 static void embree_destroy(void *impl)
@@ -214,7 +242,8 @@ static void embree_destroy(void *impl)
 }
 
 static const samp_backend_ops embree_ops = {
-    .backend = SAMP_BACKEND_EMBREE, .name = "embree", .direct = embree_direct, .indirect = embree_indirect, .destroy = embree_destroy};
+    .backend = SAMP_BACKEND_EMBREE, .name = "embree", .direct = embree_direct, .indirect = embree_indirect,
+    .indirect_noise = embree_indirect_noise, .indirect_rays = embree_indirect_rays, .destroy = embree_destroy};
 
 /* Two triangles sharing an edge whose four corners satisfy a + c = b + d (to
  * float rounding): record the parallelogram. */

@@ -121,7 +121,8 @@ typedef struct cache_source_state {
      * moved its E_i since it was gathered, and whether it waits to be gathered again. */
     float *drift;
     uint8_t *outdated;
-    size_t drift_cap;
+    float *sigma;              /* per vertex id: the standard error of its E_i (RGB; 0: GL, exact) */
+    size_t drift_cap;          /* drift, outdated and sigma */
     uint32_t *outdated_list;
     size_t outdated_n, outdated_cap;
     uint64_t regathered;       /* indirect values gathered again because they were outdated */
@@ -292,6 +293,9 @@ int64_t cache_direct_changes(const cache *c);
 /* E at the given vertices (batched) from the source of the kind asked (first
  * bounce: kd·L_dd; else the displayed indirect's, cache_sample_indirect). */
 lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
+/* The standard error (RGB) of the displayed indirect value at vertex vid (0 0 0
+ * when unknown or exact). */
+void cache_indirect_sigma(const cache *c, uint32_t vid, float out[3]);
 /* Samples E_i at the given vertices (batched): gathered from kd·L_dd, and with
  * bounces = 2 from kd·(L_dd + E_1/π), E_1 the first bounce (c->indirect1). */
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);

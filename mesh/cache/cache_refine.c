@@ -344,6 +344,24 @@ static lm_result schedule_important_sources(cache *c, const cache_site *sites, u
 
 /* ---- one round ---------------------------------------------------------------- */
 
+#define NOISE_SIGMAS 2.5f
+
+/* Is fresh − interp (the midpoint's gather against the mean of the edge's ends)
+ * more than NOISE_SIGMAS standard errors of that difference in some channel? */
+static int beyond_noise(const cache *c, uint32_t a, uint32_t b, uint32_t mid, const float fresh[3],
+                        const float interp[3])
+{
+    float sa[3], sb[3], sm[3];
+    cache_indirect_sigma(c, a, sa);
+    cache_indirect_sigma(c, b, sb);
+    cache_indirect_sigma(c, mid, sm);
+    for (int ch = 0; ch < 3; ++ch) {
+        float sd = sqrtf(sm[ch] * sm[ch] + 0.25f * (sa[ch] * sa[ch] + sb[ch] * sb[ch]));
+        if (fabsf(fresh[ch] - interp[ch]) > NOISE_SIGMAS * sd) return 1;
+    }
+    return 0;
+}
+
 typedef struct round_leaf {
     uint32_t node;
     uint32_t mirror;            /* single mesh: the indirect node split along with it */
@@ -482,6 +500,10 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
             }
             found = tm_delta_e(lf, li) > c->desc.jnd;
+            /* Indirect values are noisy estimates: a difference the noise explains
+             * (within NOISE_SIGMAS standard errors in every channel) splits nothing. */
+            if (found && kind == KIND_INDIRECT && !combined)
+                found = beyond_noise(c, corner[k], corner[(k + 1) % 3], leaves[i].mid[k], fresh, interp);
         }
         res->tested++;
         if (found || px > min_pixels) {

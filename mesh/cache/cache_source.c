@@ -45,6 +45,7 @@ void cache_source_free(cache_source_state *st)
     free(st->rp_rad);
     free(st->drift);
     free(st->outdated);
+    free(st->sigma);
     free(st->outdated_list);
     free(st->leaf_buf);
     free(st->cut_err);
@@ -59,7 +60,7 @@ void cache_source_free(cache_source_state *st)
 size_t cache_source_bytes(const cache_source_state *st)
 {
     return st->cut_cap * (sizeof *st->cut_err + sizeof *st->cut_open + sizeof *st->cut_heap) +
-           (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (3 * sizeof(float) + 1) +
+           (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (6 * sizeof(float) + 1) +
            st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf +
            st->imp_cap * 2 * sizeof(float) + st->grown_cap * sizeof(uint32_t);
 }
@@ -216,7 +217,8 @@ static lm_result grow_drift(cache_source_state *st, uint32_t limit, lm_error *er
     /* drift (RGB per id) and outdated share one capacity in vertex ids */
     size_t cap = lm_grow_capacity(st->drift_cap, limit, 1024, SIZE_MAX / (3 * sizeof *st->drift));
     if (!cap || !lm_realloc_array(&st->drift, st->drift_cap, cap, 3 * sizeof *st->drift) ||
-        !lm_realloc_array(&st->outdated, st->drift_cap, cap, sizeof *st->outdated))
+        !lm_realloc_array(&st->outdated, st->drift_cap, cap, sizeof *st->outdated) ||
+        !lm_realloc_array(&st->sigma, st->drift_cap, cap, 3 * sizeof *st->sigma))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
     st->drift_cap = cap;
     return LM_OK;
@@ -322,6 +324,17 @@ static void drift_bound(const far_field *f, const changed_tri *ch, uint32_t n, c
     }
 }
 
+/* L_dd at vertex vid: its own value in the direct mesh, else interpolated there. */
+static void vertex_direct(const cache *c, uint32_t vid, float ldd[3])
+{
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    if (mesh_qmesh_get_value(c->direct, vid, ldd) == 1) return;
+    double scale = ldexp(1.0, -(int)mv->bary.depth);
+    lm_error ignore;
+    if (mesh_qmesh_interpolate(c->direct, mv->tri, mv->bary.w[1] * scale, mv->bary.w[2] * scale, ldd, &ignore) != LM_OK)
+        ldd[0] = ldd[1] = ldd[2] = 0.0f;
+}
+
 /* Compares the new source (c->src.rmesh) with the previous one (c->rp_*), adds the
  * bounds to the drift of every displayed indirect value and flags those that may
  * have moved by more than the JND. */
@@ -416,14 +429,8 @@ static lm_result mark_outdated(cache *c, lm_error *err)
         float *dr = c->src.drift + 3 * (size_t)vid;
         for (int k = 0; k < 3; ++k) dr[k] += (float)fmin(add[k], 3e38);
         /* Could the drift be seen? E ± drift against E, through the tone map. */
-        float ldd[3] = {0, 0, 0}, lab0[3], lab1[3], up[3], down[3];
-        if (mesh_qmesh_get_value(c->direct, vid, ldd) != 1) {
-            double scale = ldexp(1.0, -(int)mv->bary.depth);
-            lm_error ignore;
-            if (mesh_qmesh_interpolate(c->direct, mv->tri, mv->bary.w[1] * scale, mv->bary.w[2] * scale, ldd, &ignore) !=
-                LM_OK)
-                ldd[0] = ldd[1] = ldd[2] = 0.0f;
-        }
+        float ldd[3], lab0[3], lab1[3], up[3], down[3];
+        vertex_direct(c, vid, ldd);
         /* (E cannot be negative: the bounds are clamped at 0; L_ds is left out.) */
         float e0[3];
         for (int k = 0; k < 3; ++k) {
@@ -563,7 +570,98 @@ lm_result cache_settle_source(cache *c, lm_error *err)
     return r;
 }
 
-/* ---- gathers ---------------------------------------------------------------------- */
+/* ---- gathers ----------------------------------------------------------------------
+ *
+ * A displayed indirect value knows its noise: the gather's standard error
+ * (samp_indirect_noise). Where the error could be seen — E ± σ against E,
+ * through the tone map, more than GATHER_NOISE_JND of the JND apart — the value
+ * is gathered again with GATHER_SCALE times the rays from an independent
+ * stream and the estimates are averaged by their rays, at most GATHER_PASSES
+ * times (light through a narrow gap: few rays find it, and without this the
+ * edge test splits on the noise; docs/cache.md). */
+#define GATHER_NOISE_JND 0.5f
+enum { GATHER_SCALE = 4, GATHER_PASSES = 2 };
+
+void cache_indirect_sigma(const cache *c, uint32_t vid, float out[3])
+{
+    if (vid < c->src.drift_cap && c->src.sigma) {
+        memcpy(out, c->src.sigma + 3 * (size_t)vid, 3 * sizeof *out);
+        return;
+    }
+    out[0] = out[1] = out[2] = 0.0f;
+}
+
+/* Could E ± σ be told from E at vertex vid? */
+static int noise_seen(const cache *c, uint32_t vid, const float e[3], const float sigma[3])
+{
+    float ldd[3], e0[3], up[3], down[3], lab0[3], lab1[3];
+    vertex_direct(c, vid, ldd);
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    for (int k = 0; k < 3; ++k) {
+        e0[k] = fmaxf(e[k], 0.0f);
+        up[k] = e0[k] + sigma[k];
+        down[k] = fmaxf(e[k] - sigma[k], 0.0f);
+    }
+    cache_seen_lab(c, mv->tri, ldd, e0, NULL, lab0);
+    cache_seen_lab(c, mv->tri, ldd, up, NULL, lab1);
+    if (tm_delta_e(lab0, lab1) > GATHER_NOISE_JND * c->desc.jnd) return 1;
+    cache_seen_lab(c, mv->tri, ldd, down, NULL, lab1);
+    return tm_delta_e(lab0, lab1) > GATHER_NOISE_JND * c->desc.jnd;
+}
+
+/* The displayed indirect at the points, with more rays where its noise shows. */
+static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n, float *E,
+                                  lm_error *err)
+{
+    float *sig = malloc(3 * (size_t)n * sizeof *sig);
+    if (!sig) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
+    lm_result r = samp_indirect_noise(c->sp, &c->src.rmesh, pts, n, 0, 1, E, sig, err);
+    if (r == LM_OK) r = grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
+    double rays = 1.0; /* in units of one plain gather's rays */
+    uint32_t *again = NULL;
+    samp_point *apts = NULL;
+    float *aE = NULL, *asig = NULL;
+    for (uint32_t pass = 1, scale = GATHER_SCALE; r == LM_OK && pass <= GATHER_PASSES && samp_indirect_rays(c->sp);
+         ++pass, scale *= GATHER_SCALE) {
+        if (!again) {
+            again = malloc(n * sizeof *again);
+            apts = malloc(n * sizeof *apts);
+            aE = malloc(3 * (size_t)n * sizeof *aE);
+            asig = malloc(3 * (size_t)n * sizeof *asig);
+            if (!again || !apts || !aE || !asig) {
+                r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
+                break;
+            }
+        }
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < n; ++i)
+            if (noise_seen(c, vids[i], E + 3 * (size_t)i, sig + 3 * (size_t)i)) {
+                again[m] = i;
+                apts[m++] = pts[i];
+            }
+        if (m == 0) break;
+        r = samp_indirect_noise(c->sp, &c->src.rmesh, apts, m, pass, scale, aE, asig, err);
+        /* Averaged by rays: E = (a·E_a + b·E_b)/(a + b), σ² = (a²σ_a² + b²σ_b²)/(a + b)². */
+        for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
+            float *e = E + 3 * (size_t)again[j], *sg = sig + 3 * (size_t)again[j];
+            double a = rays, b = scale, t = a + b;
+            for (int k = 0; k < 3; ++k) {
+                double eb = aE[3 * (size_t)j + (size_t)k], sb = asig[3 * (size_t)j + (size_t)k];
+                e[k] = (float)((a * e[k] + b * eb) / t);
+                sg[k] = (float)(sqrt(a * a * (double)sg[k] * sg[k] + b * b * sb * sb) / t);
+            }
+        }
+        rays += scale; /* (only the points gathered again have these rays; the others stopped before) */
+    }
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i)
+        if (vids[i] < c->src.drift_cap) memcpy(c->src.sigma + 3 * (size_t)vids[i], sig + 3 * (size_t)i, 3 * sizeof *sig);
+    free(again);
+    free(apts);
+    free(aE);
+    free(asig);
+    free(sig);
+    return r;
+}
 
 lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
 {
@@ -573,7 +671,8 @@ lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_
     samp_point *pts = malloc(n * sizeof *pts);
     if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     for (uint32_t i = 0; i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
-    r = samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err);
+    r = first_bounce || c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
+                                            : gather_displayed(c, vids, pts, n, E, err);
     free(pts);
     if (r == LM_OK) c->src.indirect_stats.samples += n;
     /* A value gathered from the current source has not drifted. */
