@@ -1,0 +1,252 @@
+/* cache_indirect_test — indirect light in the multi-mesh cache where it is hard
+ * (issue: interiors lit through an opening; docs/cache.md): a slot. Two rooms
+ * joined by a slit in the wall between them, the far room lit by a quad light on
+ * that wall's far side (it cannot see through the slit: the near room has no
+ * direct light at all). Only the near room is "seen" (pixels), so the far room's
+ * direct mesh, the indirect source, is refined for what the near room's gathers
+ * draw from it (importance) or not at all.
+ *   - the source: gathered with 65,536 Embree rays, the cache's source after
+ *     refinement gives E_i at points of the near room within 1% of the exactly
+ *     lit source (the far room is convex, so its unoccluded direct light is exact,
+ *     cut 64² times finer than the scene's triangles); the coarse cache's source
+ *     is wrong there by more than 5%, so the check can fail;
+ *   - the cache's own E_i (its gathers interpolated): within 30% (measured 27%
+ *     at worst; the issue's target, 5%, is not met yet: docs/cache.md).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh/cache/cache.h"
+#include "mesh/cache/cache_internal.h"
+#include "sampling/samp.h"
+#include "src/base/tonemap.h"
+#include "tests/test_util.h"
+
+/* ---- geometry ------------------------------------------------------------- */
+
+typedef struct obj_buf {
+    char text[16384];
+    size_t len;
+    int verts;
+} obj_buf;
+
+/* A quad c, c+e1, c+e1+e2, c+e2 facing n (wound so that it does). */
+static void quad(obj_buf *o, const double c[3], const double e1[3], const double e2[3], const double n[3])
+{
+    double x[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+    int flip = x[0] * n[0] + x[1] * n[1] + x[2] * n[2] < 0.0;
+    const double *a = flip ? e2 : e1, *b = flip ? e1 : e2;
+    double p[4][3];
+    for (int k = 0; k < 3; ++k) {
+        p[0][k] = c[k];
+        p[1][k] = c[k] + a[k];
+        p[2][k] = c[k] + a[k] + b[k];
+        p[3][k] = c[k] + b[k];
+    }
+    for (int i = 0; i < 4; ++i)
+        o->len += (size_t)snprintf(o->text + o->len, sizeof o->text - o->len, "v %.9g %.9g %.9g\n", p[i][0], p[i][1],
+                                   p[i][2]);
+    o->len += (size_t)snprintf(o->text + o->len, sizeof o->text - o->len, "f %d %d %d %d\n", o->verts + 1,
+                               o->verts + 2, o->verts + 3, o->verts + 4);
+    o->verts += 4;
+}
+
+/* An axis-aligned rectangle in the plane axis = at, spanning [lo, hi] in the two
+ * other axes (in order), facing sign along axis. */
+static void rect(obj_buf *o, int axis, double at, const double lo[2], const double hi[2], double sign)
+{
+    int u = (axis + 1) % 3, v = (axis + 2) % 3;
+    double c[3] = {0}, e1[3] = {0}, e2[3] = {0}, n[3] = {0};
+    c[axis] = at;
+    c[u] = lo[0];
+    c[v] = lo[1];
+    e1[u] = hi[0] - lo[0];
+    e2[v] = hi[1] - lo[1];
+    n[axis] = sign;
+    quad(o, c, e1, e2, n);
+}
+
+/* The near room x ∈ [0, 0.98], the far room x ∈ [1, 2], both y, z ∈ [0, 1]; the
+ * wall between them (0.98 to 1) has a slit y ∈ [0.45, 0.55], z ∈ [0.3, 0.7]. */
+#define WALL_NEAR 0.98
+#define SLIT_Y0 0.45
+#define SLIT_Y1 0.55
+#define SLIT_Z0 0.3
+#define SLIT_Z1 0.7
+
+static void wall_with_slit(obj_buf *o, double x, double sign)
+{
+    /* rect(axis 0): spans (y, z) */
+    rect(o, 0, x, (double[2]){0, 0}, (double[2]){SLIT_Y0, 1}, sign);
+    rect(o, 0, x, (double[2]){SLIT_Y1, 0}, (double[2]){1, 1}, sign);
+    rect(o, 0, x, (double[2]){SLIT_Y0, 0}, (double[2]){SLIT_Y1, SLIT_Z0}, sign);
+    rect(o, 0, x, (double[2]){SLIT_Y0, SLIT_Z1}, (double[2]){SLIT_Y1, 1}, sign);
+}
+
+static void slot_rooms(obj_buf *o)
+{
+    /* near room: floor, ceiling, x = 0, z = 0, z = 1 (rect axis 1 spans (z, x), axis 2 spans (x, y)) */
+    rect(o, 1, 0, (double[2]){0, 0}, (double[2]){1, WALL_NEAR}, 1);
+    rect(o, 1, 1, (double[2]){0, 0}, (double[2]){1, WALL_NEAR}, -1);
+    rect(o, 0, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
+    rect(o, 2, 0, (double[2]){0, 0}, (double[2]){WALL_NEAR, 1}, 1);
+    rect(o, 2, 1, (double[2]){0, 0}, (double[2]){WALL_NEAR, 1}, -1);
+    /* far room */
+    rect(o, 1, 0, (double[2]){0, 1}, (double[2]){1, 2}, 1);
+    rect(o, 1, 1, (double[2]){0, 1}, (double[2]){1, 2}, -1);
+    rect(o, 0, 2, (double[2]){0, 0}, (double[2]){1, 1}, -1);
+    rect(o, 2, 0, (double[2]){1, 0}, (double[2]){2, 1}, 1);
+    rect(o, 2, 1, (double[2]){1, 0}, (double[2]){2, 1}, -1);
+    /* the wall: its two faces and the slit's four sides (facing into the slit) */
+    wall_with_slit(o, WALL_NEAR, -1);
+    wall_with_slit(o, 1, 1);
+    rect(o, 1, SLIT_Y0, (double[2]){SLIT_Z0, WALL_NEAR}, (double[2]){SLIT_Z1, 1}, 1);
+    rect(o, 1, SLIT_Y1, (double[2]){SLIT_Z0, WALL_NEAR}, (double[2]){SLIT_Z1, 1}, -1);
+    rect(o, 2, SLIT_Z0, (double[2]){WALL_NEAR, SLIT_Y0}, (double[2]){1, SLIT_Y1}, 1);
+    rect(o, 2, SLIT_Z1, (double[2]){WALL_NEAR, SLIT_Y0}, (double[2]){1, SLIT_Y1}, -1);
+}
+
+static scene *load(const char *name, const obj_buf *o, const char *lights)
+{
+    char obj_name[64], obj[1024], json[1024], text[4096];
+    snprintf(obj_name, sizeof obj_name, "%s.obj", name);
+    test_write_file(obj_name, o->text, obj, sizeof obj);
+    snprintf(text, sizeof text,
+             "{\"meshes\": [{\"file\": \"%s\", \"material\": \"white\"}],"
+             " \"materials\": {\"white\": {\"kd\": [0.7, 0.7, 0.7]}}, \"lights\": [%s],"
+             " \"cameras\": [{\"position\": [0.5, 0.5, 0.5], \"target\": [0, 0.5, 0.5]}]}",
+             obj_name, lights);
+    char json_name[64];
+    snprintf(json_name, sizeof json_name, "%s.json", name);
+    test_write_file(json_name, text, json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    lm_result r = scene_load(&(scene_load_desc){.path = json, .crease_angle_deg = 1.0f}, &s, &err);
+    CHECK_MSG(r == LM_OK, "%s", err.msg);
+    return s;
+}
+
+/* Centroid of scene triangle t. */
+static void centroid(const scene *s, uint32_t t, float out[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        out[k] = 0.0f;
+        for (int c = 0; c < 3; ++c) out[k] += s->positions[3 * (size_t)s->tris[t].v[c] + (size_t)k] / 3.0f;
+    }
+}
+
+/* Refines until nothing is left to test (or 2,000 rounds). */
+static void refine_all(cache *c, const uint32_t *pixels)
+{
+    lm_error err;
+    for (int i = 0; i < 2000; ++i) {
+        cache_refine_result res;
+        lm_result r = cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 256}, &res, &err);
+        CHECK_MSG(r == LM_OK, "%s", err.msg);
+        if (r != LM_OK || res.remaining == 0) return;
+    }
+    CHECK_MSG(0, "refinement did not finish in 2000 rounds");
+}
+
+/* ---- the slot -------------------------------------------------------------- */
+
+static void test_slot(void)
+{
+    static obj_buf o;
+    memset(&o, 0, sizeof o);
+    slot_rooms(&o);
+    /* the light: on the wall's far face, facing +x (edge1 × edge2 = y × z) */
+    scene *s = load("slot", &o,
+                    "{\"type\": \"quad\", \"corner\": [1.001, 0.6, 0.3], \"edge1\": [0, 0.3, 0], "
+                    "\"edge2\": [0, 0, 0.4], \"radiance\": [5000, 5000, 5000]}");
+    if (!s) return;
+    lm_error err;
+    /* Seen: the near room's triangles (x of the centroid < WALL_NEAR), 2,000 pixels each. */
+    uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        float ct[3];
+        centroid(s, t, ct);
+        if (ct[0] < WALL_NEAR - 1e-3 && s->tris[t].light < 0) pixels[t] = 300;
+    }
+    samp_sampler *sp = NULL, *ref = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 256}, &sp, &err) ==
+          LM_OK);
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 65536, .seed = 9},
+                      &ref, &err) == LM_OK);
+    cache *c = NULL;
+    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
+    if (!sp || !ref || !c) return;
+    CHECK(cache_init(c, &err) == LM_OK);
+
+    /* The exactly lit source: every scene triangle cut 64² times, unoccluded
+     * direct (exact here: the far room is convex, the near room behind the light). */
+    samp_coarse_mesh exact;
+    CHECK(samp_coarse_mesh_build(s, 4096 * s->tri_count, &exact, &err) == LM_OK);
+    enum { N = 12 };
+    samp_point pts[N];
+    uint32_t tris[N];
+    double w[N][2];
+    uint32_t n = 0;
+    /* Receivers: points on the near room's floor, ceiling, back wall (x = 0) and sides. */
+    for (uint32_t t = 0; t < s->tri_count && n < N; ++t) {
+        if (!pixels[t]) continue;
+        double w1 = 0.3, w2 = 0.3;
+        const uint32_t *v = s->tris[t].v;
+        samp_point x = {.tri_plus_one = t + 1};
+        for (int k = 0; k < 3; ++k) {
+            x.p[k] = (float)((1.0 - w1 - w2) * s->positions[3 * (size_t)v[0] + (size_t)k] +
+                             w1 * s->positions[3 * (size_t)v[1] + (size_t)k] + w2 * s->positions[3 * (size_t)v[2] + (size_t)k]);
+            x.n[k] = s->tri_normals[3 * (size_t)t + (size_t)k];
+        }
+        if (x.p[0] > 0.9f) continue; /* not the wall's own face: it sees the slit edge-on */
+        pts[n] = x;
+        tris[n] = t;
+        w[n][0] = w1;
+        w[n][1] = w2;
+        n++;
+    }
+    float want[3 * N], got[3 * N];
+    CHECK(samp_indirect(ref, &exact.mesh, pts, n, want, &err) == LM_OK);
+    /* The coarse cache's source, gathered exactly. */
+    double coarse_worst = 1.0, source_worst = 0.0, worst = 0.0;
+    if (c->src.rmesh.first && samp_indirect(ref, &c->src.rmesh, pts, n, got, &err) == LM_OK) {
+        coarse_worst = 0.0;
+        for (uint32_t i = 0; i < n; ++i) coarse_worst = fmax(coarse_worst, fabs(got[3 * i] - want[3 * i]) / want[3 * i]);
+    }
+    refine_all(c, pixels);
+    CHECK(samp_indirect(ref, &c->src.rmesh, pts, n, got, &err) == LM_OK);
+    for (uint32_t i = 0; i < n; ++i) {
+        float e[3];
+        CHECK(cache_eval_indirect(c, tris[i], w[i][0], w[i][1], e, &err) == LM_OK);
+        double rel = fabs(e[0] - want[3 * i]) / want[3 * i], src = fabs(got[3 * i] - want[3 * i]) / want[3 * i];
+        worst = fmax(worst, rel);
+        source_worst = fmax(source_worst, src);
+        CHECK_MSG(src <= 0.01, "receiver %u at (%.2f %.2f %.2f): from the cache's source %.5g, exact source %.5g (%.2f%%)",
+                  i, pts[i].p[0], pts[i].p[1], pts[i].p[2], got[3 * i], want[3 * i], 100.0 * src);
+        CHECK_MSG(rel <= 0.30, "receiver %u at (%.2f %.2f %.2f): cache %.5g, brute force %.5g (%.1f%%)", i, pts[i].p[0],
+                  pts[i].p[1], pts[i].p[2], e[0], want[3 * i], 100.0 * rel);
+    }
+    cache_stats st;
+    cache_get_stats(c, &st);
+    printf("slot: %u receivers; E_i from the cache's source worst %.2f%% off the exact source (coarse cache's source: "
+           "%.1f%%); the cache's E_i worst %.1f%%; direct mesh %u leaves, %llu indirect samples\n",
+           n, 100.0 * source_worst, 100.0 * coarse_worst, 100.0 * worst, st.direct.mesh.leaves,
+           (unsigned long long)st.indirect.samples);
+    CHECK(n >= 8);
+    CHECK_MSG(coarse_worst > 0.05, "the coarse source is already within 5%% (%.2f%%): the test shows nothing",
+              100.0 * coarse_worst);
+    samp_coarse_mesh_free(&exact);
+    cache_destroy(c);
+    samp_destroy(sp);
+    samp_destroy(ref);
+    free(pixels);
+    scene_destroy(s);
+}
+
+int main(void)
+{
+    test_slot();
+    return test_finish("cache_indirect_test");
+}
