@@ -14,9 +14,14 @@
  *   direct     direct diffuse radiance per unit albedo, RGB: L_dd = (1/π)·Σ L_ℓ·G_ℓ
  *              (eq. 4). View-independent: kept across camera moves.
  *   indirect   indirect irradiance E_i, RGB (eq. 7), gathered from kd·L_dd over a
- *              cut of the direct mesh (at most 8,192 triangles, opened where its
- *              linear interpolation is worst); the back of a surface sends
- *              nothing. When a rebuilt source may have moved a gathered value by
+ *              cut of the direct mesh (the roots and at most 8,192 more triangles,
+ *              opened where its linear interpolation error × importance is worst);
+ *              the back of a surface sends nothing. Each value carries its
+ *              standard error; where that could be seen it is gathered again with
+ *              more rays, and the edge test ignores what the noise explains.
+ *              Visible gathers record where they draw from (importance), and the
+ *              direct mesh on triangles no pixel sees is refined by the visible
+ *              change it can cause through them (docs/cache.md). When a rebuilt source may have moved a gathered value by
  *              more than the JND (a bound: the changed source triangles' largest
  *              change × their cosine-weighted solid angle), it is gathered again.
  *   specular   direct specular radiance per unit ks, RGB, over the triangles whose

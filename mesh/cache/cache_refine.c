@@ -14,7 +14,11 @@
  * criterion, so small discontinuities are not missed); otherwise it is undone
  * and the leaf is marked done. A leaf of one pixel or less is never split.
  * Priority (§4.3.3): pixels the leaf covers × (1 + the largest ΔE between its
- * corners' colours). After each round, values that changed under the
+ * corners' colours). The direct mesh on triangles no pixel sees is the indirect
+ * source there: its leaves are refined for the change the viewer would see
+ * through the gathers (importance, Smits et al. 1992; recorded by
+ * cache_source.c), in the same heap, with a priority in the same units. An
+ * indirect split is kept only on a difference beyond the gathers' noise. After each round, values that changed under the
  * refinement's feet — radiance values inside a light leaf that answered as
  * uniform and proved not to be, indirect values a rebuilt source moved by more
  * than the JND — are recomputed (cache_light.c, cache_source.c) and the leaves
@@ -340,7 +344,6 @@ static lm_result schedule_important_sources(cache *c, const cache_site *sites, u
     for (uint32_t i = 0; r == LM_OK && i < gn; ++i) r = schedule_source_subtree(c, grown[i], pixels, err);
     return r;
 }
-
 
 /* ---- one round ---------------------------------------------------------------- */
 
