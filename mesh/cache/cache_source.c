@@ -618,6 +618,7 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
     lm_result r = samp_indirect_noise(c->sp, &c->src.rmesh, pts, n, 0, 1, E, sig, err);
     if (r == LM_OK) r = grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
     double rays = 1.0; /* in units of one plain gather's rays */
+    uint32_t last_m = 0;
     uint32_t *again = NULL;
     samp_point *apts = NULL;
     float *aE = NULL, *asig = NULL;
@@ -633,12 +634,17 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
                 break;
             }
         }
-        uint32_t m = 0;
-        for (uint32_t i = 0; i < n; ++i)
+        /* Pass 1 looks at every point, later passes at those the last one gathered
+         * again (the others' values have not changed). */
+        uint32_t m = 0, candidates = pass == 1 ? n : last_m;
+        for (uint32_t j = 0; j < candidates; ++j) {
+            uint32_t i = pass == 1 ? j : again[j];
             if (noise_seen(c, vids[i], E + 3 * (size_t)i, sig + 3 * (size_t)i)) {
-                again[m] = i;
+                again[m] = i; /* m ≤ j: overwrites only entries already read */
                 apts[m++] = pts[i];
             }
+        }
+        last_m = m;
         if (m == 0) break;
         r = samp_indirect_noise(c->sp, &c->src.rmesh, apts, m, pass, scale, aE, asig, err);
         /* Averaged by rays: E = (a·E_a + b·E_b)/(a + b), σ² = (a²σ_a² + b²σ_b²)/(a + b)². */
@@ -651,7 +657,7 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
                 sg[k] = (float)(sqrt(a * a * (double)sg[k] * sg[k] + b * b * sb * sb) / t);
             }
         }
-        rays += scale; /* (only the points gathered again have these rays; the others stopped before) */
+        rays += scale; /* every point still in `again` has had every pass so far */
     }
     for (uint32_t i = 0; r == LM_OK && i < n; ++i)
         if (vids[i] < c->src.drift_cap) memcpy(c->src.sigma + 3 * (size_t)vids[i], sig + 3 * (size_t)i, 3 * sizeof *sig);
