@@ -148,6 +148,13 @@ typedef struct cache_source_state {
     int imp_any;               /* some importance has been recorded */
     uint32_t *grown;           /* cache_record_importance's answer */
     size_t grown_cap;
+    /* The last displayed gather's pilot (cache_source.c, gathers): its vertex ids
+     * and, per point, its source hits (samp_source_hits, CACHE_IMPORTANCE_RAYS a
+     * point); cache_record_importance reads them. */
+    uint32_t *pilot_vid, *pilot_count, *pilot_tri;
+    float *pilot_weight;
+    size_t pilot_cap;          /* points */
+    uint32_t pilot_n;
     cache_mesh_stats indirect_stats; /* samples (.mesh filled by cache_get_stats) */
 } cache_source_state;
 
@@ -316,14 +323,15 @@ lm_result cache_regather_all(cache *c, lm_error *err);
 
 /* Importance (Smits et al. 1992, "An importance-driven radiosity algorithm"):
  * after the displayed indirect was gathered at the sites (pixels: per scene
- * triangle, what the viewer sees of it), traces CACHE_IMPORTANCE_RAYS rays from
- * each visible site (samp_indirect_sources) and records at the cut's nodes how
+ * triangle, what the viewer sees of it), takes the gather's pilot rays
+ * (CACHE_IMPORTANCE_RAYS a site, samp_indirect_sources; nothing is recorded if
+ * the last gather was not at these sites) and records at the cut's nodes how
  * much the site's tone-mapped colour depends on their radiance (cache_source_state
  * imp_max, imp_sum). The direct-mesh nodes whose imp_max grew by half or more
  * (0 to anything included) go to `grown` with their count (a buffer owned by
  * the cache, valid until the next call), so the scheduler can refine the source
  * where the viewer now depends on it. */
-enum { CACHE_IMPORTANCE_RAYS = 64 };
+enum { CACHE_IMPORTANCE_RAYS = 256 };
 lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
                                   const uint32_t **grown, uint32_t *grown_n, lm_error *err);
 /* The importance of a node of the direct mesh: the largest over it and its

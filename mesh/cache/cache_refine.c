@@ -126,15 +126,22 @@ static int source_only(const uint32_t *pixels, refine_kind kind, const mesh_qnod
     return kind == KIND_DIRECT && pixels && pixels[n->tri] == 0;
 }
 
-/* The largest source radiance kd·L_dd (any channel) at a node's corners. */
+/* The largest source radiance kd·L_dd (any channel) a node could send: at its
+ * corners, and its bound with every light unoccluded there (kd·Σ_ℓ L_ℓ·G_ℓ,unocc/π):
+ * light through a gap may fall between corners that are all in shadow, and only
+ * the bound says that it could. */
 static float source_peak(const cache *c, const mesh_qnode *n)
 {
     const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
     float peak = 0.0f;
     for (int k = 0; k < 3; ++k) {
         float v[3];
-        if (mesh_qmesh_get_value(c->direct, n->v[k], v) != 1) continue;
-        for (int ch = 0; ch < 3; ++ch) peak = fmaxf(peak, kd[ch] * v[ch]);
+        if (mesh_qmesh_get_value(c->direct, n->v[k], v) == 1)
+            for (int ch = 0; ch < 3; ++ch) peak = fmaxf(peak, kd[ch] * v[ch]);
+        for (uint32_t l = 0; l < c->light_count; ++l) {
+            double g = cache_unoccluded(c, l, n->v[k]) / M_PI;
+            for (int ch = 0; ch < 3; ++ch) peak = fmaxf(peak, (float)(kd[ch] * c->light_le[3 * (size_t)l + (size_t)ch] * g));
+        }
     }
     return peak;
 }

@@ -54,6 +54,10 @@ void cache_source_free(cache_source_state *st)
     free(st->imp_max);
     free(st->imp_sum);
     free(st->grown);
+    free(st->pilot_vid);
+    free(st->pilot_count);
+    free(st->pilot_tri);
+    free(st->pilot_weight);
     memset(st, 0, sizeof *st);
 }
 
@@ -62,7 +66,8 @@ size_t cache_source_bytes(const cache_source_state *st)
     return st->cut_cap * (sizeof *st->cut_err + sizeof *st->cut_open + sizeof *st->cut_heap) +
            (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (6 * sizeof(float) + 1) +
            st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf +
-           st->imp_cap * 2 * sizeof(float) + st->grown_cap * sizeof(uint32_t);
+           st->imp_cap * 2 * sizeof(float) + st->grown_cap * sizeof(uint32_t) +
+           st->pilot_cap * (2 + CACHE_IMPORTANCE_RAYS * 2) * sizeof(uint32_t);
 }
 
 /* ---- the cut ------------------------------------------------------------------
@@ -572,15 +577,22 @@ lm_result cache_settle_source(cache *c, lm_error *err)
 
 /* ---- gathers ----------------------------------------------------------------------
  *
- * A displayed indirect value knows its noise: the gather's standard error
- * (samp_indirect_noise). Where the error could be seen — E ± σ against E,
- * through the tone map, more than GATHER_NOISE_JND of the JND apart — the value
- * is gathered again with GATHER_SCALE times the rays from an independent
- * stream and the estimates are averaged by their rays, at most GATHER_PASSES
- * times (light through a narrow gap: few rays find it, and without this the
- * edge test splits on the noise; docs/cache.md). */
+ * A displayed indirect value knows its noise, and its ray count is chosen before
+ * it is sampled. A pilot of CACHE_IMPORTANCE_RAYS rays (samp_indirect_sources,
+ * a stream of its own; the same trace records importance) says which source
+ * triangles the point sees and how much of its hemisphere each fills; with their
+ * mean radiance that gives the variance of one ray's radiance, hence the
+ * standard error σ(N) = π·√(var/N) of an N-ray gather. The point is gathered in
+ * one pass with the plain rays, or GATHER_SCALE or GATHER_SCALE² times as many
+ * (the strata refined), the fewest for which E ± σ(N) cannot be told from E
+ * through the tone map (GATHER_NOISE_JND of the JND). Chosen from the gather's
+ * own first estimate instead, the count biased the values low: a gather whose
+ * rays all missed a gap has E = σ = 0 and was never taken again, while lucky
+ * ones were pulled back (docs/cache.md, cause 5); chosen from an independent
+ * pilot the estimate is unbiased whatever the count. The σ kept per value is the
+ * larger of the gather's own and the pilot's prediction. */
 #define GATHER_NOISE_JND 0.5f
-enum { GATHER_SCALE = 4, GATHER_PASSES = 2 };
+enum { GATHER_SCALE = 4, GATHER_LEVELS = 3 };
 
 void cache_indirect_sigma(const cache *c, uint32_t vid, float out[3])
 {
@@ -609,63 +621,103 @@ static int noise_seen(const cache *c, uint32_t vid, const float e[3], const floa
     return tm_delta_e(lab0, lab1) > GATHER_NOISE_JND * c->desc.jnd;
 }
 
-/* The displayed indirect at the points, with more rays where its noise shows. */
+/* The pilot trace of n points into c->src.pilot_* (kept for cache_record_importance). */
+static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n, lm_error *err)
+{
+    cache_source_state *st = &c->src;
+    enum { RAYS = CACHE_IMPORTANCE_RAYS };
+    if (n > st->pilot_cap) {
+        size_t cap = n;
+        if (!lm_realloc_array(&st->pilot_vid, st->pilot_cap, cap, sizeof *st->pilot_vid) ||
+            !lm_realloc_array(&st->pilot_count, st->pilot_cap, cap, sizeof *st->pilot_count) ||
+            !lm_realloc_array(&st->pilot_tri, st->pilot_cap, cap, RAYS * sizeof *st->pilot_tri) ||
+            !lm_realloc_array(&st->pilot_weight, st->pilot_cap, cap, RAYS * sizeof *st->pilot_weight))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing indirect light");
+        st->pilot_cap = cap;
+    }
+    st->pilot_n = 0;
+    lm_result r = samp_indirect_sources(
+        c->sp, &st->rmesh, pts, n,
+        &(samp_source_hits){.rays = RAYS, .count = st->pilot_count, .tri = st->pilot_tri, .weight = st->pilot_weight},
+        err);
+    if (r != LM_OK) return r;
+    memcpy(st->pilot_vid, vids, n * sizeof *vids);
+    st->pilot_n = n;
+    return LM_OK;
+}
+
+/* From point i's pilot: E (RGB) and the variance of one ray's π·L (RGB), each
+ * source triangle taken at the mean of its corners' radiance. */
+static void pilot_moments(const cache *c, uint32_t i, float e[3], double var[3])
+{
+    const cache_source_state *st = &c->src;
+    double m1[3] = {0, 0, 0}, m2[3] = {0, 0, 0};
+    for (uint32_t h = 0; h < st->pilot_count[i]; ++h) {
+        size_t at = (size_t)i * CACHE_IMPORTANCE_RAYS + h;
+        const float *rad = st->rmesh.radiance + 9 * (size_t)st->pilot_tri[at];
+        double w = st->pilot_weight[at];
+        for (int k = 0; k < 3; ++k) {
+            double L = M_PI * (rad[k] + rad[3 + k] + rad[6 + k]) / 3.0;
+            m1[k] += w * L;
+            m2[k] += w * L * L;
+        }
+    }
+    for (int k = 0; k < 3; ++k) {
+        e[k] = (float)m1[k];
+        var[k] = fmax(m2[k] - m1[k] * m1[k], 0.0);
+    }
+}
+
+/* The displayed indirect at the points, each with the rays its noise needs. */
 static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n, float *E,
                                   lm_error *err)
 {
-    float *sig = malloc(3 * (size_t)n * sizeof *sig);
-    if (!sig) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
-    lm_result r = samp_indirect_noise(c->sp, &c->src.rmesh, pts, n, 0, 1, E, sig, err);
-    if (r == LM_OK) r = grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
-    double rays = 1.0; /* in units of one plain gather's rays */
-    uint32_t last_m = 0;
-    uint32_t *again = NULL;
-    samp_point *apts = NULL;
-    float *aE = NULL, *asig = NULL;
-    for (uint32_t pass = 1, scale = GATHER_SCALE; r == LM_OK && pass <= GATHER_PASSES && samp_indirect_rays(c->sp);
-         ++pass, scale *= GATHER_SCALE) {
-        if (!again) {
-            again = malloc(n * sizeof *again);
-            apts = malloc(n * sizeof *apts);
-            aE = malloc(3 * (size_t)n * sizeof *aE);
-            asig = malloc(3 * (size_t)n * sizeof *asig);
-            if (!again || !apts || !aE || !asig) {
-                r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
-                break;
-            }
+    lm_result r = grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
+    if (r == LM_OK) r = trace_pilot(c, vids, pts, n, err);
+    if (r != LM_OK) return r;
+    const uint32_t rays = samp_indirect_rays(c->sp);
+    uint8_t *level = calloc(n ? n : 1, 1);
+    float *predicted = malloc(3 * (size_t)(n ? n : 1) * sizeof *predicted);
+    uint32_t *pick = malloc((n ? n : 1) * sizeof *pick);
+    samp_point *lpts = malloc((n ? n : 1) * sizeof *lpts);
+    float *lE = malloc(3 * (size_t)(n ? n : 1) * sizeof *lE), *lsig = malloc(3 * (size_t)(n ? n : 1) * sizeof *lsig);
+    if (!level || !predicted || !pick || !lpts || !lE || !lsig)
+        r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
+    /* The count: the fewest rays whose predicted error cannot be seen. */
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        float e[3];
+        double var[3];
+        pilot_moments(c, i, e, var);
+        for (int lv = 0; lv < GATHER_LEVELS; ++lv) {
+            double N = (double)rays * pow(GATHER_SCALE, lv);
+            for (int k = 0; k < 3; ++k) predicted[3 * (size_t)i + (size_t)k] = rays ? (float)sqrt(var[k] / N) : 0.0f;
+            level[i] = (uint8_t)lv;
+            if (!rays || !noise_seen(c, vids[i], e, predicted + 3 * (size_t)i)) break;
         }
-        /* Pass 1 looks at every point, later passes at those the last one gathered
-         * again (the others' values have not changed). */
-        uint32_t m = 0, candidates = pass == 1 ? n : last_m;
-        for (uint32_t j = 0; j < candidates; ++j) {
-            uint32_t i = pass == 1 ? j : again[j];
-            if (noise_seen(c, vids[i], E + 3 * (size_t)i, sig + 3 * (size_t)i)) {
-                again[m] = i; /* m ≤ j: overwrites only entries already read */
-                apts[m++] = pts[i];
-            }
-        }
-        last_m = m;
-        if (m == 0) break;
-        r = samp_indirect_noise(c->sp, &c->src.rmesh, apts, m, pass, scale, aE, asig, err);
-        /* Averaged by rays: E = (a·E_a + b·E_b)/(a + b), σ² = (a²σ_a² + b²σ_b²)/(a + b)². */
-        for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
-            float *e = E + 3 * (size_t)again[j], *sg = sig + 3 * (size_t)again[j];
-            double a = rays, b = scale, t = a + b;
-            for (int k = 0; k < 3; ++k) {
-                double eb = aE[3 * (size_t)j + (size_t)k], sb = asig[3 * (size_t)j + (size_t)k];
-                e[k] = (float)((a * e[k] + b * eb) / t);
-                sg[k] = (float)(sqrt(a * a * (double)sg[k] * sg[k] + b * b * sb * sb) / t);
-            }
-        }
-        rays += scale; /* every point still in `again` has had every pass so far */
     }
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i)
-        if (vids[i] < c->src.drift_cap) memcpy(c->src.sigma + 3 * (size_t)vids[i], sig + 3 * (size_t)i, 3 * sizeof *sig);
-    free(again);
-    free(apts);
-    free(aE);
-    free(asig);
-    free(sig);
+    for (int lv = 0; r == LM_OK && lv < GATHER_LEVELS; ++lv) {
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < n; ++i)
+            if (level[i] == lv) {
+                pick[m] = i;
+                lpts[m++] = pts[i];
+            }
+        if (m == 0) continue;
+        r = samp_indirect_noise(c->sp, &c->src.rmesh, lpts, m, 0, (uint32_t)pow(GATHER_SCALE, lv), lE, lsig, err);
+        for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
+            uint32_t i = pick[j];
+            memcpy(E + 3 * (size_t)i, lE + 3 * (size_t)j, 3 * sizeof *E);
+            if (vids[i] >= c->src.drift_cap) continue;
+            float *sg = c->src.sigma + 3 * (size_t)vids[i];
+            for (int k = 0; k < 3; ++k) sg[k] = predicted[3 * (size_t)i + (size_t)k];
+        }
+    }
+    free(level);
+    free(predicted);
+    free(pick);
+    free(lpts);
+    free(lE);
+    free(lsig);
     return r;
 }
 
@@ -846,37 +898,26 @@ static float site_sensitivity(const cache *c, const cache_site *st, const float 
 lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
                                   const uint32_t **grown, uint32_t *grown_n, lm_error *err)
 {
-    *grown_n = 0;
-    *grown = c->src.grown;
-    if (!pixels || n == 0 || !c->src.rmesh.first || c->src.with_e1 != (c->indirect1 != NULL)) return LM_OK;
     cache_source_state *st = &c->src;
+    *grown_n = 0;
+    *grown = st->grown;
+    if (!pixels || n == 0 || !st->rmesh.first || st->with_e1 != (c->indirect1 != NULL)) return LM_OK;
+    /* The hits are the pilot of the gather just made at these sites (gather_displayed). */
+    if (st->pilot_n != n) return LM_OK;
+    for (uint32_t i = 0; i < n; ++i)
+        if (st->pilot_vid[i] != sites[i].vid) return LM_OK;
     lm_result r = grow_importance(st, mesh_qmesh_node_limit(c->direct), err);
-    if (r != LM_OK) return r;
-    enum { RAYS = CACHE_IMPORTANCE_RAYS };
-    samp_point *pts = malloc(n * sizeof *pts);
-    uint32_t *idx = malloc(n * sizeof *idx), *count = malloc(n * sizeof *count);
-    uint32_t *tri = malloc((size_t)n * RAYS * sizeof *tri);
-    float *weight = malloc((size_t)n * RAYS * sizeof *weight);
-    if (!pts || !idx || !count || !tri || !weight) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing importance");
-    uint32_t m = 0;
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i)
-        if (pixels[sites[i].tri] > 0 && mesh_qmesh_vertex_use(c->indirect, sites[i].vid)) {
-            idx[m] = i;
-            pts[m++] = cache_vertex_point(c, sites[i].vid);
-        }
-    if (r == LM_OK && m)
-        r = samp_indirect_sources(c->sp, &st->rmesh, pts, m,
-                                  &(samp_source_hits){.rays = RAYS, .count = count, .tri = tri, .weight = weight}, err);
-    for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
-        const cache_site *site = &sites[idx[j]];
+    for (uint32_t j = 0; r == LM_OK && j < n; ++j) {
+        const cache_site *site = &sites[j];
         float ei[3];
-        if (mesh_qmesh_get_value(c->indirect, site->vid, ei) != 1) continue;
+        if (pixels[site->tri] == 0 || mesh_qmesh_get_value(c->indirect, site->vid, ei) != 1) continue;
         float g = site_sensitivity(c, site, ei);
         float px = ldexpf((float)pixels[site->tri], -2 * ((int)site->depth + 1));
         if (!(g > 0.0f) || !isfinite(g)) continue;
-        for (uint32_t h = 0; r == LM_OK && h < count[j]; ++h) {
-            uint32_t node = st->leaf_buf[tri[(size_t)j * RAYS + h]].leaf;
-            float w = weight[(size_t)j * RAYS + h] * g, before = st->imp_max[node];
+        for (uint32_t h = 0; r == LM_OK && h < st->pilot_count[j]; ++h) {
+            size_t at = (size_t)j * CACHE_IMPORTANCE_RAYS + h;
+            uint32_t node = st->leaf_buf[st->pilot_tri[at]].leaf;
+            float w = st->pilot_weight[at] * g, before = st->imp_max[node];
             st->imp_sum[node] += px * w;
             if (!(w > before)) continue;
             st->imp_max[node] = w;
@@ -889,10 +930,5 @@ lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n,
         }
     }
     *grown = st->grown;
-    free(pts);
-    free(idx);
-    free(count);
-    free(tri);
-    free(weight);
     return r;
 }
