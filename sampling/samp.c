@@ -54,6 +54,48 @@ samp_desc samp_desc_defaults(const samp_desc *desc)
 
 float samp_origin_epsilon(const samp_sampler *sp) { return rt_scene_epsilon(sp->rt); }
 
+int samp_point_pull_inside(const samp_sampler *sp, samp_point *x)
+{
+    const scene *s = sp->s;
+    if (x->tri_plus_one == 0 || x->tri_plus_one > s->tri_count) return 0;
+    const uint32_t *v = s->tris[x->tri_plus_one - 1].v;
+    const float eps = rt_scene_epsilon(sp->rt);
+    float org[3], to[3], dir[3], len = 0.0f;
+    samp_point_origin(s, x, eps, org);
+    for (int k = 0; k < 3; ++k) {
+        float c = (s->positions[3 * (size_t)v[0] + (size_t)k] + s->positions[3 * (size_t)v[1] + (size_t)k] +
+                   s->positions[3 * (size_t)v[2] + (size_t)k]) / 3.0f;
+        to[k] = c + eps * x->n[k]; /* the centroid, lifted as the origin is */
+        dir[k] = to[k] - org[k];
+        len += dir[k] * dir[k];
+    }
+    len = sqrtf(len);
+    if (!(len > 8.0f * eps)) return 0;
+    for (int k = 0; k < 3; ++k) dir[k] /= len;
+    /* Only a tall blocker is a wall between rooms: the same way lifted by a tenth
+     * of its length must be blocked too (a picture frame on a wall, a skirting
+     * board on a floor, is passed over). */
+    {
+        float o[3];
+        for (int k = 0; k < 3; ++k) o[k] = org[k] + 0.1f * len * x->n[k];
+        if (!rt_occluded(sp->rt, o, dir, 0.0f, len)) return 0;
+    }
+    /* Past every blocking surface in turn (a wall has two faces), at most 8. */
+    float moved = 0.0f;
+    for (int pass = 0; pass < 8; ++pass) {
+        float o[3];
+        for (int k = 0; k < 3; ++k) o[k] = org[k] + dir[k] * moved;
+        rt_hit h;
+        if (!rt_intersect(sp->rt, o, dir, 0.0f, len - moved, &h) || h.tri == x->tri_plus_one - 1) break;
+        float next = moved + h.t + 4.0f * eps;
+        if (next >= len) break;
+        moved = next;
+    }
+    if (moved == 0.0f) return 0;
+    for (int k = 0; k < 3; ++k) x->p[k] += dir[k] * moved;
+    return 1;
+}
+
 int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *m, lm_error *err)
 {
     if (!m || !m->first || (m->tri_count && (!m->bary || !m->radiance))) {

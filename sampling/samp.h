@@ -230,6 +230,16 @@ double samp_area_light_unoccluded(const scene *s, uint32_t light, const float p[
  * back end uses this, so they see the same thing from the same point. */
 void samp_point_origin(const scene *s, const samp_point *x, float eps, float out[3]);
 
+/* A receiver that cannot see the middle of its own triangle — a surface crosses
+ * the triangle between them, as a wall standing on a floor that runs on under it
+ * into the next room — is moved along the surface towards the centroid, just past
+ * every surface that blocks the way (4 eps past each, at most 8). Only a blocker
+ * that also blocks the way lifted by a tenth of its length counts (a picture
+ * frame on a wall does not). A value gathered at the original point would be the next room's,
+ * and interpolation would carry it into this one. Returns 1 if x moved. Needs
+ * x->tri_plus_one; unchanged without it. (One Embree ray.) */
+int samp_point_pull_inside(const samp_sampler *sp, samp_point *x);
+
 /* The epsilon every back end of sp lifts receivers by (samp_point_origin). */
 float samp_origin_epsilon(const samp_sampler *sp);
 

@@ -728,7 +728,14 @@ lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_
     if (r != LM_OK) return r;
     samp_point *pts = malloc(n * sizeof *pts);
     if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
-    for (uint32_t i = 0; i < n; ++i) pts[i] = cache_vertex_point(c, vids[i]);
+    for (uint32_t i = 0; i < n; ++i) {
+        pts[i] = cache_vertex_point(c, vids[i]);
+        /* A displayed value is gathered where its own triangle's inside can be seen
+         * from (a floor vertex under the next room's wall would gather that room,
+         * and interpolation carry it in: docs/cache.md, cause 4). The source (the
+         * first bounce of two) stays at the vertex. */
+        if (!first_bounce) samp_point_pull_inside(c->sp, &pts[i]);
+    }
     r = first_bounce || c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
                                             : gather_displayed(c, vids, pts, n, E, err);
     free(pts);
