@@ -13,6 +13,11 @@
  *     cache's source is wrong there by more than 5%, so the check can fail;
  *   - the cache's own E_i (its gathers interpolated): within 30% (measured 17%
  *     at worst; the issue's target, 5%, is not met yet: docs/cache.md).
+ * Noise alone does not refine: a closed box whose floor has only indirect light
+ * (smooth), the floor the only thing seen, gathered with 16 rays (one gather's
+ * noise moves the floor's colour by ΔE 8, measured here and required above 2),
+ * ends with no more indirect leaves than with 4096 rays, + 8 (measured: 42 and
+ * 42; with the edge test blind to noise, NOISE_SIGMAS 0, 234).
  * And samp_point_pull_inside, which keeps a floor vertex beyond a wall from
  * gathering the next room: such a point moves to the near side of the wall; one
  * behind a skirting board, or in the open, stays.
@@ -26,6 +31,7 @@
 #include "mesh/cache/cache_internal.h"
 #include "sampling/samp.h"
 #include "src/base/tonemap.h"
+#include "src/base/vecmath.h"
 #include "tests/test_util.h"
 
 /* ---- geometry ------------------------------------------------------------- */
@@ -250,6 +256,99 @@ static void test_slot(void)
     scene_destroy(s);
 }
 
+/* ---- noise alone does not refine ------------------------------------------------------ */
+
+/* Leaves of the indirect mesh after refining the box room's floor (the only
+ * triangles seen) with `rays` a gather. */
+static uint32_t floor_indirect_leaves(const scene *s, const uint32_t *pixels, int rays, double *noise_de)
+{
+    lm_error err;
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = rays}, &sp, &err) ==
+          LM_OK);
+    CHECK(sp && cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
+    if (!c) {
+        samp_destroy(sp);
+        return 0;
+    }
+    CHECK(cache_init(c, &err) == LM_OK);
+    refine_all(c, pixels);
+    cache_stats st;
+    cache_get_stats(c, &st);
+    /* How far one gather's noise moves what the viewer sees: at floor points,
+     * E ± σ of a plain gather against E, tone mapped (the scene's exposure 0). */
+    *noise_de = 0.0;
+    int count = 0;
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        if (!pixels[t]) continue;
+        const uint32_t *v = s->tris[t].v;
+        samp_point x = {.tri_plus_one = t + 1};
+        for (int k = 0; k < 3; ++k) {
+            x.p[k] = (s->positions[3 * (size_t)v[0] + (size_t)k] + s->positions[3 * (size_t)v[1] + (size_t)k] +
+                      s->positions[3 * (size_t)v[2] + (size_t)k]) / 3.0f;
+            x.n[k] = s->tri_normals[3 * (size_t)t + (size_t)k];
+        }
+        float E[3], sig[3], ldd[3];
+        CHECK(samp_indirect_noise(sp, &c->src.rmesh, &x, 1, 0, 1, E, sig, &err) == LM_OK);
+        CHECK(cache_eval_direct(c, t, 1.0 / 3.0, 1.0 / 3.0, ldd, &err) == LM_OK);
+        const float *kd = s->materials[s->tris[t].material].kd;
+        float a[3], b[3], da[3], db[3], la[3], lb[3];
+        for (int k = 0; k < 3; ++k) {
+            a[k] = kd[k] * (ldd[k] + E[k] / (float)M_PI);
+            b[k] = kd[k] * (ldd[k] + (E[k] + sig[k]) / (float)M_PI);
+        }
+        tm_desc tm = {.exposure = s->exposure};
+        tm_to_display(&tm, a, da);
+        tm_to_display(&tm, b, db);
+        tm_display_to_lab(da, la);
+        tm_display_to_lab(db, lb);
+        *noise_de += tm_delta_e(la, lb);
+        count++;
+    }
+    if (count) *noise_de /= count;
+    uint32_t leaves = st.indirect.mesh.leaves;
+    cache_destroy(c);
+    samp_destroy(sp);
+    return leaves;
+}
+
+static void test_noise_does_not_refine(void)
+{
+    static obj_buf o;
+    memset(&o, 0, sizeof o);
+    /* A closed unit box (every face towards the inside), lit by a small quad under
+     * its ceiling that faces up: the floor has no direct light, and its indirect
+     * light, from the lit ceiling and walls, is smooth. */
+    rect(&o, 1, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
+    rect(&o, 1, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
+    rect(&o, 0, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
+    rect(&o, 0, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
+    rect(&o, 2, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
+    rect(&o, 2, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
+    scene *s = load("box", &o,
+                    "{\"type\": \"quad\", \"corner\": [0.4, 0.8, 0.4], \"edge1\": [0, 0, 0.2], "
+                    "\"edge2\": [0.2, 0, 0], \"radiance\": [30, 30, 30]}");
+    if (!s) return;
+    /* Seen: the floor only, 250 pixels a triangle (so the size criterion, 256 pixels
+     * for indirect leaves, splits nothing: only the edge test can). */
+    uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        float ct[3];
+        centroid(s, t, ct);
+        if (ct[1] < 1e-3f && s->tris[t].light < 0) pixels[t] = 250;
+    }
+    double noise_few, noise_many;
+    uint32_t few = floor_indirect_leaves(s, pixels, 16, &noise_few);
+    uint32_t many = floor_indirect_leaves(s, pixels, 4096, &noise_many);
+    printf("noise: indirect leaves with 16 rays a gather %u, with 4096 %u; one 16-ray gather's noise moves the "
+           "floor by dE %.2f (4096: %.2f)\n", few, many, noise_few, noise_many);
+    CHECK_MSG(noise_few > 2.0, "16-ray gathers are not noisy enough to test anything: dE %.2f", noise_few);
+    CHECK_MSG(few <= many + 8, "noise refined the mesh: %u leaves with 16 rays against %u with 4096", few, many);
+    free(pixels);
+    scene_destroy(s);
+}
+
 /* ---- a floor that runs on under a wall (cause 4) ------------------------------------ */
 
 /* The floor triangle (facing +y at y = 0) under point (x, z), + 1; 0 if none. */
@@ -315,6 +414,7 @@ static void test_pull_inside(void)
 int main(void)
 {
     test_pull_inside();
+    test_noise_does_not_refine();
     test_slot();
     return test_finish("cache_indirect_test");
 }
