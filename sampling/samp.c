@@ -54,6 +54,22 @@ samp_desc samp_desc_defaults(const samp_desc *desc)
 
 float samp_origin_epsilon(const samp_sampler *sp) { return rt_scene_epsilon(sp->rt); }
 
+int samp_points_parted(const samp_sampler *sp, const samp_point *a, const samp_point *b)
+{
+    const float eps = rt_scene_epsilon(sp->rt);
+    float oa[3], ob[3], dir[3], len = 0.0f;
+    samp_point_origin(sp->s, a, eps, oa);
+    samp_point_origin(sp->s, b, eps, ob);
+    for (int k = 0; k < 3; ++k) {
+        dir[k] = ob[k] - oa[k];
+        len += dir[k] * dir[k];
+    }
+    len = sqrtf(len);
+    if (!(len > 2.0f * eps)) return 0;
+    for (int k = 0; k < 3; ++k) dir[k] /= len;
+    return rt_occluded(sp->rt, oa, dir, 0.0f, len);
+}
+
 int samp_point_pull_inside(const samp_sampler *sp, samp_point *x)
 {
     const scene *s = sp->s;

@@ -235,10 +235,20 @@ void samp_point_origin(const scene *s, const samp_point *x, float eps, float out
  * into the next room — is moved along the surface towards the centroid, just past
  * every surface that blocks the way (4 eps past each, at most 8). Only a blocker
  * that also blocks the way lifted by a tenth of its length counts (a picture
- * frame on a wall does not). A value gathered at the original point would be the next room's,
- * and interpolation would carry it into this one. Returns 1 if x moved. Needs
- * x->tri_plus_one; unchanged without it. (One Embree ray.) */
+ * frame on a wall does not). A value gathered at the original point would be the
+ * next room's, and interpolation would carry it into this one. Returns 1 if x
+ * moved. Needs x->tri_plus_one; unchanged without it. (Two Embree rays and one
+ * per blocker.) The caller decides where this applies: a box standing on a
+ * floor blocks the way too (the cache pulls only points on their triangle's
+ * boundary, docs/cache.md). */
 int samp_point_pull_inside(const samp_sampler *sp, samp_point *x);
+
+/* Does a surface stand between two receivers on the same surface (the segment
+ * between their ray origins, samp_point_origin, blocked)? Then what one sees says
+ * nothing about the other: the cache does not let a light leaf whose corners
+ * agree answer for a point so parted from them (a wall standing on a floor that
+ * runs on into the lit room). (One Embree ray.) */
+int samp_points_parted(const samp_sampler *sp, const samp_point *a, const samp_point *b);
 
 /* The epsilon every back end of sp lifts receivers by (samp_point_origin). */
 float samp_origin_epsilon(const samp_sampler *sp);

@@ -20,7 +20,8 @@
  * 42; with the edge test blind to noise, NOISE_SIGMAS 0, 234).
  * And samp_point_pull_inside, which keeps a floor vertex beyond a wall from
  * gathering the next room: such a point moves to the near side of the wall; one
- * behind a skirting board, or in the open, stays.
+ * behind a skirting board, or in the open, stays; and samp_points_parted (a wall
+ * or a skirting board between two floor points, or nothing).
  */
 #include <math.h>
 #include <stdio.h>
@@ -407,6 +408,15 @@ static void test_pull_inside(void)
     CHECK(fabsf(pt[0].p[1]) < 1e-6f);
     CHECK_MSG(!moved[1] && pt[1].p[0] == 0.1f, "behind a skirting board: x %.4f", pt[1].p[0]);
     CHECK_MSG(!moved[2] && pt[2].p[0] == 1.0f, "in the open: x %.4f", pt[2].p[0]);
+    /* Parted: beyond the wall from in front of it, behind the skirting from the
+     * open; not parted: two points in the open. */
+    samp_point far = {{1.8f, 0.0f, 0.5f}, {0, 1, 0}, floor_tri(s, 1.8f, 0.5f)},
+               open1 = {{1.0f, 0.0f, 0.5f}, {0, 1, 0}, floor_tri(s, 1.0f, 0.5f)},
+               open2 = {{1.3f, 0.0f, 0.7f}, {0, 1, 0}, floor_tri(s, 1.3f, 0.7f)},
+               low = {{0.1f, 0.0f, 0.5f}, {0, 1, 0}, floor_tri(s, 0.1f, 0.5f)};
+    CHECK(samp_points_parted(sp, &far, &open1));
+    CHECK(samp_points_parted(sp, &low, &open1));
+    CHECK(!samp_points_parted(sp, &open1, &open2));
     samp_destroy(sp);
     scene_destroy(s);
 }

@@ -52,12 +52,22 @@ static int uniform_V(const mesh_qmesh *m, const mesh_qnode *leaf)
     return -1;
 }
 
-/* Interpolated V at (w1, w2) when leaf can answer confidently, else -1. */
-static float confident_V(const mesh_qmesh *m, const mesh_qnode *leaf, uint32_t asking_depth)
+/* Interpolated V at site vid when leaf can answer confidently, else -1. Not
+ * across a seam: if a surface stands between the site and a corner (a wall on
+ * a floor that runs on under it into the lit room), the corners' agreement says
+ * nothing about the site (docs/cache.md, the Veach door). */
+static float confident_V(const cache *c, const mesh_qmesh *m, const mesh_qnode *leaf, uint32_t asking_depth,
+                         uint32_t vid)
 {
     if ((uint32_t)leaf->depth + CACHE_LIGHT_LAG < asking_depth) return -1.0f;
     int u = uniform_V(m, leaf);
-    return u < 0 ? -1.0f : (float)u;
+    if (u < 0) return -1.0f;
+    samp_point site = cache_vertex_point(c, vid);
+    for (int k = 0; k < 3; ++k) {
+        samp_point corner = cache_vertex_point(c, leaf->v[k]);
+        if (samp_points_parted(c->sp, &site, &corner)) return -1.0f;
+    }
+    return (float)u;
 }
 
 /* Records light leaf n (just split, its corners uniform) as falsified. */
@@ -187,7 +197,7 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
                     r = want_unsampled(m, ln, &need, &need_n, &need_cap, err);
                     continue;
                 }
-                float cv = confident_V(m, ln, st->depth);
+                float cv = confident_V(c, m, ln, st->depth, st->vid);
                 if (cv >= 0.0f) {
                     V[(size_t)i * L + l] = cv;
                     resolved[i] = 1;
