@@ -18,7 +18,8 @@
  * source there: its leaves are refined for the change the viewer would see
  * through the gathers (importance, Smits et al. 1992; recorded by
  * cache_source.c), in the same heap, with a priority in the same units. An
- * indirect split is kept only on a difference beyond the gathers' noise. After each round, values that changed under the
+ * indirect split is kept only on a difference beyond the gathers' noise.
+ * After each round, values that changed under the
  * refinement's feet — radiance values inside a light leaf that answered as
  * uniform and proved not to be, indirect values a rebuilt source moved by more
  * than the JND — are recomputed (cache_light.c, cache_source.c) and the leaves
@@ -295,9 +296,9 @@ float cache_node_priority(const cache *c, int mesh, uint32_t node)
  * (Σ δ_k)/4 (the children's planes against the parent's, integrated), which
  * changes a visible colour by at most imp_max × that; kept above
  * SOURCE_EDGE_JND of the JND. The size criterion's counterpart: a leaf whose
- * whole peak radiance would be seen above SOURCE_SIZE_JND JNDs is split anyway
- * (a bright spot, such as a lamp's on the floor, may lie between corners that
- * do not show it). */
+ * peak (source_peak: its values, and its unoccluded bound) would be seen above
+ * SOURCE_SIZE_JND JNDs is split anyway (a bright spot, such as the beam through
+ * a door gap, may lie between corners that do not show it). */
 #define SOURCE_EDGE_JND 0.5f
 #define SOURCE_SIZE_JND 8.0f
 
