@@ -300,7 +300,10 @@ lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh
     if (!samp_radiance_mesh_valid(sp->s, mesh, err)) return LM_ERR_INVALID_ARG;
     if (!points_valid(pts, n))
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_sources: non-finite point or normal");
+    /* The cache's pilot rays are indirect work: timed as such (not counted as samples). */
+    double t0 = lm_now_seconds();
     samp_sources_trace(sp->s, sp->rt, sp->desc.seed, sp->desc.threads, mesh, pts, n, out);
+    sp->stats.indirect_seconds += lm_now_seconds() - t0;
     return LM_OK;
 }
 

@@ -185,7 +185,7 @@ typedef struct samp_stats {
     const char *indirect_backend_name;
     char choice[512];             /* why these back ends (AUTO: the calibration's numbers) */
     uint64_t direct_samples, indirect_samples;  /* points served */
-    double direct_seconds, indirect_seconds;    /* wall time inside the calls */
+    double direct_seconds, indirect_seconds;    /* wall time inside the calls (indirect: samp_indirect_sources too) */
 } samp_stats;
 
 void samp_get_stats(const samp_sampler *sp, samp_stats *out);
