@@ -162,12 +162,20 @@ uint32_t samp_indirect_rays(const samp_sampler *sp);
  * the fraction of the point's rays that met that source triangle, an estimate of
  * ∂E_i(x)/∂L̄ / π for a change L̄ of the radiance over that triangle (E_i =
  * π·Σ_t w_t·L̄_t). The weights sum to at most 1 (the rest left the scene or met
- * the back of a surface). Deterministic per point, like samp_indirect. */
+ * the back of a surface). Deterministic per point, like samp_indirect.
+ * strat_var (optional) says how noisy a stratified gather of E there is: N·Var of
+ * the stratified mean of π·L over these rays, estimated from neighbouring strata
+ * (each pair (a, a+1) of a row of strata adds (π·L_a − π·L_(a+1))²: collapsed
+ * strata, which errs high). A stratified gather of N ≥ rays rays then has a
+ * standard error of at most √(strat_var / N); for independent rays strat_var is
+ * the plain variance of π·L, and where the radiance is smooth over a stratum far
+ * less. */
 typedef struct samp_source_hits {
     uint32_t rays;      /* per point, 1..4096 */
     uint32_t *count;    /* n */
     uint32_t *tri;      /* n × rays */
     float *weight;      /* n × rays */
+    float *strat_var;   /* n × RGB, or NULL */
 } samp_source_hits;
 
 lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,

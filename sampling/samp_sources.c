@@ -46,18 +46,35 @@ static void sources_one(void *user, uint32_t i)
     lm_rng_seed(&g, job->seed, samp_point_hash(x), 0x50u);
     const int k = job->k;
     uint32_t hits = 0;
+    double pair[3] = {0, 0, 0}, even[3] = {0, 0, 0}; /* collapsed strata: (L_a − L_(a+1))² summed */
     for (int b = 0; b < k; ++b)
         for (int a = 0; a < k; ++a) {
             float u = (a + lm_rng_float(&g)) / k, v = (b + lm_rng_float(&g)) / k;
             lm_vec3 d = samp_frame_cosine(&f, u, v);
-            float dir[3], L[3];
+            float dir[3], L[3] = {0, 0, 0};
             v3_store(dir, d);
             rt_hit h;
-            if (!rt_intersect(job->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
-            if (v3_dot(v3_load(job->s->tri_normals + 3 * (size_t)h.tri), d) >= 0.0f) continue;
-            uint32_t at = samp_radiance_at(job->mesh, job->index, h.tri, h.u, h.v, L);
-            if (at != UINT32_MAX) tri[hits++] = at;
+            if (rt_intersect(job->rt, origin, dir, 0.0f, INFINITY, &h) &&
+                v3_dot(v3_load(job->s->tri_normals + 3 * (size_t)h.tri), d) < 0.0f) {
+                uint32_t at = samp_radiance_at(job->mesh, job->index, h.tri, h.u, h.v, L);
+                if (at != UINT32_MAX) tri[hits++] = at;
+                else L[0] = L[1] = L[2] = 0.0f;
+            }
+            for (int c = 0; c < 3; ++c) {
+                double piL = M_PI * (double)L[c];
+                if (a % 2 == 0)
+                    even[c] = piL;
+                else
+                    pair[c] += (piL - even[c]) * (piL - even[c]);
+            }
         }
+    if (job->out->strat_var) {
+        /* Var of the stratified mean ≈ Σ_pairs (L_a − L_b)² / N² (an unpaired last
+         * column, k odd, is left out); N times that. */
+        double N = (double)(k - k % 2) * k;
+        for (int c = 0; c < 3; ++c)
+            job->out->strat_var[3 * (size_t)i + (size_t)c] = N > 0.0 ? (float)(pair[c] / N) : 0.0f;
+    }
     /* Runs of equal source triangles become one entry each. */
     qsort(tri, hits, sizeof *tri, cmp_u32);
     uint32_t count = 0;

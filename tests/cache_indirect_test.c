@@ -148,17 +148,23 @@ static void centroid(const scene *s, uint32_t t, float out[3])
     }
 }
 
-/* Refines until nothing is left to test (or 2,000 rounds). */
-static void refine_all(cache *c, const uint32_t *pixels)
+/* Refines until nothing is left to do (or 2,000 rounds); returns whether it
+ * said it converged. tests_only: until no leaf is left to test, before the cache
+ * gathers noisy values again with more rays (regathered_finer). */
+static int refine_all(cache *c, const uint32_t *pixels, int tests_only)
 {
     lm_error err;
     for (int i = 0; i < 2000; ++i) {
         cache_refine_result res;
         lm_result r = cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 256}, &res, &err);
         CHECK_MSG(r == LM_OK, "%s", err.msg);
-        if (r != LM_OK || res.remaining == 0) return;
+        if (r != LM_OK) return 0;
+        CHECK(!(res.converged && res.stuck));
+        if (res.converged || res.stuck) return res.converged;
+        if (tests_only && res.regathered_finer) return 0;
     }
     CHECK_MSG(0, "refinement did not finish in 2000 rounds");
+    return 0;
 }
 
 /* ---- the slot -------------------------------------------------------------- */
@@ -227,7 +233,7 @@ static void test_slot(void)
         coarse_worst = 0.0;
         for (uint32_t i = 0; i < n; ++i) coarse_worst = fmax(coarse_worst, fabs(got[3 * i] - want[3 * i]) / want[3 * i]);
     }
-    refine_all(c, pixels);
+    refine_all(c, pixels, 1);
     CHECK(samp_indirect(ref, &c->src.rmesh, pts, n, got, &err) == LM_OK);
     for (uint32_t i = 0; i < n; ++i) {
         float e[3];
@@ -274,7 +280,7 @@ static uint32_t floor_indirect_leaves(const scene *s, const uint32_t *pixels, in
         return 0;
     }
     CHECK(cache_init(c, &err) == LM_OK);
-    refine_all(c, pixels);
+    refine_all(c, pixels, 1);
     cache_stats st;
     cache_get_stats(c, &st);
     /* How far one gather's noise moves what the viewer sees: at floor points,
@@ -346,6 +352,115 @@ static void test_noise_does_not_refine(void)
            "floor by dE %.2f (4096: %.2f)\n", few, many, noise_few, noise_many);
     CHECK_MSG(noise_few > 2.0, "16-ray gathers are not noisy enough to test anything: dE %.2f", noise_few);
     CHECK_MSG(few <= many + 8, "noise refined the mesh: %u leaves with 16 rays against %u with 4096", few, many);
+    free(pixels);
+    scene_destroy(s);
+}
+
+/* ---- the error estimate against the error ------------------------------------------- */
+
+/* The box room's floor refined with `rays` a gather: the cache's estimate of its
+ * mean ΔE (cache_estimate_error) and the ΔE measured against gathers of 65,536
+ * rays from the same source at 16 points a seen triangle (pixel-weighted). */
+static void floor_estimate(const scene *s, const uint32_t *pixels, int rays, cache_estimate *est, double *measured,
+                           int *converged)
+{
+    lm_error err;
+    samp_sampler *sp = NULL, *ref = NULL;
+    cache *c = NULL;
+    *measured = 0.0;
+    *converged = 0;
+    memset(est, 0, sizeof *est);
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = rays}, &sp, &err) ==
+          LM_OK);
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 65536, .seed = 5},
+                      &ref, &err) == LM_OK);
+    CHECK(sp && ref && cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
+    if (!c) {
+        samp_destroy(sp);
+        samp_destroy(ref);
+        return;
+    }
+    CHECK(cache_init(c, &err) == LM_OK);
+    *converged = refine_all(c, pixels, 0);
+    CHECK(cache_estimate_error(c, pixels, est, &err) == LM_OK);
+    CHECK(*converged == cache_estimate_converged(est));
+    double sum = 0.0, weight = 0.0;
+    tm_desc tm = {.exposure = s->exposure};
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        if (!pixels[t]) continue;
+        const uint32_t *v = s->tris[t].v;
+        const float *kd = s->materials[s->tris[t].material].kd;
+        for (int i = 0; i < 4; ++i)
+            for (int j = 0; j < 4 - i; ++j) { /* a lattice inside the triangle */
+                double w1 = (i + 0.5) / 5.0, w2 = (j + 0.5) / 5.0;
+                samp_point x = {.tri_plus_one = t + 1};
+                for (int k = 0; k < 3; ++k) {
+                    const float *p0 = s->positions + 3 * (size_t)v[0], *p1 = s->positions + 3 * (size_t)v[1],
+                                *p2 = s->positions + 3 * (size_t)v[2];
+                    x.p[k] = (float)((1.0 - w1 - w2) * p0[k] + w1 * p1[k] + w2 * p2[k]);
+                    x.n[k] = s->tri_normals[3 * (size_t)t + (size_t)k];
+                }
+                float truth[3], cached[3], ldd[3], a[3], b[3], da[3], db[3], la[3], lb[3];
+                CHECK(samp_indirect(ref, &c->src.rmesh, &x, 1, truth, &err) == LM_OK);
+                CHECK(cache_eval_indirect(c, t, w1, w2, cached, &err) == LM_OK);
+                CHECK(cache_eval_direct(c, t, w1, w2, ldd, &err) == LM_OK);
+                for (int k = 0; k < 3; ++k) {
+                    a[k] = kd[k] * (ldd[k] + cached[k] / (float)M_PI);
+                    b[k] = kd[k] * (ldd[k] + truth[k] / (float)M_PI);
+                }
+                tm_to_display(&tm, a, da);
+                tm_to_display(&tm, b, db);
+                tm_display_to_lab(da, la);
+                tm_display_to_lab(db, lb);
+                sum += pixels[t] * (double)tm_delta_e(la, lb);
+                weight += pixels[t];
+            }
+    }
+    *measured = weight > 0.0 ? sum / weight : 0.0;
+    cache_destroy(c);
+    samp_destroy(sp);
+    samp_destroy(ref);
+}
+
+static void test_estimate(void)
+{
+    static obj_buf o;
+    memset(&o, 0, sizeof o);
+    rect(&o, 1, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
+    rect(&o, 1, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
+    rect(&o, 0, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
+    rect(&o, 0, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
+    rect(&o, 2, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
+    rect(&o, 2, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
+    scene *s = load("estimate", &o,
+                    "{\"type\": \"quad\", \"corner\": [0.4, 0.8, 0.4], \"edge1\": [0, 0, 0.2], "
+                    "\"edge2\": [0.2, 0, 0], \"radiance\": [30, 30, 30]}");
+    if (!s) return;
+    uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        float ct[3];
+        centroid(s, t, ct);
+        if (ct[1] < 1e-3f && s->tris[t].light < 0) pixels[t] = 250;
+    }
+    static const int rays[] = {4, 64, 1024};
+    for (size_t i = 0; i < sizeof rays / sizeof rays[0]; ++i) {
+        cache_estimate e;
+        double measured;
+        int converged;
+        floor_estimate(s, pixels, rays[i], &e, &measured, &converged);
+        printf("estimate: %4d rays a gather: estimated dE %.3f (interpolation %.3f, noise %.3f), measured %.3f; "
+               "%.1f%% estimated above the JND; %s\n",
+               rays[i], e.mean, e.indirect.interpolation, e.indirect.noise, measured, 100.0 * e.above_jnd,
+               converged ? "converged" : "not converged");
+        /* The estimate follows the error within a factor of two either way (plus
+         * 0.1 for what is too small to matter). */
+        CHECK_MSG(measured <= 2.0 * e.mean + 0.1, "%d rays: the cache estimates dE %.3f, the error is %.3f", rays[i],
+                  e.mean, measured);
+        CHECK_MSG(e.mean <= 2.0 * measured + 0.1, "%d rays: the cache estimates dE %.3f, the error is only %.3f",
+                  rays[i], e.mean, measured);
+        /* Converged means right: said only with the error below the JND. */
+        CHECK_MSG(!converged || measured < e.jnd, "%d rays: converged with dE %.3f", rays[i], measured);
+    }
     free(pixels);
     scene_destroy(s);
 }
@@ -425,6 +540,7 @@ int main(void)
 {
     test_pull_inside();
     test_noise_does_not_refine();
+    test_estimate();
     test_slot();
     return test_finish("cache_indirect_test");
 }

@@ -237,6 +237,7 @@ lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err)
         &(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap}, &c->specular, err);
     if (r == LM_OK && c->initialised) r = sample_roots(c, CACHE_KIND_SPECULAR, err);
     cache_sched_requeue(&c->sched, CACHE_KIND_SPECULAR);
+    cache_sched_forget(&c->sched, CACHE_KIND_SPECULAR);
     return r;
 }
 

@@ -115,12 +115,20 @@ typedef struct cache_refine_desc {
 typedef struct cache_refine_result {
     uint32_t tested, split, undone;  /* leaves tested; splits kept; splits undone (found nothing) */
     uint32_t remaining;              /* leaves still waiting to be tested */
+    uint32_t regathered_finer;       /* indirect values gathered again with more rays (their noise was seen) */
+    int converged;                   /* nothing left to do, and the estimate is below the JND
+                                        (cache_estimate_converged) */
+    int stuck;                       /* nothing left to do, yet not converged: the estimate's error is
+                                        where no test or ray count reaches (reported, not claimed) */
 } cache_refine_result;
 
 /* Tests the edges of the highest-priority leaves of the direct, indirect and
  * specular meshes (§4.3; the coarse cache first if cache_init was not called): splits where the tone-mapped fresh value differs from the
  * interpolated one by more than the JND, or where a leaf covers more than
- * min_leaf_pixels; undoes splits that found nothing. */
+ * min_leaf_pixels; undoes splits that found nothing. When no leaf is left to
+ * test, the indirect values whose noise keeps a leaf above the JND are gathered
+ * again with more rays (cache_estimate_error) and their leaves tested again;
+ * only when that too is done does it say whether it has converged. */
 lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
 
 /* The viewpoint of the specular mesh (scene units). A new eye resets that mesh
@@ -176,6 +184,50 @@ typedef struct cache_stats {
 } cache_stats;
 
 void cache_get_stats(cache *c, cache_stats *out);
+
+/* The cache's own estimate of the error a viewer sees, as CIELAB ΔE (CIE76)
+ * after tone mapping, averaged over the pixels each mesh's leaves cover:
+ *   interpolation  per leaf, its last edge test: the largest ΔE between a fresh
+ *                  midpoint value and its edge's interpolation (what a linear leaf
+ *                  misses is about that over its area); a leaf not tested yet, a
+ *                  quarter of its parent's (the error of linear interpolation falls
+ *                  with the square of the size), a root its corners' contrast
+ *                  (a quarter of it below one pixel);
+ *   noise          indirect only: the mean absolute error the gathers' standard
+ *                  errors leave after interpolation (0.56 σ: a normal's mean
+ *                  |x| of the interpolated σ, σ/√2 over a triangle).
+ * It does NOT see what no test looked at: a shadow between the midpoints of a
+ * leaf that was never split, light the sampler's rays miss altogether, the Embree
+ * direct estimate's penumbra noise (SAMP_EMBREE_PENUMBRA_RMS), or transport the
+ * cache does not model (bounces beyond desc.bounces). bench/indirect.sh compares
+ * it with the measured error against the reference. */
+typedef struct cache_mesh_estimate {
+    double pixels;            /* pixels this mesh's visible leaves cover */
+    double interpolation;     /* pixel-weighted mean ΔE */
+    double noise;             /* pixel-weighted mean ΔE */
+    double max;               /* the largest leaf's interpolation + noise */
+    double pixels_above_jnd;  /* pixels in leaves whose interpolation + noise exceeds the JND */
+} cache_mesh_estimate;
+
+typedef struct cache_estimate {
+    cache_mesh_estimate direct, indirect, specular; /* specular: zero without a specular mesh */
+    double pixels;            /* pixels that see a scene triangle (the pixel counts' sum) */
+    double mean;              /* mean ΔE over those pixels: the meshes' errors added */
+    double above_jnd;         /* fraction of those pixels in a leaf above the JND (the meshes' summed, ≤ 1) */
+    float jnd;                /* the JND it was measured against */
+} cache_estimate;
+
+/* pixels: per scene triangle, pixels it covers (as cache_refine_desc.pixels);
+ * NULL: every triangle 1e6 (the estimate of the whole surface). */
+lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_estimate *out, lm_error *err);
+
+/* "Converged" is a claim about error: the estimate is above the JND on at most
+ * this fraction of the pixels (the edge test lets a leaf's interpolation come up
+ * to the JND, and the gathers' noise adds to it; measured on the Cornell boxes,
+ * 1-2% of the pixels of a settled cache differ from the reference by more than
+ * the JND, docs/cache.md). */
+#define CACHE_CONVERGED_ABOVE_JND 0.02
+int cache_estimate_converged(const cache_estimate *e);
 
 /* The meshes themselves, read-only, for tests and the renderer. */
 const mesh_qmesh *cache_direct_mesh(const cache *c);

@@ -10,6 +10,8 @@
  *                     (eq. 4), falsified light leaves
  *   cache_source.c    indirect light (eq. 7): the radiance source, gathers,
  *                     outdated values
+ *   cache_estimate.c  the cache's estimate of its error (cache_estimate_error);
+ *                     the values whose noise is still seen
  *   cache_refine.c    the refinement scheduler (§4.3)
  *   cache.c           the public face (cache.h): create, init, edits, evaluation,
  *                     statistics, cache_refine()
@@ -122,7 +124,10 @@ typedef struct cache_source_state {
     float *drift;
     uint8_t *outdated;
     float *sigma;              /* per vertex id: the standard error of its E_i (RGB; 0: GL, exact) */
-    size_t drift_cap;          /* drift, outdated and sigma */
+    float *sigma_likely;       /* per vertex id: its likely standard error, the strata counted (RGB; the
+                                  error estimate's; sigma errs high, for the edge test) */
+    uint8_t *gather_level;     /* per vertex id: its gather took GATHER_SCALE^level times the plain rays */
+    size_t drift_cap;          /* drift, outdated, sigma, sigma_likely and gather_level */
     uint32_t *outdated_list;
     size_t outdated_n, outdated_cap;
     uint64_t regathered;       /* indirect values gathered again because they were outdated */
@@ -153,6 +158,7 @@ typedef struct cache_source_state {
      * point); cache_record_importance reads them. */
     uint32_t *pilot_vid, *pilot_count, *pilot_tri;
     float *pilot_weight;
+    float *pilot_strat;        /* per point RGB: samp_source_hits.strat_var */
     size_t pilot_cap;          /* points */
     uint32_t pilot_n;
     cache_mesh_stats indirect_stats; /* samples (.mesh filled by cache_get_stats) */
@@ -176,6 +182,14 @@ typedef struct cache_sched {
     int seeded;
     int requeue[CACHE_KINDS];  /* test every leaf of that mesh again (cache_sched_requeue) */
     uint64_t undone;           /* splits undone */
+    /* Per node: what its edge test says of the leaf's interpolation error, CIELAB ΔE
+     * stored plus one (0: not known). Set when a split is undone (the largest ΔE
+     * between a fresh midpoint and its edge's interpolation) and, for the children
+     * of a kept split, a quarter of the parent's (linear interpolation's error
+     * falls with the square of the size) until their own test. Read by
+     * cache_estimate.c (cache_sched_residual). */
+    float *resid[CACHE_KINDS];
+    size_t resid_cap[CACHE_KINDS];
 } cache_sched;
 
 struct cache {
@@ -243,6 +257,12 @@ int cache_sees_front(const cache *c, uint32_t tri);
  * tests compare. */
 void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const float ei[3], const float lds[3],
                     float lab[3]);
+/* cache_seen_lab at (tri, w1, w2) when the quantity of mesh `kind` has `value`
+ * there and the other meshes' are interpolated. */
+void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2, const float value[3],
+                         float lab[3]);
+/* The largest ΔE between what the viewer sees at a node's corners (mesh m of `kind`). */
+float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, const mesh_qnode *n);
 
 /* ---- cache_specular.c: outlines and specular values --------------------------------- */
 
@@ -301,11 +321,20 @@ int64_t cache_direct_changes(const cache *c);
  * bounce: kd·L_dd; else the displayed indirect's, cache_sample_indirect). */
 lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
 /* The standard error (RGB) of the displayed indirect value at vertex vid (0 0 0
- * when unknown or exact). */
+ * when unknown or exact), as the edge test takes it: from the plain variance of
+ * the pilot's rays, which errs high. cache_indirect_likely_sigma: the same with
+ * the gather's strata counted (samp_source_hits.strat_var), what the error
+ * estimate takes. */
 void cache_indirect_sigma(const cache *c, uint32_t vid, float out[3]);
+void cache_indirect_likely_sigma(const cache *c, uint32_t vid, float out[3]);
 /* Samples E_i at the given vertices (batched): gathered from kd·L_dd, and with
  * bounces = 2 from kd·(L_dd + E_1/π), E_1 the first bounce (c->indirect1). */
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
+/* Could vertex vid's displayed value be gathered with more rays (cache_regather_finer)? */
+int cache_gather_can_refine(const cache *c, uint32_t vid);
+/* Displayed values gathered again with GATHER_SCALE times the rays they last had
+ * (their noise halved): E as cache_sample_indirect. */
+lm_result cache_regather_finer(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
 /* Rebuilds the radiance source from the direct mesh when it is stale or holds the
  * other kind (with_e1: kd·(L_dd + E_1/π), else kd·L_dd). */
 lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err);
@@ -340,6 +369,17 @@ lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n,
  * nothing above it was recorded. */
 void cache_node_importance(const cache *c, uint32_t node, float *imp_max, float *imp_sum);
 
+/* ---- cache_estimate.c: the error estimate, values worth more rays ------------------ */
+
+/* A leaf's interpolation error from its edge test (ΔE; cache_sched.resid); < 0: not known. */
+float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node);
+/* The distinct vertices of the visible indirect leaves whose estimated error
+ * exceeds the JND with noise in it, and that could be gathered with more rays,
+ * the leaves with the most pixels × noise first; at most max. *out: malloc'ed,
+ * the caller frees it. */
+lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t max, uint32_t **out, uint32_t *count,
+                               lm_error *err);
+
 /* ---- cache_refine.c: the scheduler ------------------------------------------------------ */
 
 void cache_sched_init(cache_sched *st, uint32_t seed);
@@ -348,6 +388,8 @@ size_t cache_sched_bytes(const cache_sched *st);
 /* Every leaf of that mesh (kind; CACHE_KINDS: of every mesh) is scheduled afresh
  * at the next cache_sched_refine (a light or the camera changed). */
 void cache_sched_requeue(cache_sched *st, int kind);
+/* Forgets every residual of one mesh (its tree was made anew: cache_set_camera). */
+void cache_sched_forget(cache_sched *st, cache_kind kind);
 /* cache_refine (cache.h) on an initialised cache. */
 lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
 

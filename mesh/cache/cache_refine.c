@@ -96,24 +96,6 @@ static lm_result set_done(uint8_t **flags, size_t *cap, uint32_t node, uint8_t v
 
 /* ---- colours ----------------------------------------------------------------- */
 
-static void seen_lab(const cache *c, refine_kind kind, uint32_t tri, double w1, double w2, const float value[3],
-                     float lab[3])
-{
-    /* What the viewer sees at (tri, w1, w2) when the refined quantity has `value`
-     * there and the others are interpolated (cache_seen_lab). */
-    float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
-    lm_error ignore;
-    for (int k = 0; k < CACHE_KINDS; ++k) {
-        if (k == (int)kind) {
-            memcpy(term[k], value, sizeof term[k]);
-            continue;
-        }
-        const mesh_qmesh *mk = cache_kind_mesh(c, (cache_kind)k);
-        if (mk && mesh_qmesh_root(mk, tri) != MESH_QMESH_NONE) mesh_qmesh_interpolate(mk, tri, w1, w2, term[k], &ignore);
-    }
-    cache_seen_lab(c, tri, term[KIND_DIRECT], term[KIND_INDIRECT], term[KIND_SPECULAR], lab);
-}
-
 static float leaf_pixels(const uint32_t *pixels, const mesh_qnode *n)
 {
     float p = pixels ? (float)pixels[n->tri] : 1e6f;
@@ -162,16 +144,7 @@ static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind
                            const uint32_t *pixels)
 {
     if (source_only(pixels, kind, n)) return source_priority(c, node, n);
-    float lab[3][3];
-    for (int k = 0; k < 3; ++k) {
-        double w1, w2;
-        float v[3];
-        cache_node_corner_bary(n, k, &w1, &w2);
-        mesh_qmesh_get_value(m, n->v[k], v);
-        seen_lab(c, kind, n->tri, w1, w2, v, lab[k]);
-    }
-    float contrast = fmaxf(tm_delta_e(lab[0], lab[1]), fmaxf(tm_delta_e(lab[1], lab[2]), tm_delta_e(lab[2], lab[0])));
-    return leaf_pixels(pixels, n) * (1.0f + contrast);
+    return leaf_pixels(pixels, n) * (1.0f + cache_leaf_contrast(c, m, kind, n));
 }
 
 /* ---- scheduling ---------------------------------------------------------------- */
@@ -216,6 +189,21 @@ static lm_result sched_add(cache *c, refine_kind kind, uint32_t node, float p, l
     if (!(p > 0.0f)) return LM_OK;
     c->sched.waiting[kind]++;
     return queue_push(&c->sched.q[kind], p, node, mesh_qmesh_node(mesh_of(c, kind), node)->v[0], err);
+}
+
+/* Records a leaf's interpolation error (ΔE; cache_sched.resid). */
+static lm_result set_residual(cache *c, refine_kind kind, uint32_t node, float delta_e, lm_error *err)
+{
+    cache_sched *st = &c->sched;
+    if (node >= st->resid_cap[kind] && !LM_GROW(st->resid[kind], st->resid_cap[kind], (size_t)node + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for refinement residuals");
+    st->resid[kind][node] = 1.0f + fmaxf(delta_e, 0.0f);
+    return LM_OK;
+}
+
+void cache_sched_forget(cache_sched *st, cache_kind kind)
+{
+    if (st->resid[kind]) memset(st->resid[kind], 0, st->resid_cap[kind] * sizeof *st->resid[kind]);
 }
 
 /* A leaf whose test found nothing (its split undone). */
@@ -373,6 +361,25 @@ static int beyond_noise(const cache *c, uint32_t a, uint32_t b, uint32_t mid, co
     return 0;
 }
 
+/* The part of an indirect midpoint's ΔE that noise explains: the ΔE of the
+ * difference's likely standard error (beyond_noise's, the strata counted: the
+ * estimate's), on the interpolated value.
+ * The leaf's interpolation error is the rest, in quadrature (E[d²] = true² + σ²),
+ * so that noisy values do not count twice in the estimate (cache_estimate.c adds
+ * the noise of its own). */
+static float noise_delta_e(const cache *c, uint32_t tri, double w1, double w2, uint32_t a, uint32_t b, uint32_t mid,
+                           const float interp[3], const float lab_interp[3])
+{
+    float sa[3], sb[3], sm[3], up[3], lab[3];
+    cache_indirect_likely_sigma(c, a, sa);
+    cache_indirect_likely_sigma(c, b, sb);
+    cache_indirect_likely_sigma(c, mid, sm);
+    for (int ch = 0; ch < 3; ++ch)
+        up[ch] = interp[ch] + sqrtf(sm[ch] * sm[ch] + 0.25f * (sa[ch] * sa[ch] + sb[ch] * sb[ch]));
+    cache_seen_lab_with(c, KIND_INDIRECT, tri, w1, w2, up, lab);
+    return tm_delta_e(lab, lab_interp);
+}
+
 typedef struct round_leaf {
     uint32_t node;
     uint32_t mirror;            /* single mesh: the indirect node split along with it */
@@ -485,6 +492,12 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         uint32_t tri = n->tri, corner[3] = {n->v[0], n->v[1], n->v[2]}, child = n->child;
         float px = leaf_pixels(pixels, n);
         int found = 0;
+        /* The leaf's interpolation error: the mean of its midpoints' ΔE (the mean
+         * over a triangle of a quadratic that is 0 at the corners is the mean of
+         * its three midpoint values); for indirect values in quadrature, less
+         * what their noise explains (E[d²] = true² + σ²). */
+        float sum_de = 0.0f, sum_de2 = 0.0f, sum_dn2 = 0.0f;
+        int tested_mid = 0;
         int combined = leaves[i].mirror != MESH_QMESH_NONE;
         if (source_only(pixels, kind, n)) {
             found = source_split_seen(c, leaves[i].node, n, leaves[i].mid);
@@ -507,26 +520,41 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 cache_seen_lab(c, tri, fresh, ef, NULL, lf); /* L_ds left out, as before */
                 cache_seen_lab(c, tri, interp, ei, NULL, li);
             } else {
-                seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
-                seen_lab(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
+                cache_seen_lab_with(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
+                cache_seen_lab_with(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
             }
-            found = tm_delta_e(lf, li) > c->desc.jnd;
+            float de = tm_delta_e(lf, li);
+            found = de > c->desc.jnd;
+            tested_mid++;
+            sum_de += de;
+            sum_de2 += de * de;
+            if (kind == KIND_INDIRECT && !combined) {
+                float dn = noise_delta_e(c, tri, leaves[i].mw1[k], leaves[i].mw2[k], corner[k], corner[(k + 1) % 3],
+                                         leaves[i].mid[k], interp, li);
+                sum_dn2 += dn * dn;
+            }
             /* Indirect values are noisy estimates: a difference the noise explains
              * (within NOISE_SIGMAS standard errors in every channel) splits nothing. */
             if (found && kind == KIND_INDIRECT && !combined)
                 found = beyond_noise(c, corner[k], corner[(k + 1) % 3], leaves[i].mid[k], fresh, interp);
         }
+        float worst = 0.0f;
+        if (tested_mid)
+            worst = kind == KIND_INDIRECT && !combined ? sqrtf(fmaxf(sum_de2 - sum_dn2, 0.0f) / (float)tested_mid)
+                                                       : sum_de / (float)tested_mid;
         res->tested++;
         if (found || px > min_pixels) {
             res->split++;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
                 const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
-                r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
+                r = set_residual(c, kind, child + k, 0.25f * worst, err);
+                if (r == LM_OK) r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
             }
         } else {
             r = mesh_qmesh_merge(m, leaves[i].node, err);
             if (r == LM_OK && combined) r = mesh_qmesh_merge(c->indirect, leaves[i].mirror, err);
             if (r == LM_OK) r = sched_done(c, kind, leaves[i].node, err);
+            if (r == LM_OK) r = set_residual(c, kind, leaves[i].node, worst, err);
             res->undone++;
             c->sched.undone++;
         }
@@ -589,6 +617,29 @@ static lm_result revise(cache *c, const uint32_t *pixels, lm_error *err)
     return r == LM_OK ? cache_regather_outdated(c, requeue_changed, (void *)pixels, err) : r;
 }
 
+/* Gathers again with more rays (cache_regather_finer) the indirect values whose
+ * noise keeps a visible leaf above the JND (cache_noisy_vertices), at most
+ * `budget`, and queues their leaves to be tested again. */
+static lm_result regather_noisy(cache *c, const uint32_t *pixels, uint32_t budget, uint32_t *done, lm_error *err)
+{
+    if (!c->indirect || c->desc.single_mesh) return LM_OK;
+    uint32_t *vids, n;
+    lm_result r = cache_noisy_vertices(c, pixels, budget, &vids, &n, err);
+    if (r != LM_OK || n == 0) {
+        free(vids);
+        return r;
+    }
+    float *E = malloc(3 * (size_t)n * sizeof *E);
+    r = E ? cache_regather_finer(c, vids, n, E, err) : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
+    for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, vids[i], E + 3 * (size_t)i, err);
+    /* (vids is sorted: requeue_changed looks them up.) */
+    if (r == LM_OK) r = requeue_changed(c, KIND_INDIRECT, NULL, 0, vids, n, (void *)pixels, err);
+    if (r == LM_OK) *done += n;
+    free(E);
+    free(vids);
+    return r;
+}
+
 /* Schedules every leaf of one mesh afresh (at the start; after a light changed;
  * for the specular mesh after the camera moved): heap, done flags and priorities
  * are rebuilt. */
@@ -642,19 +693,27 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     left[KIND_DIRECT] = budget > left[1] + left[2] ? budget - left[1] - left[2] : 1;
     /* Changes made outside refinement (coarse cache, a camera move). */
     if (r == LM_OK) r = revise(c, desc->pixels, err);
-    int settled = 0;
+    int settled = 0, finer = 0;
     while (r == LM_OK) {
         int kind = -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
             if (left[k] && c->sched.waiting[k]) kind = k;
         if (kind < 0) {
-            /* Nothing left to test (not just out of budget): bring the indirect
-             * source up to date with the direct mesh; indirect values it moves are
-             * gathered again and their leaves tested. */
-            if (settled || c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] > 0) break;
-            settled = 1;
-            r = cache_settle_source(c, err);
-            if (r == LM_OK) r = revise(c, desc->pixels, err);
+            if (c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] > 0) break; /* out of budget */
+            /* Nothing left to test: bring the indirect source up to date with the
+             * direct mesh (indirect values it moves are gathered again and their
+             * leaves tested); then gather again, with more rays, the values whose
+             * noise the estimate still sees, once per call (their leaves are tested
+             * again by the next call). */
+            if (!settled) {
+                settled = 1;
+                r = cache_settle_source(c, err);
+                if (r == LM_OK) r = revise(c, desc->pixels, err);
+                continue;
+            }
+            if (finer) break;
+            finer = 1;
+            r = regather_noisy(c, desc->pixels, budget, &res.regathered_finer, err);
             continue;
         }
         uint32_t before = res.tested;
@@ -667,6 +726,12 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
     }
     res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2]);
+    if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0) {
+        cache_estimate e;
+        r = cache_estimate_error(c, desc->pixels, &e, err);
+        res.converged = r == LM_OK && cache_estimate_converged(&e);
+        res.stuck = r == LM_OK && !res.converged;
+    }
     if (out) *out = res;
     return r;
 }
@@ -687,6 +752,7 @@ void cache_sched_free(cache_sched *st)
         free(st->done[k]);
         free(st->prio[k]);
         free(st->roots[k]);
+        free(st->resid[k]);
     }
     memset(st, 0, sizeof *st);
 }
@@ -695,7 +761,8 @@ size_t cache_sched_bytes(const cache_sched *st)
 {
     size_t b = 0;
     for (int k = 0; k < CACHE_KINDS; ++k)
-        b += st->q[k].cap * sizeof(cache_queue_entry) + st->done_cap[k] + st->prio_cap[k] * sizeof(float);
+        b += st->q[k].cap * sizeof(cache_queue_entry) + st->done_cap[k] +
+             (st->prio_cap[k] + st->resid_cap[k]) * sizeof(float);
     return b;
 }
 

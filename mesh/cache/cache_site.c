@@ -157,3 +157,32 @@ void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const floa
     tm_to_display(&c->tm, rgb, disp);
     tm_display_to_lab(disp, lab);
 }
+
+void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2, const float value[3],
+                         float lab[3])
+{
+    float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+    lm_error ignore;
+    for (int k = 0; k < CACHE_KINDS; ++k) {
+        if (k == (int)kind) {
+            memcpy(term[k], value, sizeof term[k]);
+            continue;
+        }
+        const mesh_qmesh *mk = cache_kind_mesh(c, (cache_kind)k);
+        if (mk && mesh_qmesh_root(mk, tri) != MESH_QMESH_NONE) mesh_qmesh_interpolate(mk, tri, w1, w2, term[k], &ignore);
+    }
+    cache_seen_lab(c, tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab);
+}
+
+float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, const mesh_qnode *n)
+{
+    float lab[3][3];
+    for (int k = 0; k < 3; ++k) {
+        double w1, w2;
+        float v[3];
+        cache_node_corner_bary(n, k, &w1, &w2);
+        mesh_qmesh_get_value(m, n->v[k], v);
+        cache_seen_lab_with(c, kind, n->tri, w1, w2, v, lab[k]);
+    }
+    return fmaxf(tm_delta_e(lab[0], lab[1]), fmaxf(tm_delta_e(lab[1], lab[2]), tm_delta_e(lab[2], lab[0])));
+}

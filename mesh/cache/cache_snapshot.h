@@ -63,12 +63,16 @@ typedef struct cache_snapshot {
     uint32_t light_mesh_count;   /* publish_debug: the scene's lights (a light nothing can see: an
                                     empty mesh); else 0 */
     cache_stats stats;           /* stats.lights points into the snapshot */
+    cache_estimate estimate;     /* the cache's estimate of its error over the worker's pixel counts */
     samp_stats sampler;          /* the worker's sampler when it was made: back ends, samples, seconds */
     samp_stats quick_sampler;    /* the quick start's sampler (the coarse cache); zero without one */
     double published_at;         /* lm_now_seconds() when it was committed */
     uint64_t tested;             /* leaves tested so far */
-    int converged;               /* nothing was left to test when it was made */
-    int finished;                /* converged, or max_tested reached: no newer snapshot without an edit */
+    int converged;               /* nothing was left to do and the estimate was below the JND
+                                    (cache_estimate_converged) when it was made */
+    int finished;                /* converged, nothing left the cache can do (the estimate still above
+                                    the JND: see estimate), or max_tested reached: no newer snapshot
+                                    without an edit */
     int failed;                  /* the worker stopped on an error (message in error) */
     char error[256];
 } cache_snapshot;

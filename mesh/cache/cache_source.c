@@ -47,6 +47,8 @@ void cache_source_free(cache_source_state *st)
     free(st->drift);
     free(st->outdated);
     free(st->sigma);
+    free(st->gather_level);
+    free(st->sigma_likely);
     free(st->outdated_list);
     free(st->leaf_buf);
     free(st->cut_err);
@@ -59,6 +61,7 @@ void cache_source_free(cache_source_state *st)
     free(st->pilot_count);
     free(st->pilot_tri);
     free(st->pilot_weight);
+    free(st->pilot_strat);
     memset(st, 0, sizeof *st);
 }
 
@@ -224,7 +227,9 @@ static lm_result grow_drift(cache_source_state *st, uint32_t limit, lm_error *er
     size_t cap = lm_grow_capacity(st->drift_cap, limit, 1024, SIZE_MAX / (3 * sizeof *st->drift));
     if (!cap || !lm_realloc_array(&st->drift, st->drift_cap, cap, 3 * sizeof *st->drift) ||
         !lm_realloc_array(&st->outdated, st->drift_cap, cap, sizeof *st->outdated) ||
-        !lm_realloc_array(&st->sigma, st->drift_cap, cap, 3 * sizeof *st->sigma))
+        !lm_realloc_array(&st->sigma, st->drift_cap, cap, 3 * sizeof *st->sigma) ||
+        !lm_realloc_array(&st->sigma_likely, st->drift_cap, cap, 3 * sizeof *st->sigma_likely) ||
+        !lm_realloc_array(&st->gather_level, st->drift_cap, cap, sizeof *st->gather_level))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
     st->drift_cap = cap;
     return LM_OK;
@@ -591,9 +596,21 @@ lm_result cache_settle_source(cache *c, lm_error *err)
  * rays all missed a gap has E = σ = 0 and was never taken again, while lucky
  * ones were pulled back (docs/cache.md, cause 5); chosen from an independent
  * pilot the estimate is unbiased whatever the count. The σ kept per value is the
- * larger of the gather's own and the pilot's prediction. */
+ * pilot's prediction for the rays taken (the gather's own sample variance is as
+ * blind as its mean to a gap all its rays missed). cache_regather_finer takes a
+ * value again at the next count, up to GATHER_FINER_LEVELS, where the cache's
+ * error estimate says its noise is still seen (cache_estimate.c). */
 #define GATHER_NOISE_JND 0.5f
-enum { GATHER_SCALE = 4, GATHER_LEVELS = 3 };
+enum { GATHER_SCALE = 4, GATHER_LEVELS = 3, GATHER_FINER_LEVELS = 4 };
+
+void cache_indirect_likely_sigma(const cache *c, uint32_t vid, float out[3])
+{
+    if (vid < c->src.drift_cap && c->src.sigma_likely) {
+        memcpy(out, c->src.sigma_likely + 3 * (size_t)vid, 3 * sizeof *out);
+        return;
+    }
+    out[0] = out[1] = out[2] = 0.0f;
+}
 
 void cache_indirect_sigma(const cache *c, uint32_t vid, float out[3])
 {
@@ -632,14 +649,16 @@ static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *p
         if (!lm_realloc_array(&st->pilot_vid, st->pilot_cap, cap, sizeof *st->pilot_vid) ||
             !lm_realloc_array(&st->pilot_count, st->pilot_cap, cap, sizeof *st->pilot_count) ||
             !lm_realloc_array(&st->pilot_tri, st->pilot_cap, cap, RAYS * sizeof *st->pilot_tri) ||
-            !lm_realloc_array(&st->pilot_weight, st->pilot_cap, cap, RAYS * sizeof *st->pilot_weight))
+            !lm_realloc_array(&st->pilot_weight, st->pilot_cap, cap, RAYS * sizeof *st->pilot_weight) ||
+            !lm_realloc_array(&st->pilot_strat, st->pilot_cap, cap, 3 * sizeof *st->pilot_strat))
             return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing indirect light");
         st->pilot_cap = cap;
     }
     st->pilot_n = 0;
     lm_result r = samp_indirect_sources(
         c->sp, &st->rmesh, pts, n,
-        &(samp_source_hits){.rays = RAYS, .count = st->pilot_count, .tri = st->pilot_tri, .weight = st->pilot_weight},
+        &(samp_source_hits){.rays = RAYS, .count = st->pilot_count, .tri = st->pilot_tri, .weight = st->pilot_weight,
+                            .strat_var = st->pilot_strat},
         err);
     if (r != LM_OK) return r;
     memcpy(st->pilot_vid, vids, n * sizeof *vids);
@@ -648,8 +667,11 @@ static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *p
 }
 
 /* From point i's pilot: E (RGB) and the variance of one ray's π·L (RGB), each
- * source triangle taken at the mean of its corners' radiance. */
-static void pilot_moments(const cache *c, uint32_t i, float e[3], double var[3])
+ * source triangle taken at the mean of its corners' radiance; strat: what a
+ * stratified gather of at least CACHE_IMPORTANCE_RAYS rays behaves as instead
+ * (samp_source_hits.strat_var: from neighbouring strata, the radiance
+ * interpolated), never more than var. */
+static void pilot_moments(const cache *c, uint32_t i, float e[3], double var[3], double strat[3])
 {
     const cache_source_state *st = &c->src;
     double m1[3] = {0, 0, 0}, m2[3] = {0, 0, 0};
@@ -666,12 +688,27 @@ static void pilot_moments(const cache *c, uint32_t i, float e[3], double var[3])
     for (int k = 0; k < 3; ++k) {
         e[k] = (float)m1[k];
         var[k] = fmax(m2[k] - m1[k] * m1[k], 0.0);
+        strat[k] = fmin((double)st->pilot_strat[3 * (size_t)i + (size_t)k], var[k]);
     }
 }
 
-/* The displayed indirect at the points, each with the rays its noise needs. */
-static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n, float *E,
-                                  lm_error *err)
+/* The likely standard error of an N-ray stratified gather from the pilot's
+ * moments: at N ≥ the pilot's rays its strata are finer than the pilot's, and its
+ * variance falls at least as 1/N from there; coarser, only the plain variance
+ * bounds it. What the error estimate uses (cache_estimate.c). Not for the edge
+ * test or the ray count: the collapsed-strata estimate is itself noisy where the
+ * light comes through a thin gap, and trusted there it let the slot test's
+ * near room gather too few rays (its worst E_i 14% -> 37% off). Those take the
+ * plain variance, which errs high. */
+static float gather_sigma(double var, double strat, double N)
+{
+    return N > 0.0 ? (float)sqrt((N >= CACHE_IMPORTANCE_RAYS ? strat : var) / N) : 0.0f;
+}
+
+/* The displayed indirect at the points, each with the rays its noise needs, and
+ * at least GATHER_SCALE^min_level[i] times the plain count (min_level NULL: 0). */
+static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n,
+                                  const uint8_t *min_level, float *E, lm_error *err)
 {
     lm_result r = grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
     if (r == LM_OK) r = trace_pilot(c, vids, pts, n, err);
@@ -679,24 +716,36 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
     const uint32_t rays = samp_indirect_rays(c->sp);
     uint8_t *level = calloc(n ? n : 1, 1);
     float *predicted = malloc(3 * (size_t)(n ? n : 1) * sizeof *predicted);
+    float *likely = malloc(3 * (size_t)(n ? n : 1) * sizeof *likely);
     uint32_t *pick = malloc((n ? n : 1) * sizeof *pick);
     samp_point *lpts = malloc((n ? n : 1) * sizeof *lpts);
     float *lE = malloc(3 * (size_t)(n ? n : 1) * sizeof *lE), *lsig = malloc(3 * (size_t)(n ? n : 1) * sizeof *lsig);
-    if (!level || !predicted || !pick || !lpts || !lE || !lsig)
+    if (!level || !predicted || !likely || !pick || !lpts || !lE || !lsig)
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     /* The count: the fewest rays whose predicted error cannot be seen. */
     for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
         float e[3];
-        double var[3];
-        pilot_moments(c, i, e, var);
+        double var[3], strat[3];
+        pilot_moments(c, i, e, var, strat);
         for (int lv = 0; lv < GATHER_LEVELS; ++lv) {
             double N = (double)rays * pow(GATHER_SCALE, lv);
-            for (int k = 0; k < 3; ++k) predicted[3 * (size_t)i + (size_t)k] = rays ? (float)sqrt(var[k] / N) : 0.0f;
+            for (int k = 0; k < 3; ++k) {
+                predicted[3 * (size_t)i + (size_t)k] = (float)sqrt(var[k] / N);
+                likely[3 * (size_t)i + (size_t)k] = gather_sigma(var[k], strat[k], N);
+            }
             level[i] = (uint8_t)lv;
             if (!rays || !noise_seen(c, vids[i], e, predicted + 3 * (size_t)i)) break;
         }
+        if (min_level && min_level[i] > level[i]) {
+            level[i] = min_level[i];
+            double N = (double)rays * pow(GATHER_SCALE, level[i]);
+            for (int k = 0; k < 3; ++k) {
+                predicted[3 * (size_t)i + (size_t)k] = (float)sqrt(var[k] / N);
+                likely[3 * (size_t)i + (size_t)k] = gather_sigma(var[k], strat[k], N);
+            }
+        }
     }
-    for (int lv = 0; r == LM_OK && lv < GATHER_LEVELS; ++lv) {
+    for (int lv = 0; r == LM_OK && lv < GATHER_FINER_LEVELS; ++lv) {
         uint32_t m = 0;
         for (uint32_t i = 0; i < n; ++i)
             if (level[i] == lv) {
@@ -710,11 +759,17 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
             memcpy(E + 3 * (size_t)i, lE + 3 * (size_t)j, 3 * sizeof *E);
             if (vids[i] >= c->src.drift_cap) continue;
             float *sg = c->src.sigma + 3 * (size_t)vids[i];
-            for (int k = 0; k < 3; ++k) sg[k] = predicted[3 * (size_t)i + (size_t)k];
+            float *sl = c->src.sigma_likely + 3 * (size_t)vids[i];
+            for (int k = 0; k < 3; ++k) {
+                sg[k] = predicted[3 * (size_t)i + (size_t)k];
+                sl[k] = likely[3 * (size_t)i + (size_t)k];
+            }
+            c->src.gather_level[vids[i]] = (uint8_t)lv;
         }
     }
     free(level);
     free(predicted);
+    free(likely);
     free(pick);
     free(lpts);
     free(lE);
@@ -741,7 +796,8 @@ static int on_open_edge(const cache *c, uint32_t vid)
     return 0;
 }
 
-lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, const uint8_t *min_level,
+                        float *E, lm_error *err)
 {
     if (n == 0) return LM_OK;
     lm_result r = cache_update_radiance_source(c, 0, !first_bounce, err);
@@ -753,7 +809,7 @@ lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_
         if (!first_bounce && on_open_edge(c, vids[i])) samp_point_pull_inside(c->sp, &pts[i]);
     }
     r = first_bounce || c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
-                                            : gather_displayed(c, vids, pts, n, E, err);
+                                            : gather_displayed(c, vids, pts, n, min_level, E, err);
     free(pts);
     if (r == LM_OK) c->src.indirect_stats.samples += n;
     /* A value gathered from the current source has not drifted. */
@@ -766,9 +822,34 @@ lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_
     return r;
 }
 
+lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+{
+    return gather(c, first_bounce, vids, n, NULL, E, err);
+}
+
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
 {
-    return cache_gather(c, 0, vids, n, E, err);
+    return gather(c, 0, vids, n, NULL, E, err);
+}
+
+int cache_gather_can_refine(const cache *c, uint32_t vid)
+{
+    if (c->desc.single_mesh || !samp_indirect_rays(c->sp)) return 0; /* no σ to reduce (GL: exact) */
+    return vid < c->src.drift_cap && c->src.gather_level[vid] + 1 < GATHER_FINER_LEVELS;
+}
+
+lm_result cache_regather_finer(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
+{
+    if (n == 0) return LM_OK;
+    uint8_t *lv = malloc(n);
+    if (!lv) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
+    for (uint32_t i = 0; i < n; ++i) {
+        uint8_t now = vids[i] < c->src.drift_cap ? c->src.gather_level[vids[i]] : 0;
+        lv[i] = (uint8_t)(now + 1 < GATHER_FINER_LEVELS ? now + 1 : GATHER_FINER_LEVELS - 1);
+    }
+    lm_result r = gather(c, 0, vids, n, lv, E, err);
+    free(lv);
+    return r;
 }
 
 static int cmp_vid(const void *a, const void *b)

@@ -143,8 +143,8 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
     return LM_OK;
 }
 
-static lm_result fill_snapshot(snapshot_store *st, cache *c, int debug, uint64_t generation, uint64_t tested,
-                               int converged, mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
+static lm_result fill_snapshot(snapshot_store *st, cache *c, const uint32_t *pixels, int debug, uint64_t generation,
+                               uint64_t tested, int converged, mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
 {
     lm_result r = fill_mesh(&st->mesh[0], &st->snap.direct, debug, c, cache_direct_mesh(c), buf, buf_cap, err);
     if (r == LM_OK)
@@ -154,6 +154,8 @@ static lm_result fill_snapshot(snapshot_store *st, cache *c, int debug, uint64_t
     if (!cache_specular_mesh(c)) st->snap.specular = (cache_snapshot_mesh){0};
     if (r != LM_OK) return r;
     cache_get_stats(c, &st->snap.stats);
+    r = cache_estimate_error(c, pixels, &st->snap.estimate, err);
+    if (r != LM_OK) return r;
     if (debug) r = fill_light_meshes(st, c, st->snap.stats.light_count, buf, buf_cap, err);
     if (r != LM_OK) return r;
     if (st->snap.stats.light_count > st->lights_cap) {
@@ -225,7 +227,7 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     pthread_mutex_lock(&w->lock);
     int debug = w->debug_wanted;
     pthread_mutex_unlock(&w->lock);
-    if (r == LM_OK) r = fill_snapshot(w->back, *c, debug, ++*generation, 0, 0, buf, buf_cap, err);
+    if (r == LM_OK) r = fill_snapshot(w->back, *c, w->pixels, debug, ++*generation, 0, 0, buf, buf_cap, err);
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
     if (r == LM_OK) commit(w);
     if (r == LM_OK && !w->desc.no_quick_start) samp_get_stats(first, &w->quick_stats);
@@ -331,9 +333,12 @@ static void *worker_main(void *arg)
         if (r != LM_OK) break;
         tested += res.tested;
         /* After an edit while paused nothing was tested: every leaf is queued again (not converged). */
-        int converged = !paused && res.remaining == 0;
-        idle = converged || (w->desc.max_tested && tested >= w->desc.max_tested);
-        r = fill_snapshot(w->back, c, debug, ++generation, tested, converged, &buf, &buf_cap, &err);
+        /* Converged: the cache's estimate says so (cache_estimate_converged); nothing
+         * left to do without converging (stuck) idles too, and says so. */
+        int converged = !paused && budget && res.converged;
+        idle = (!paused && budget && (res.converged || res.stuck)) ||
+               (w->desc.max_tested && tested >= w->desc.max_tested);
+        r = fill_snapshot(w->back, c, w->pixels, debug, ++generation, tested, converged, &buf, &buf_cap, &err);
         w->back->snap.finished = idle;
         if (r == LM_OK) samp_get_stats(sp, &w->back->snap.sampler);
         w->back->snap.quick_sampler = w->quick_stats;

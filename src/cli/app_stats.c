@@ -10,7 +10,22 @@
 
 #include "src/scene/scene.h"
 
-static cJSON *mesh_json(const char *name, const char *kind, int light, const cache_mesh_stats *m)
+/* The cache's error estimate (cache.h: cache_estimate) of one mesh. */
+static cJSON *estimate_json(const cache_mesh_estimate *e)
+{
+    cJSON *o = cJSON_CreateObject();
+    if (!o) return NULL;
+    cJSON_AddNumberToObject(o, "pixels", e->pixels);
+    cJSON_AddNumberToObject(o, "mean_delta_e", e->interpolation + e->noise);
+    cJSON_AddNumberToObject(o, "interpolation_delta_e", e->interpolation);
+    cJSON_AddNumberToObject(o, "noise_delta_e", e->noise);
+    cJSON_AddNumberToObject(o, "max_delta_e", e->max);
+    cJSON_AddNumberToObject(o, "pixels_above_jnd", e->pixels_above_jnd);
+    return o;
+}
+
+static cJSON *mesh_json(const char *name, const char *kind, int light, const cache_mesh_stats *m,
+                        const cache_mesh_estimate *est)
 {
     cJSON *o = cJSON_CreateObject();
     if (!o) return NULL;
@@ -32,6 +47,7 @@ static cJSON *mesh_json(const char *name, const char *kind, int light, const cac
         if (m->mesh.leaves_at_depth[d]) last = d;
     cJSON *hist = cJSON_AddArrayToObject(o, "leaves_at_depth");
     for (int d = 0; hist && d <= last; ++d) cJSON_AddItemToArray(hist, cJSON_CreateNumber(m->mesh.leaves_at_depth[d]));
+    if (est) cJSON_AddItemToObject(o, "estimated_error", estimate_json(est));
     return o;
 }
 
@@ -99,6 +115,14 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNullToObject(j, "first_image_seconds");
     cJSON_AddNumberToObject(j, "leaves_tested", (double)snap->tested);
     cJSON_AddBoolToObject(j, "converged", snap->converged);
+    cJSON *est = cJSON_AddObjectToObject(j, "estimated_error");
+    if (est) {
+        const cache_estimate *e = &snap->estimate;
+        cJSON_AddNumberToObject(est, "jnd", e->jnd);
+        cJSON_AddNumberToObject(est, "pixels", e->pixels);
+        cJSON_AddNumberToObject(est, "mean_delta_e", e->mean);
+        cJSON_AddNumberToObject(est, "fraction_above_jnd", e->above_jnd);
+    }
     cJSON_AddNumberToObject(j, "snapshot", (double)snap->generation);
     cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);
     cJSON_AddNumberToObject(j, "bytes", (double)st->bytes);
@@ -128,12 +152,12 @@ cJSON *app_stats_json(const app_stats_desc *d)
     for (uint32_t l = 0; meshes && l < st->light_count; ++l) {
         char name[32];
         snprintf(name, sizeof name, "light%u", l);
-        cJSON_AddItemToArray(meshes, mesh_json(name, "light", (int)l, &st->lights[l]));
+        cJSON_AddItemToArray(meshes, mesh_json(name, "light", (int)l, &st->lights[l], NULL));
     }
     if (meshes) {
-        cJSON_AddItemToArray(meshes, mesh_json("direct", "direct", -1, &st->direct));
-        cJSON_AddItemToArray(meshes, mesh_json("indirect", "indirect", -1, &st->indirect));
-        if (st->specular.mesh.roots) cJSON_AddItemToArray(meshes, mesh_json("specular", "specular", -1, &st->specular));
+        cJSON_AddItemToArray(meshes, mesh_json("direct", "direct", -1, &st->direct, &snap->estimate.direct));
+        cJSON_AddItemToArray(meshes, mesh_json("indirect", "indirect", -1, &st->indirect, &snap->estimate.indirect));
+        if (st->specular.mesh.roots) cJSON_AddItemToArray(meshes, mesh_json("specular", "specular", -1, &st->specular, &snap->estimate.specular));
     }
     return j;
 }

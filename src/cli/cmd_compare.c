@@ -60,6 +60,7 @@ static void print_text(const char *pa, const char *pb, const img_image *a, const
     printf("ΔE mean       %.6g (CIE76, tone mapped at exposure %g stops)\n", r->delta_e_mean,
            exposure);
     printf("ΔE 99%%        %.6g\n", r->delta_e_p99);
+    printf("ΔE > 2        %.4g%% of the pixels (the cache's JND)\n", 100.0 * r->delta_e_above_jnd);
     printf("ΔE max        %.6g\n", r->delta_e_max);
     printf("OIIO RMSE     %.6g (OpenImageIO's ImageBufAlgo::compare, same channels%s)\n",
            o->rms_error, r->nonfinite_pixels ? ", non-finite pixels kept" : "");
@@ -117,6 +118,7 @@ static char *make_json(const char *pa, const char *pb, const img_image *a, const
              cJSON_AddNumberToObject(root, "exposure", exposure) &&
              cJSON_AddNumberToObject(root, "delta_e_mean", r->delta_e_mean) &&
              cJSON_AddNumberToObject(root, "delta_e_p99", r->delta_e_p99) &&
+             cJSON_AddNumberToObject(root, "delta_e_above_jnd", r->delta_e_above_jnd) &&
              cJSON_AddNumberToObject(root, "delta_e_max", r->delta_e_max);
     }
     cJSON *oi = ok ? cJSON_AddObjectToObject(root, "oiio") : NULL;

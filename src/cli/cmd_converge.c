@@ -7,9 +7,10 @@
  * written (EXR, linear, and PNG, tone-mapped) and compared with the reference by
  * cmp_compare (every metric of `lumesh compare`). The refinement worker keeps
  * refining on its own thread meanwhile, so measuring costs it nothing but a
- * share of the machine. Once the cache has converged, later snapshots show the
- * same image: they are recorded at their times without waiting (state
- * "converged").
+ * share of the machine. Once the cache has converged (its estimate below the
+ * JND), or has finished without (nothing left it can do), later snapshots show
+ * the same image: they are recorded at their times without waiting (state
+ * "converged" or "finished").
  *
  * With --vs-path-tracer the reference renderer's progressive path tracer (same
  * transport, every core) then runs for the same times, counted the same way
@@ -51,8 +52,10 @@ static void on_sigint(int sig)
     interrupted = 1;
 }
 
-typedef enum row_state { ROW_REFINING = 0, ROW_CONVERGED, ROW_NO_SNAPSHOT } row_state;
-static const char *const state_names[] = {"refining", "converged", "no-snapshot"};
+/* converged: the cache's estimate is below the JND (cache_estimate_converged);
+ * finished: nothing left it can do, yet its estimate is above the JND somewhere. */
+typedef enum row_state { ROW_REFINING = 0, ROW_CONVERGED, ROW_NO_SNAPSHOT, ROW_FINISHED } row_state;
+static const char *const state_names[] = {"refining", "converged", "no-snapshot", "finished"};
 
 /* One measured image. */
 typedef struct conv_row {
@@ -63,6 +66,8 @@ typedef struct conv_row {
     uint64_t samples[MAX_MESHES]; /* lumesh: light meshes, then direct, indirect, specular */
     uint32_t spp_min, spp_max;/* path tracer */
     uint64_t rays;            /* path tracer */
+    double est_delta_e;       /* lumesh: the cache's own estimate of delta_e_mean (cache_estimate, over the image) */
+    double est_above_jnd;     /* lumesh: its estimated fraction of pixels above the JND */
     cmp_result m;
     char image[64];           /* file name in DIR (EXR; the PNG beside it) */
 } conv_row;
@@ -169,6 +174,11 @@ static void snapshot_samples(const conv_ctx *c, const cache_snapshot *snap, conv
     row->samples[c->light_count + 1] = st->indirect.samples;
     row->samples[c->light_count + 2] = st->specular.samples;
     row->tested = snap->tested;
+    /* The estimate is a mean over the pixels that see a triangle; the background is exact. */
+    double seen = (double)c->w * (double)c->h;
+    double share = seen > 0.0 && snap->estimate.pixels < seen ? snap->estimate.pixels / seen : 1.0;
+    row->est_delta_e = snap->estimate.mean * share;
+    row->est_above_jnd = snap->estimate.above_jnd * share;
 }
 
 static void keep_final(conv_ctx *c, const cache_snapshot *snap)
@@ -258,8 +268,8 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
         }
         double now = lm_now_seconds() - t0;
         if (snap && snap->finished) {
-            row->state = ROW_CONVERGED;
-            if (c->converged_at < 0) c->converged_at = snap->published_at - t0;
+            row->state = snap->converged ? ROW_CONVERGED : ROW_FINISHED;
+            if (c->converged_at < 0 && snap->converged) c->converged_at = snap->published_at - t0;
             row->seconds = row->target > now ? row->target : now;
         } else {
             row->state = snap ? ROW_REFINING : ROW_NO_SNAPSHOT;
@@ -346,7 +356,7 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
     OUT("method,target_seconds,seconds,state,leaves_tested");
     for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
     OUT(",spp_min,spp_max,rays,rmse,relmse,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
-        "image\n");
+        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,image\n");
     for (int k = 0; k < nrun; ++k)
         for (int i = 0; i < runs[k].count; ++i) {
             const conv_row *w = &runs[k].rows[i];
@@ -362,9 +372,12 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
                 OUT(",%u,%u,%llu", w->spp_min, w->spp_max, (unsigned long long)w->rays);
             else
                 OUT(",,,");
-            OUT(",%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,%s\n", w->m.rmse, w->m.relmse, w->m.psnr,
-                w->m.mean_abs_error, w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max,
-                w->image);
+            OUT(",%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,", w->m.rmse, w->m.relmse, w->m.psnr, w->m.mean_abs_error,
+                w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max);
+            OUT("%.5f,", w->m.delta_e_above_jnd);
+            if (!pt) OUT("%.4f,%.5f", w->est_delta_e, w->est_above_jnd);
+            else OUT(",");
+            OUT(",%s\n", w->image);
         }
 #undef OUT
     char path[SCENE_PATH_MAX + 32];
@@ -391,6 +404,10 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
     } else {
         cJSON_AddStringToObject(o, "state", state_names[w->state]);
         cJSON_AddNumberToObject(o, "leaves_tested", (double)w->tested);
+        if ((m = cJSON_AddObjectToObject(o, "estimated_error"))) {
+            cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->est_delta_e, 1e-5));
+            cJSON_AddNumberToObject(m, "fraction_above_jnd", rounded(w->est_above_jnd, 1e-6));
+        }
         if ((m = cJSON_AddObjectToObject(o, "samples")))
             for (uint32_t k = 0; k < c->light_count + 3; ++k)
                 cJSON_AddNumberToObject(m, mesh_column(c, k, name, sizeof name), (double)w->samples[k]);
@@ -407,6 +424,7 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
         cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->m.delta_e_mean, 1e-5));
         cJSON_AddNumberToObject(m, "delta_e_p99", rounded(w->m.delta_e_p99, 1e-5));
         cJSON_AddNumberToObject(m, "delta_e_max", rounded(w->m.delta_e_max, 1e-5));
+        cJSON_AddNumberToObject(m, "delta_e_above_jnd", rounded(w->m.delta_e_above_jnd, 1e-6));
         cJSON_AddNumberToObject(m, "pixels_compared", (double)w->m.pixels_compared);
     }
     cJSON_AddStringToObject(o, "image", w->image);

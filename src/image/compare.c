@@ -187,6 +187,8 @@ lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image 
     const tm_desc tm = {.exposure = desc->exposure};
     double sum_sq = 0.0, sum_rel = 0.0, sum_abs = 0.0, sum_de = 0.0;
     double max_abs = 0.0, max_de = 0.0;
+    const double jnd = desc->jnd > 0.0f ? desc->jnd : 2.0;
+    size_t above = 0;
     int max_x = 0, max_y = 0, max_c = 0;
     size_t n = 0, bad = 0, bad_a = 0, bad_b = 0;
     const int w = a->width;
@@ -225,6 +227,7 @@ lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image 
         if (delta_e) delta_e[p] = e;
         de[n++] = e;
         sum_de += e;
+        above += e > jnd;
         if (e > max_de) max_de = e;
     }
 
@@ -253,6 +256,7 @@ lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image 
     out->max_channel = max_c;
     out->delta_e_mean = sum_de / (double)n;
     out->delta_e_max = max_de;
+    out->delta_e_above_jnd = (double)above / (double)n;
     out->delta_e_p99 = cmp_percentile(de, n, 0.99);
     free(de);
     return LM_OK;

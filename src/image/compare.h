@@ -66,6 +66,7 @@ typedef struct cmp_desc {
     float exposure;     /* stops, for the tone mapping used by ΔE; 0 = no scaling */
     const char *name_a; /* for messages; NULL: "image A" */
     const char *name_b; /* for messages; NULL: "image B" */
+    float jnd;          /* ΔE a viewer notices, for delta_e_above_jnd; 0 = 2.0 (the cache's default) */
 } cmp_desc;
 
 typedef struct cmp_result {
@@ -83,6 +84,7 @@ typedef struct cmp_result {
     double delta_e_mean;      /* CIE76 */
     double delta_e_p99;
     double delta_e_max;
+    double delta_e_above_jnd; /* fraction of the compared pixels with ΔE above cmp_desc.jnd */
 } cmp_result;
 
 /* Compares A against the reference B (same width and height, else

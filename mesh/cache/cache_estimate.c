@@ -1,0 +1,238 @@
+/* cache_estimate.c — the cache's own estimate of the error the viewer sees
+ * (cache.h: cache_estimate_error; docs/cache.md, "Converged means right").
+ *
+ * Per visible leaf of each radiance mesh: its interpolation error from its edge
+ * test (cache_sched.resid, written by cache_refine.c) and, for the indirect mesh,
+ * the noise its gathers' standard errors leave (cache_source.c's σ per vertex),
+ * both as CIELAB ΔE of what the viewer sees, weighted by the pixels the leaf
+ * covers. Read-only: it walks the trees and changes nothing.
+ *
+ * It also names the vertices whose noise keeps a leaf above the JND
+ * (cache_noisy_vertices), for the scheduler to gather again with more rays.
+ *
+ * Sits above cache_source.c (reads σ), below cache_refine.c (whose part's
+ * residuals it reads, as cache_internal.h allows) and cache.c.
+ */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh/cache/cache_internal.h"
+
+/* The mean |x| of a normal is 0.80 σ, and interpolation between three
+ * independent corner errors leaves σ·√(Σw²), whose square averages to σ²/2 over
+ * a triangle (E[w²] = 1/6 per corner under uniform barycentrics). */
+#define NOISE_MEAN_ABS 0.56f
+
+typedef struct est_walk {
+    const cache *c;
+    cache_kind kind;
+    const mesh_qmesh *m;
+    float jnd;
+    cache_mesh_estimate *out;
+} est_walk;
+
+/* The noise a leaf's interpolated E_i carries, as ΔE at its centroid. */
+static float leaf_noise(const est_walk *w, const mesh_qnode *n)
+{
+    float e[3] = {0, 0, 0}, s2[3] = {0, 0, 0};
+    double cw1 = 0.0, cw2 = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        float v[3], sg[3];
+        double w1, w2;
+        mesh_qmesh_get_value(w->m, n->v[k], v);
+        cache_indirect_likely_sigma(w->c, n->v[k], sg);
+        cache_node_corner_bary(n, k, &w1, &w2);
+        cw1 += w1 / 3.0;
+        cw2 += w2 / 3.0;
+        for (int ch = 0; ch < 3; ++ch) {
+            e[ch] += v[ch] / 3.0f;
+            s2[ch] += sg[ch] * sg[ch] / 3.0f;
+        }
+    }
+    if (!(s2[0] > 0.0f || s2[1] > 0.0f || s2[2] > 0.0f)) return 0.0f;
+    float up[3], down[3], lab0[3], lab1[3], lab2[3];
+    for (int ch = 0; ch < 3; ++ch) {
+        float d = NOISE_MEAN_ABS * sqrtf(s2[ch]);
+        e[ch] = fmaxf(e[ch], 0.0f);
+        up[ch] = e[ch] + d;
+        down[ch] = fmaxf(e[ch] - d, 0.0f);
+    }
+    cache_seen_lab_with(w->c, w->kind, n->tri, cw1, cw2, e, lab0);
+    cache_seen_lab_with(w->c, w->kind, n->tri, cw1, cw2, up, lab1);
+    cache_seen_lab_with(w->c, w->kind, n->tri, cw1, cw2, down, lab2);
+    return 0.5f * (tm_delta_e(lab0, lab1) + tm_delta_e(lab0, lab2));
+}
+
+float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node)
+{
+    return node < st->resid_cap[kind] ? st->resid[kind][node] - 1.0f : -1.0f;
+}
+
+/* A leaf's interpolation and noise estimates (ΔE). */
+static void leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n, double px, float *interp_out,
+                          float *noise_out)
+{
+    float interp = cache_sched_residual(&w->c->sched, w->kind, node);
+    if (interp < 0.0f) { /* never tested: what its corners' contrast allows */
+        interp = cache_leaf_contrast(w->c, w->m, w->kind, n);
+        if (px <= 1.0) interp *= 0.25f;
+    }
+    if (w->kind == CACHE_KIND_INDIRECT && w->c->desc.single_mesh) interp = 0.0f; /* judged with direct */
+    *interp_out = interp;
+    *noise_out = w->kind == CACHE_KIND_INDIRECT ? leaf_noise(w, n) : 0.0f;
+}
+
+static void visit_leaf(const est_walk *w, uint32_t node, const mesh_qnode *n, double px)
+{
+    float interp, noise;
+    leaf_estimate(w, node, n, px, &interp, &noise);
+    cache_mesh_estimate *o = w->out;
+    o->pixels += px;
+    o->interpolation += px * interp;
+    o->noise += px * noise;
+    if (interp + noise > o->max) o->max = interp + noise;
+    if (interp + noise > w->jnd) o->pixels_above_jnd += px;
+}
+
+typedef void (*leaf_fn)(const est_walk *w, uint32_t node, const mesh_qnode *n, double px);
+
+static void walk_tree(const est_walk *w, uint32_t root, double root_pixels, leaf_fn visit)
+{
+    uint32_t stack[4 * MESH_QMESH_DEPTHS + 4];
+    uint32_t top = 0;
+    stack[top++] = root;
+    while (top) {
+        uint32_t node = stack[--top];
+        const mesh_qnode *n = mesh_qmesh_node(w->m, node);
+        if (n->child == MESH_QMESH_NONE) {
+            visit(w, node, n, ldexp(root_pixels, -2 * (int)n->depth));
+            continue;
+        }
+        for (uint32_t k = 0; k < 4; ++k) stack[top++] = n->child + k;
+    }
+}
+
+static void finish(cache_mesh_estimate *o)
+{
+    if (o->pixels > 0.0) {
+        o->interpolation /= o->pixels;
+        o->noise /= o->pixels;
+    }
+}
+
+lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_estimate *out, lm_error *err)
+{
+    if (!c || !out) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_estimate_error: no cache or no result");
+    memset(out, 0, sizeof *out);
+    out->jnd = c->desc.jnd;
+    cache_mesh_estimate *per[CACHE_KINDS] = {&out->direct, &out->indirect, &out->specular};
+    double sum = 0.0, above = 0.0;
+    for (uint32_t t = 0; t < c->s->tri_count; ++t) out->pixels += pixels ? (double)pixels[t] : 1e6;
+    for (int k = 0; k < CACHE_KINDS; ++k) {
+        est_walk w = {c, (cache_kind)k, cache_kind_mesh(c, (cache_kind)k), c->desc.jnd, per[k]};
+        if (!w.m) continue;
+        for (uint32_t t = 0; t < c->s->tri_count; ++t) {
+            uint32_t root = mesh_qmesh_root(w.m, t);
+            double px = pixels ? (double)pixels[t] : 1e6;
+            if (root != MESH_QMESH_NONE && px > 0.0) walk_tree(&w, root, px, visit_leaf);
+        }
+        sum += per[k]->interpolation + per[k]->noise;
+        above += per[k]->pixels_above_jnd;
+        finish(per[k]);
+    }
+    if (out->pixels > 0.0) {
+        out->mean = sum / out->pixels;
+        out->above_jnd = fmin(above / out->pixels, 1.0);
+    }
+    return LM_OK;
+}
+
+int cache_estimate_converged(const cache_estimate *e) { return e->above_jnd <= CACHE_CONVERGED_ABOVE_JND; }
+
+/* ---- where more rays would help ---------------------------------------------------- */
+
+#define NOISY_MIN_JND 0.05f /* noise below this share of the JND is not worth a gather */
+
+typedef struct noisy_leaf {
+    float priority; /* pixels × noise ΔE */
+    uint32_t v[3];
+} noisy_leaf;
+
+typedef struct noisy_walk {
+    est_walk w;
+    noisy_leaf *leaves;
+    size_t n, cap;
+    int failed;
+} noisy_walk;
+
+static void visit_noisy(const est_walk *w, uint32_t node, const mesh_qnode *n, double px)
+{
+    noisy_walk *nw = (noisy_walk *)w; /* w is its first member */
+    float interp, noise;
+    leaf_estimate(w, node, n, px, &interp, &noise);
+    /* Worth rays only where the noise is what keeps the leaf above the JND: with
+     * its interpolation error alone above it, the leaf needs a split (its next
+     * test), not a quieter value. */
+    if (!(interp + noise > w->jnd) || !(interp < w->jnd) || !(noise > NOISY_MIN_JND * w->jnd)) return;
+    int any = 0;
+    for (int k = 0; k < 3; ++k) any |= cache_gather_can_refine(w->c, n->v[k]);
+    if (!any) return;
+    if (!LM_GROW(nw->leaves, nw->cap, nw->n + 1)) {
+        nw->failed = 1;
+        return;
+    }
+    nw->leaves[nw->n++] = (noisy_leaf){(float)px * noise, {n->v[0], n->v[1], n->v[2]}};
+}
+
+static int cmp_noisy(const void *a, const void *b)
+{
+    float x = ((const noisy_leaf *)a)->priority, y = ((const noisy_leaf *)b)->priority;
+    return (x < y) - (x > y);
+}
+
+static int cmp_u32(const void *a, const void *b)
+{
+    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return (x > y) - (x < y);
+}
+
+lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t max, uint32_t **out, uint32_t *count,
+                               lm_error *err)
+{
+    *out = NULL;
+    *count = 0;
+    noisy_walk nw = {{c, CACHE_KIND_INDIRECT, c->indirect, c->desc.jnd, NULL}, NULL, 0, 0, 0};
+    for (uint32_t t = 0; t < c->s->tri_count && !nw.failed; ++t) {
+        uint32_t root = mesh_qmesh_root(c->indirect, t);
+        double px = pixels ? (double)pixels[t] : 1e6;
+        if (root != MESH_QMESH_NONE && px > 0.0) walk_tree(&nw.w, root, px, visit_noisy);
+    }
+    if (nw.failed) {
+        free(nw.leaves);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory choosing values to gather again");
+    }
+    qsort(nw.leaves, nw.n, sizeof *nw.leaves, cmp_noisy);
+    uint32_t *v = malloc(3 * (nw.n ? nw.n : 1) * sizeof *v), m = 0;
+    if (!v) {
+        free(nw.leaves);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory choosing values to gather again");
+    }
+    /* The worst leaves' corners, until max distinct vertices (a corner is shared by
+     * up to six leaves: duplicates are dropped as the list grows). */
+    for (size_t i = 0; i < nw.n && m < max; ++i) {
+        for (int k = 0; k < 3 && m < max; ++k)
+            if (cache_gather_can_refine(c, nw.leaves[i].v[k])) v[m++] = nw.leaves[i].v[k];
+        if (m >= max || i + 1 == nw.n || (i & 63) == 63) {
+            qsort(v, m, sizeof *v, cmp_u32);
+            uint32_t u = 0;
+            for (uint32_t j = 0; j < m; ++j)
+                if (u == 0 || v[u - 1] != v[j]) v[u++] = v[j];
+            m = u;
+        }
+    }
+    free(nw.leaves);
+    *out = v;
+    *count = m;
+    return LM_OK;
+}
