@@ -4,7 +4,9 @@
 # (lumesh converge --vs-path-tracer, the sampler `auto` picks), against each
 # scene's model-transport reference:
 #   mean dE / relMSE at each snapshot, the path tracer's beside them, and the
-#   99th-percentile dE and mean radiance (red) at the end.
+#   99th-percentile dE and mean radiance (red) at the end; under each cache row,
+#   the cache's own estimate of its mean dE and of the share of pixels above the
+#   JND (cache_estimate) against the same measured, and its final state.
 #
 # usage: bench/indirect.sh [BUILD_DIR] [SECONDS] [REFERENCE_SECONDS] [SCALE]
 #   BUILD_DIR          where lumesh was built (default build/release)
@@ -64,4 +66,18 @@ for i in range(0, len(args), 2):
         conv = j.get("converged_seconds") if method.startswith("lumesh") else None
         print("| %s | %s | %s | %.1f | %s |" % (name, method, " | ".join(at(s) for s in snaps),
               rows[-1]["error"]["delta_e_p99"], "%.1f s" % conv if conv else "-"))
+        if method.startswith("lumesh"):
+            # The cache's own estimate (cache_estimate) beside the error measured.
+            def est(t):
+                best = None
+                for r in rows:
+                    if r["target_seconds"] <= t + 1e-9:
+                        best = r
+                if not best or "estimated_error" not in best:
+                    return "-"
+                return "%.2f (%.0f%%) vs %.2f (%.0f%%)" % (
+                    best["estimated_error"]["delta_e_mean"], 100 * best["estimated_error"]["fraction_above_jnd"],
+                    best["error"]["delta_e_mean"], 100 * best["error"]["delta_e_above_jnd"])
+            print("| %s | estimated vs measured dE (above JND) | %s | | %s |" % (
+                name, " | ".join(est(s) for s in snaps), rows[-1]["state"]))
 PY

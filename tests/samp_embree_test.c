@@ -424,6 +424,64 @@ static void test_sources(void)
     scene_destroy(s);
 }
 
+/* samp_source_hits.strat_var against the spread of stratified gathers: 64
+ * independent 256-ray gathers a floor point (samp_indirect_noise, other streams)
+ * in the room whose ceiling is 3× as bright as its walls. The collapsed-strata
+ * estimate is to err high (at least half the measured variance, summed over the
+ * points) yet count the strata (below 3/4 of the rays' plain variance). Measured:
+ * 0.113 predicted, 0.064 measured, 0.250 plain. */
+static void test_strat_var(void)
+{
+    scene *s = load("room_strat.json", inside_light(), NULL);
+    if (!s) return;
+    samp_sampler *sp = NULL;
+    lm_error err;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .threads = 2, .indirect_rays = 256},
+                      &sp, &err) == LM_OK);
+    mesh_buf *b = malloc(sizeof *b);
+    samp_point pts[16];
+    uint32_t n = floor_points(pts);
+    enum { RAYS = 256, PASSES = 64 };
+    uint32_t *count = malloc(n * sizeof *count), *tri = malloc((size_t)n * RAYS * sizeof *tri);
+    float *weight = malloc((size_t)n * RAYS * sizeof *weight), strat[48], E[48], sig[48];
+    double m1[16] = {0}, m2[16] = {0};
+    make_mesh(s, 3.0f, 1.0f, b);
+    CHECK(sp && samp_indirect_sources(sp, &b->m, pts, n,
+                                      &(samp_source_hits){.rays = RAYS, .count = count, .tri = tri, .weight = weight,
+                                                          .strat_var = strat},
+                                      &err) == LM_OK);
+    for (uint32_t p = 1; sp && p <= PASSES; ++p) {
+        CHECK(samp_indirect_noise(sp, &b->m, pts, n, p, 1, E, sig, &err) == LM_OK);
+        for (uint32_t i = 0; i < n; ++i) {
+            m1[i] += E[3 * i] / PASSES;
+            m2[i] += (double)E[3 * i] * E[3 * i] / PASSES;
+        }
+    }
+    double predicted = 0.0, measured = 0.0, plain = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        double a = 0.0, a2 = 0.0;
+        for (uint32_t j = 0; j < count[i]; ++j) {
+            double w = weight[(size_t)i * RAYS + j], L = M_PI * b->rad[9 * tri[(size_t)i * RAYS + j]];
+            a += w * L;
+            a2 += w * L * L;
+        }
+        plain += (a2 - a * a) / RAYS;
+        predicted += strat[3 * i] / RAYS;
+        measured += (m2[i] - m1[i] * m1[i]) * PASSES / (PASSES - 1);
+    }
+    printf("strata: a 256-ray gather's variance summed over %u points: predicted %.3e (collapsed strata), measured "
+           "%.3e over %d gathers, plain %.3e\n", n, predicted, measured, PASSES, plain);
+    CHECK_MSG(predicted >= 0.5 * measured, "strat_var errs low: %.3e against %.3e measured", predicted, measured);
+    CHECK_MSG(predicted < 0.75 * plain, "strat_var does not count the strata: %.3e against %.3e plain", predicted,
+              plain);
+    free(count);
+    free(tri);
+    free(weight);
+    free(b);
+    samp_destroy(sp);
+    scene_destroy(s);
+}
+
 static void test_determinism_and_garbage(void)
 {
     char lights[1024];
@@ -479,6 +537,7 @@ int main(void)
     test_half_blocker();
     test_indirect();
     test_sources();
+    test_strat_var();
     test_determinism_and_garbage();
     return test_finish("samp_embree_test");
 }

@@ -18,7 +18,9 @@
  *              opened where its linear interpolation error × importance is worst);
  *              the back of a surface sends nothing. Each value carries its
  *              standard error; where that could be seen it is gathered again with
- *              more rays, and the edge test ignores what the noise explains.
+ *              more rays, and the edge test ignores what the noise explains;
+ *              once nothing is left to test, values whose noise keeps a leaf
+ *              above the JND are gathered again with more rays (cache_estimate).
  *              Visible gathers record where they draw from (importance), and the
  *              direct mesh on triangles no pixel sees is refined by the visible
  *              change it can cause through them (docs/cache.md). When a rebuilt source may have moved a gathered value by
@@ -187,15 +189,17 @@ void cache_get_stats(cache *c, cache_stats *out);
 
 /* The cache's own estimate of the error a viewer sees, as CIELAB ΔE (CIE76)
  * after tone mapping, averaged over the pixels each mesh's leaves cover:
- *   interpolation  per leaf, its last edge test: the largest ΔE between a fresh
- *                  midpoint value and its edge's interpolation (what a linear leaf
- *                  misses is about that over its area); a leaf not tested yet, a
+ *   interpolation  per leaf, its last edge test: the mean ΔE between its fresh
+ *                  midpoint values and their edges' interpolation (what a linear
+ *                  leaf misses over its area, for a quadratic exactly; indirect:
+ *                  less what the noise explains, in quadrature); a leaf not tested yet, a
  *                  quarter of its parent's (the error of linear interpolation falls
  *                  with the square of the size), a root its corners' contrast
  *                  (a quarter of it below one pixel);
  *   noise          indirect only: the mean absolute error the gathers' standard
  *                  errors leave after interpolation (0.56 σ: a normal's mean
- *                  |x| of the interpolated σ, σ/√2 over a triangle).
+ *                  |x| of the interpolated σ, σ/√2 over a triangle), σ with the
+ *                  gathers' strata counted (samp_source_hits.strat_var).
  * It does NOT see what no test looked at: a shadow between the midpoints of a
  * leaf that was never split, light the sampler's rays miss altogether, the Embree
  * direct estimate's penumbra noise (SAMP_EMBREE_PENUMBRA_RMS), or transport the

@@ -183,8 +183,9 @@ typedef struct cache_sched {
     int requeue[CACHE_KINDS];  /* test every leaf of that mesh again (cache_sched_requeue) */
     uint64_t undone;           /* splits undone */
     /* Per node: what its edge test says of the leaf's interpolation error, CIELAB ΔE
-     * stored plus one (0: not known). Set when a split is undone (the largest ΔE
-     * between a fresh midpoint and its edge's interpolation) and, for the children
+     * stored plus one (0: not known). Set when a split is undone (the mean ΔE
+     * between its fresh midpoints and their edges' interpolation, less what noise
+     * explains) and, for the children
      * of a kept split, a quarter of the parent's (linear interpolation's error
      * falls with the square of the size) until their own test. Read by
      * cache_estimate.c (cache_sched_residual). */

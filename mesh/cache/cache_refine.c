@@ -538,23 +538,23 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             if (found && kind == KIND_INDIRECT && !combined)
                 found = beyond_noise(c, corner[k], corner[(k + 1) % 3], leaves[i].mid[k], fresh, interp);
         }
-        float worst = 0.0f;
+        float interp_err = 0.0f;
         if (tested_mid)
-            worst = kind == KIND_INDIRECT && !combined ? sqrtf(fmaxf(sum_de2 - sum_dn2, 0.0f) / (float)tested_mid)
+            interp_err = kind == KIND_INDIRECT && !combined ? sqrtf(fmaxf(sum_de2 - sum_dn2, 0.0f) / (float)tested_mid)
                                                        : sum_de / (float)tested_mid;
         res->tested++;
         if (found || px > min_pixels) {
             res->split++;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
                 const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
-                r = set_residual(c, kind, child + k, 0.25f * worst, err);
+                r = set_residual(c, kind, child + k, 0.25f * interp_err, err);
                 if (r == LM_OK) r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
             }
         } else {
             r = mesh_qmesh_merge(m, leaves[i].node, err);
             if (r == LM_OK && combined) r = mesh_qmesh_merge(c->indirect, leaves[i].mirror, err);
             if (r == LM_OK) r = sched_done(c, kind, leaves[i].node, err);
-            if (r == LM_OK) r = set_residual(c, kind, leaves[i].node, worst, err);
+            if (r == LM_OK) r = set_residual(c, kind, leaves[i].node, interp_err, err);
             res->undone++;
             c->sched.undone++;
         }
