@@ -11,8 +11,15 @@
  *     exact, cut 64² times finer than the scene's triangles). Measured 2.0%: the
  *     source is refined to the JND, about 2.5% at these levels. The coarse
  *     cache's source is wrong there by more than 5%, so the check can fail;
- *   - the cache's own E_i (its gathers interpolated): within 30% (measured 17%
- *     at worst; the issue's target, 5%, is not met yet: docs/cache.md).
+ *   - the cache's own E_i (its gathers interpolated): within 30% (measured
+ *     13.5-15.5% at worst from run to run; the issue's target, 5%, is not met
+ *     yet: the error is inside 250-pixel leaves, docs/cache.md). Measured when
+ *     the edge tests have settled, before the finer gathers (which cost 6× the
+ *     samples here and do not help).
+ * The error estimate (cache_estimate_error) against the error: the same box's
+ * floor with 4, 64 and 1024 rays a gather, against 65,536-ray gathers from the
+ * cache's own source; within 2× either way (measured 1.42/0.92, 0.61/0.43,
+ * 0.31/0.44), and "converged" only with the measured error below the JND.
  * Noise alone does not refine: a closed box whose floor has only indirect light
  * (smooth), the floor the only thing seen, gathered with 16 rays (one gather's
  * noise moves the floor's colour by ΔE 8, measured here and required above 2),
@@ -320,31 +327,40 @@ static uint32_t floor_indirect_leaves(const scene *s, const uint32_t *pixels, in
     return leaves;
 }
 
-static void test_noise_does_not_refine(void)
+/* A closed unit box (every face towards the inside), lit by a small quad under
+ * its ceiling that faces up: the floor has no direct light, and its indirect
+ * light, from the lit ceiling and walls, is smooth. Seen: the floor only, 250
+ * pixels a triangle (so the size criterion, 256 pixels for indirect leaves,
+ * splits nothing: only the edge test can); *pixels: malloc'ed. */
+static scene *floor_box(const char *name, uint32_t **pixels)
 {
     static obj_buf o;
     memset(&o, 0, sizeof o);
-    /* A closed unit box (every face towards the inside), lit by a small quad under
-     * its ceiling that faces up: the floor has no direct light, and its indirect
-     * light, from the lit ceiling and walls, is smooth. */
     rect(&o, 1, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
     rect(&o, 1, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
     rect(&o, 0, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
     rect(&o, 0, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
     rect(&o, 2, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
     rect(&o, 2, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
-    scene *s = load("box", &o,
+    scene *s = load(name, &o,
                     "{\"type\": \"quad\", \"corner\": [0.4, 0.8, 0.4], \"edge1\": [0, 0, 0.2], "
                     "\"edge2\": [0.2, 0, 0], \"radiance\": [30, 30, 30]}");
-    if (!s) return;
-    /* Seen: the floor only, 250 pixels a triangle (so the size criterion, 256 pixels
-     * for indirect leaves, splits nothing: only the edge test can). */
-    uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
-    for (uint32_t t = 0; t < s->tri_count; ++t) {
+    *pixels = NULL;
+    if (!s) return NULL;
+    *pixels = calloc(s->tri_count, sizeof **pixels);
+    for (uint32_t t = 0; t < s->tri_count && *pixels; ++t) {
         float ct[3];
         centroid(s, t, ct);
-        if (ct[1] < 1e-3f && s->tris[t].light < 0) pixels[t] = 250;
+        if (ct[1] < 1e-3f && s->tris[t].light < 0) (*pixels)[t] = 250;
     }
+    return s;
+}
+
+static void test_noise_does_not_refine(void)
+{
+    uint32_t *pixels;
+    scene *s = floor_box("box", &pixels);
+    if (!s) return;
     double noise_few, noise_many;
     uint32_t few = floor_indirect_leaves(s, pixels, 16, &noise_few);
     uint32_t many = floor_indirect_leaves(s, pixels, 4096, &noise_many);
@@ -424,24 +440,9 @@ static void floor_estimate(const scene *s, const uint32_t *pixels, int rays, cac
 
 static void test_estimate(void)
 {
-    static obj_buf o;
-    memset(&o, 0, sizeof o);
-    rect(&o, 1, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
-    rect(&o, 1, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
-    rect(&o, 0, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
-    rect(&o, 0, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
-    rect(&o, 2, 0, (double[2]){0, 0}, (double[2]){1, 1}, 1);
-    rect(&o, 2, 1, (double[2]){0, 0}, (double[2]){1, 1}, -1);
-    scene *s = load("estimate", &o,
-                    "{\"type\": \"quad\", \"corner\": [0.4, 0.8, 0.4], \"edge1\": [0, 0, 0.2], "
-                    "\"edge2\": [0.2, 0, 0], \"radiance\": [30, 30, 30]}");
+    uint32_t *pixels;
+    scene *s = floor_box("estimate", &pixels);
     if (!s) return;
-    uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
-    for (uint32_t t = 0; t < s->tri_count; ++t) {
-        float ct[3];
-        centroid(s, t, ct);
-        if (ct[1] < 1e-3f && s->tris[t].light < 0) pixels[t] = 250;
-    }
     static const int rays[] = {4, 64, 1024};
     for (size_t i = 0; i < sizeof rays / sizeof rays[0]; ++i) {
         cache_estimate e;
