@@ -13,7 +13,7 @@
  *     cache's source is wrong there by more than 5%, so the check can fail;
  *   - the cache's own E_i (its gathers interpolated): within 30% (measured
  *     13.5-15.5% at worst from run to run; the issue's target, 5%, is not met
- *     yet: the error is inside 250-pixel leaves, docs/cache.md). Measured when
+ *     yet: it is the gathers' noise, docs/cache.md). Measured when
  *     the edge tests have settled, before the finer gathers (which cost 6× the
  *     samples here and do not help).
  * The error estimate (cache_estimate_error) against the error: the same box's

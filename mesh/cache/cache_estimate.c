@@ -212,7 +212,7 @@ lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t 
         free(nw.leaves);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory choosing values to gather again");
     }
-    qsort(nw.leaves, nw.n, sizeof *nw.leaves, cmp_noisy);
+    if (nw.n) qsort(nw.leaves, nw.n, sizeof *nw.leaves, cmp_noisy); /* (qsort of NULL: undefined) */
     uint32_t *v = malloc(3 * (nw.n ? nw.n : 1) * sizeof *v), m = 0;
     if (!v) {
         free(nw.leaves);
