@@ -6,7 +6,9 @@
 #   mean dE / relMSE at each snapshot, the path tracer's beside them, and the
 #   99th-percentile dE and mean radiance (red) at the end; under each cache row,
 #   the cache's own estimate of its mean dE and of the share of pixels above the
-#   JND (cache_estimate) against the same measured, and its final state.
+#   JND (cache_estimate) against the same measured, and its final state; where more
+#   than 1% of the pixels lie in leaves not tested yet, their share [untested]: the
+#   estimate is a guess there.
 #
 # usage: bench/indirect.sh [BUILD_DIR] [SECONDS] [REFERENCE_SECONDS] [SCALE]
 #   BUILD_DIR          where lumesh was built (default build/release)
@@ -75,8 +77,10 @@ for i in range(0, len(args), 2):
                         best = r
                 if not best or "estimated_error" not in best:
                     return "-"
-                return "%.2f (%.0f%%) vs %.2f (%.0f%%)" % (
-                    best["estimated_error"]["delta_e_mean"], 100 * best["estimated_error"]["fraction_above_jnd"],
+                e = best["estimated_error"]
+                guess = " [%.0f%% untested]" % (100 * e["fraction_untested"]) if e.get("fraction_untested", 0) > 0.01 else ""
+                return "%.2f (%.0f%%)%s vs %.2f (%.0f%%)" % (
+                    e["delta_e_mean"], 100 * e["fraction_above_jnd"], guess,
                     best["error"]["delta_e_mean"], 100 * best["error"]["delta_e_above_jnd"])
             print("| %s | estimated vs measured dE (above JND) | %s | | %s |" % (
                 name, " | ".join(est(s) for s in snaps), rows[-1]["state"]))

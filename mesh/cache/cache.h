@@ -211,6 +211,9 @@ typedef struct cache_mesh_estimate {
     double noise;             /* pixel-weighted mean ΔE */
     double max;               /* the largest leaf's interpolation + noise */
     double pixels_above_jnd;  /* pixels in leaves whose interpolation + noise exceeds the JND */
+    double pixels_untested;   /* pixels in leaves larger than a pixel that no test of their own has
+                                 looked at (a root, or a child taking its parent's figure): there the
+                                 estimate is a guess */
 } cache_mesh_estimate;
 
 typedef struct cache_estimate {
@@ -218,6 +221,8 @@ typedef struct cache_estimate {
     double pixels;            /* pixels that see a scene triangle (the pixel counts' sum) */
     double mean;              /* mean ΔE over those pixels: the meshes' errors added */
     double above_jnd;         /* fraction of those pixels in a leaf above the JND (the meshes' summed, ≤ 1) */
+    double untested;          /* fraction of those pixels in a leaf not tested yet (the worst mesh's):
+                                 the estimate means little until this is near 0 */
     float jnd;                /* the JND it was measured against */
 } cache_estimate;
 

@@ -64,16 +64,21 @@ static float leaf_noise(const est_walk *w, const mesh_qnode *n)
     return 0.5f * (tm_delta_e(lab0, lab1) + tm_delta_e(lab0, lab2));
 }
 
-float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node)
+float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node, int *tested)
 {
-    return node < st->resid_cap[kind] ? st->resid[kind][node] - 1.0f : -1.0f;
+    float v = node < st->resid_cap[kind] ? st->resid[kind][node] : 0.0f;
+    if (tested) *tested = v > 0.0f;
+    return fabsf(v) - 1.0f;
 }
 
-/* A leaf's interpolation and noise estimates (ΔE). */
-static void leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n, double px, float *interp_out,
-                          float *noise_out)
+/* A leaf's interpolation and noise estimates (ΔE); returns whether the leaf's own
+ * test gave the interpolation (a leaf of a pixel or less, never tested by design,
+ * counts as tested). */
+static int leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n, double px, float *interp_out,
+                         float *noise_out)
 {
-    float interp = cache_sched_residual(&w->c->sched, w->kind, node);
+    int tested;
+    float interp = cache_sched_residual(&w->c->sched, w->kind, node, &tested);
     if (interp < 0.0f) { /* never tested: what its corners' contrast allows */
         interp = cache_leaf_contrast(w->c, w->m, w->kind, n);
         if (px <= 1.0) interp *= 0.25f;
@@ -81,14 +86,16 @@ static void leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n,
     if (w->kind == CACHE_KIND_INDIRECT && w->c->desc.single_mesh) interp = 0.0f; /* judged with direct */
     *interp_out = interp;
     *noise_out = w->kind == CACHE_KIND_INDIRECT ? leaf_noise(w, n) : 0.0f;
+    return tested || px <= 1.0;
 }
 
 static void visit_leaf(const est_walk *w, uint32_t node, const mesh_qnode *n, double px)
 {
     float interp, noise;
-    leaf_estimate(w, node, n, px, &interp, &noise);
+    int tested = leaf_estimate(w, node, n, px, &interp, &noise);
     cache_mesh_estimate *o = w->out;
     o->pixels += px;
+    if (!tested) o->pixels_untested += px;
     o->interpolation += px * interp;
     o->noise += px * noise;
     if (interp + noise > o->max) o->max = interp + noise;
@@ -127,7 +134,7 @@ lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_est
     memset(out, 0, sizeof *out);
     out->jnd = c->desc.jnd;
     cache_mesh_estimate *per[CACHE_KINDS] = {&out->direct, &out->indirect, &out->specular};
-    double sum = 0.0, above = 0.0;
+    double sum = 0.0, above = 0.0, untested = 0.0;
     for (uint32_t t = 0; t < c->s->tri_count; ++t) out->pixels += pixels ? (double)pixels[t] : 1e6;
     for (int k = 0; k < CACHE_KINDS; ++k) {
         est_walk w = {c, (cache_kind)k, cache_kind_mesh(c, (cache_kind)k), c->desc.jnd, per[k]};
@@ -139,11 +146,13 @@ lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_est
         }
         sum += per[k]->interpolation + per[k]->noise;
         above += per[k]->pixels_above_jnd;
+        untested = fmax(untested, per[k]->pixels_untested);
         finish(per[k]);
     }
     if (out->pixels > 0.0) {
         out->mean = sum / out->pixels;
         out->above_jnd = fmin(above / out->pixels, 1.0);
+        out->untested = fmin(untested / out->pixels, 1.0);
     }
     return LM_OK;
 }

@@ -183,7 +183,7 @@ typedef struct cache_sched {
     int requeue[CACHE_KINDS];  /* test every leaf of that mesh again (cache_sched_requeue) */
     uint64_t undone;           /* splits undone */
     /* Per node: what its edge test says of the leaf's interpolation error, CIELAB ΔE
-     * stored plus one (0: not known). Set when a split is undone (the mean ΔE
+     * stored plus one, negative when it is the parent's (0: not known). Set when a split is undone (the mean ΔE
      * between its fresh midpoints and their edges' interpolation, less what noise
      * explains) and, for the children
      * of a kept split, a quarter of the parent's (linear interpolation's error
@@ -372,8 +372,9 @@ void cache_node_importance(const cache *c, uint32_t node, float *imp_max, float 
 
 /* ---- cache_estimate.c: the error estimate, values worth more rays ------------------ */
 
-/* A leaf's interpolation error from its edge test (ΔE; cache_sched.resid); < 0: not known. */
-float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node);
+/* A leaf's interpolation error from its edge test (ΔE; cache_sched.resid); < 0:
+ * not known. *tested: from its own test (not its parent's); may be NULL. */
+float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node, int *tested);
 /* The distinct vertices of the visible indirect leaves whose estimated error
  * exceeds the JND with noise in it, and that could be gathered with more rays,
  * the leaves with the most pixels × noise first; at most max. *out: malloc'ed,

@@ -191,13 +191,14 @@ static lm_result sched_add(cache *c, refine_kind kind, uint32_t node, float p, l
     return queue_push(&c->sched.q[kind], p, node, mesh_qmesh_node(mesh_of(c, kind), node)->v[0], err);
 }
 
-/* Records a leaf's interpolation error (ΔE; cache_sched.resid). */
-static lm_result set_residual(cache *c, refine_kind kind, uint32_t node, float delta_e, lm_error *err)
+/* Records a leaf's interpolation error (ΔE; cache_sched.resid): from its own
+ * test (tested) or its parent's. */
+static lm_result set_residual(cache *c, refine_kind kind, uint32_t node, float delta_e, int tested, lm_error *err)
 {
     cache_sched *st = &c->sched;
     if (node >= st->resid_cap[kind] && !LM_GROW(st->resid[kind], st->resid_cap[kind], (size_t)node + 1))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for refinement residuals");
-    st->resid[kind][node] = 1.0f + fmaxf(delta_e, 0.0f);
+    st->resid[kind][node] = (tested ? 1.0f : -1.0f) * (1.0f + fmaxf(delta_e, 0.0f));
     return LM_OK;
 }
 
@@ -547,14 +548,14 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             res->split++;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
                 const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
-                r = set_residual(c, kind, child + k, 0.25f * interp_err, err);
+                r = set_residual(c, kind, child + k, 0.25f * interp_err, 0, err);
                 if (r == LM_OK) r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
             }
         } else {
             r = mesh_qmesh_merge(m, leaves[i].node, err);
             if (r == LM_OK && combined) r = mesh_qmesh_merge(c->indirect, leaves[i].mirror, err);
             if (r == LM_OK) r = sched_done(c, kind, leaves[i].node, err);
-            if (r == LM_OK) r = set_residual(c, kind, leaves[i].node, interp_err, err);
+            if (r == LM_OK) r = set_residual(c, kind, leaves[i].node, interp_err, 1, err);
             res->undone++;
             c->sched.undone++;
         }

@@ -21,6 +21,7 @@ static cJSON *estimate_json(const cache_mesh_estimate *e)
     cJSON_AddNumberToObject(o, "noise_delta_e", e->noise);
     cJSON_AddNumberToObject(o, "max_delta_e", e->max);
     cJSON_AddNumberToObject(o, "pixels_above_jnd", e->pixels_above_jnd);
+    cJSON_AddNumberToObject(o, "pixels_untested", e->pixels_untested);
     return o;
 }
 
@@ -122,6 +123,7 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNumberToObject(est, "pixels", e->pixels);
         cJSON_AddNumberToObject(est, "mean_delta_e", e->mean);
         cJSON_AddNumberToObject(est, "fraction_above_jnd", e->above_jnd);
+        cJSON_AddNumberToObject(est, "fraction_untested", e->untested);
     }
     cJSON_AddNumberToObject(j, "snapshot", (double)snap->generation);
     cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);

@@ -68,6 +68,7 @@ typedef struct conv_row {
     uint64_t rays;            /* path tracer */
     double est_delta_e;       /* lumesh: the cache's own estimate of delta_e_mean (cache_estimate, over the image) */
     double est_above_jnd;     /* lumesh: its estimated fraction of pixels above the JND */
+    double est_untested;      /* lumesh: the fraction of pixels in leaves not tested yet (the estimate a guess) */
     cmp_result m;
     char image[64];           /* file name in DIR (EXR; the PNG beside it) */
 } conv_row;
@@ -179,6 +180,7 @@ static void snapshot_samples(const conv_ctx *c, const cache_snapshot *snap, conv
     double share = seen > 0.0 && snap->estimate.pixels < seen ? snap->estimate.pixels / seen : 1.0;
     row->est_delta_e = snap->estimate.mean * share;
     row->est_above_jnd = snap->estimate.above_jnd * share;
+    row->est_untested = snap->estimate.untested * share;
 }
 
 static void keep_final(conv_ctx *c, const cache_snapshot *snap)
@@ -356,7 +358,7 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
     OUT("method,target_seconds,seconds,state,leaves_tested");
     for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
     OUT(",spp_min,spp_max,rays,rmse,relmse,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
-        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,image\n");
+        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,image\n");
     for (int k = 0; k < nrun; ++k)
         for (int i = 0; i < runs[k].count; ++i) {
             const conv_row *w = &runs[k].rows[i];
@@ -375,8 +377,8 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
             OUT(",%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,", w->m.rmse, w->m.relmse, w->m.psnr, w->m.mean_abs_error,
                 w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max);
             OUT("%.5f,", w->m.delta_e_above_jnd);
-            if (!pt) OUT("%.4f,%.5f", w->est_delta_e, w->est_above_jnd);
-            else OUT(",");
+            if (!pt) OUT("%.4f,%.5f,%.5f", w->est_delta_e, w->est_above_jnd, w->est_untested);
+            else OUT(",,");
             OUT(",%s\n", w->image);
         }
 #undef OUT
@@ -407,6 +409,7 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
         if ((m = cJSON_AddObjectToObject(o, "estimated_error"))) {
             cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->est_delta_e, 1e-5));
             cJSON_AddNumberToObject(m, "fraction_above_jnd", rounded(w->est_above_jnd, 1e-6));
+            cJSON_AddNumberToObject(m, "fraction_untested", rounded(w->est_untested, 1e-6));
         }
         if ((m = cJSON_AddObjectToObject(o, "samples")))
             for (uint32_t k = 0; k < c->light_count + 3; ++k)

@@ -155,11 +155,11 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         uint64_t light = 0;
         for (uint32_t l = 0; l < st->light_count; ++l) light += st->lights[l].samples;
         printf("wrote %s: %dx%d, %.2f s, %s after %llu leaves tested; samples: %llu light, %llu indirect; %u direct, "
-               "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND%s\n",
+               "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND, %.1f%% untested%s\n",
                out, w, h, elapsed, snap->converged ? "converged" : "stopped", (unsigned long long)snap->tested,
                (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
                snap->indirect.triangle_count, snap->specular.triangle_count, snap->estimate.mean,
-               100.0 * snap->estimate.above_jnd,
+               100.0 * snap->estimate.above_jnd, 100.0 * snap->estimate.untested,
                snap->finished && !snap->converged && !snap->failed ? " (nothing left it can improve)" : "");
     }
     if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, rs, rgb, snap, &err);
