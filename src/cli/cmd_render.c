@@ -21,6 +21,29 @@
 
 enum { DEFAULT_SECONDS_LIMIT = 600 }; /* without --seconds or --samples: until converged, at most this */
 
+/* --components LIST: the composite's terms to draw (rend_frame_set_components),
+ * a comma-separated list of direct, indirect, specular and emission; each term
+ * alone is what finds which of them carries an error (docs/cache.md, the Veach
+ * door's line). Returns 0 on a name it does not know. */
+static unsigned parse_components(const char *list)
+{
+    static const struct { const char *name; unsigned bit; } names[] = {
+        {"direct", REND_FRAME_COMPONENT_DIRECT_DIFFUSE}, {"indirect", REND_FRAME_COMPONENT_INDIRECT},
+        {"specular", REND_FRAME_COMPONENT_DIRECT_SPECULAR}, {"emission", REND_FRAME_COMPONENT_EMISSION}};
+    unsigned mask = 0;
+    for (const char *p = list; *p;) {
+        size_t len = strcspn(p, ",");
+        unsigned bit = 0;
+        for (size_t i = 0; i < sizeof names / sizeof names[0]; ++i)
+            if (len == strlen(names[i].name) && strncmp(p, names[i].name, len) == 0) bit = names[i].bit;
+        if (!bit) return 0;
+        mask |= bit;
+        p += len;
+        if (*p == ',') p++;
+    }
+    return mask;
+}
+
 static int ext_is(const char *path, const char *want)
 {
     char ext[16];
@@ -62,7 +85,8 @@ static lm_result write_debug_meshes(const char *dir, const scene *s, const scene
 
 int cmd_render(const app_command *cmd, int argc, char **argv)
 {
-    const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *debug_dir = NULL;
+    const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *debug_dir = NULL,
+               *components = NULL;
     double seconds = 0;
     long samples = 0, width = 0, height = 0, supersample = REND_FRAME_SUPERSAMPLE_DEFAULT;
     int deterministic = 0;
@@ -79,6 +103,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         {"--debug-meshes", NULL, APP_OPT_STRING, &debug_dir},
         {"--deterministic", NULL, APP_OPT_FLAG, &deterministic},
         {"--supersample", NULL, APP_OPT_INT, &supersample, 1, REND_FRAME_SUPERSAMPLE_MAX},
+        {"--components", NULL, APP_OPT_STRING, &components},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -88,6 +113,10 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (!ext_is(out, "exr") && !ext_is(out, "png")) return app_usage_error(cmd, "the output must end in .png or .exr");
     if (opts[1].seen && opts[2].seen) return app_usage_error(cmd, "give --seconds or --samples, not both");
     if (opts[3].seen != opts[4].seen) return app_usage_error(cmd, "give both --width and --height");
+    unsigned mask = components ? parse_components(components) : REND_FRAME_COMPONENTS_ALL;
+    if (!mask)
+        return app_usage_error(cmd, "--components takes a comma-separated list of direct, indirect, specular and "
+                                    "emission, not '%s'", components);
     rend_session_desc sd = {.supersample = (int)supersample, .max_tested = (uint64_t)samples,
                             .publish_debug = debug_dir != NULL};
     if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
@@ -125,6 +154,11 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (r == LM_OK) r = rend_session_wait(rs, &(rend_session_wait_desc){.until = t0 + limit}, &snap, &err);
     rgb = r == LM_OK ? malloc((size_t)w * (size_t)h * 3 * sizeof *rgb) : NULL;
     if (r == LM_OK && !rgb) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
+    if (r == LM_OK && mask != REND_FRAME_COMPONENTS_ALL) {
+        rend_frame *final = NULL;
+        r = rend_session_renderer(rs, REND_SESSION_FINAL, &final, &err);
+        if (r == LM_OK) rend_frame_set_components(final, mask);
+    }
     if (r == LM_OK) r = rend_session_draw(rs, REND_SESSION_FINAL, &cam, rgb, &err);
     if (r == LM_OK) {
         img_write_desc d = {.path = out, .width = w, .height = h, .channels = 3};

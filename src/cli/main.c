@@ -25,6 +25,7 @@ static const app_command commands[] = {
      "usage: lumesh render [SCENE] -o OUT.png|OUT.exr [--seconds T | --samples N [--deterministic]]\n"
      "                     [--width W --height H] [--supersample S] [--camera NAME] [--stats STATS.json]\n"
      "                     [--sampler gl|embree|auto] [--gl egl|osmesa] [--debug-meshes DIR]\n"
+     "                     [--components LIST]\n"
      "\n"
      "Refines the multi-mesh cache of SCENE (headless: EGL, or --gl osmesa) until\n"
      "nothing is left to test, T seconds have passed or N leaves are tested, then\n"
@@ -44,6 +45,9 @@ static const app_command commands[] = {
      "  --debug-meshes DIR  write DIR/MESH-leaves.png (leaf wireframe) and DIR/MESH-samples.png\n"
      "                      (sample positions) over the image, MESH = light0.., direct,\n"
      "                      indirect, specular; hidden parts are left out\n"
+     "  --components LIST   draw only these terms of the composite, comma-separated: direct\n"
+     "                      (kd*L_dd), indirect (kd*E_i/pi), specular (ks*L_ds), emission (Le);\n"
+     "                      default all (the terms add up to the whole image)\n"
      SAMPLER_HELP,
      cmd_render},
     {"reference", "ray-traced ground truth (Embree path tracer)",
