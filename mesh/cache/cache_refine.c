@@ -109,33 +109,57 @@ static int source_only(const uint32_t *pixels, refine_kind kind, const mesh_qnod
     return kind == KIND_DIRECT && pixels && pixels[n->tri] == 0;
 }
 
-/* The largest source radiance kd·L_dd (any channel) a node could send: at its
- * corners, and its bound with every light unoccluded there (kd·Σ_ℓ L_ℓ·G_ℓ,unocc/π):
- * light through a gap may fall between corners that are all in shadow, and only
- * the bound says that it could. */
-static float source_peak(const cache *c, const mesh_qnode *n)
+/* A source leaf's radiance kd·L_dd (any channel) at its corners, lowest and
+ * highest, and its bound with every light unoccluded there (kd·Σ_ℓ
+ * L_ℓ·G_ℓ,unocc/π): light through a gap may fall between corners that are all
+ * in shadow, and only the bound says that it could. */
+typedef struct source_levels {
+    float lo, hi, bound;
+} source_levels;
+
+static source_levels source_levels_of(const cache *c, const mesh_qnode *n)
 {
     const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
-    float peak = 0.0f;
+    source_levels s = {INFINITY, 0.0f, 0.0f};
     for (int k = 0; k < 3; ++k) {
-        float v[3];
-        if (mesh_qmesh_get_value(c->direct, n->v[k], v) == 1)
-            for (int ch = 0; ch < 3; ++ch) peak = fmaxf(peak, kd[ch] * v[ch]);
+        float v[3] = {0, 0, 0};
+        mesh_qmesh_get_value(c->direct, n->v[k], v);
+        for (int ch = 0; ch < 3; ++ch) {
+            s.lo = fminf(s.lo, kd[ch] * v[ch]);
+            s.hi = fmaxf(s.hi, kd[ch] * v[ch]);
+        }
         for (uint32_t l = 0; l < c->light_count; ++l) {
             double g = cache_unoccluded(c, l, n->v[k]) / M_PI;
-            for (int ch = 0; ch < 3; ++ch) peak = fmaxf(peak, (float)(kd[ch] * c->light_le[3 * (size_t)l + (size_t)ch] * g));
+            for (int ch = 0; ch < 3; ++ch)
+                s.bound = fmaxf(s.bound, (float)(kd[ch] * c->light_le[3 * (size_t)l + (size_t)ch] * g));
         }
     }
-    return peak;
+    return s;
 }
 
-/* Priority of an unseen source leaf: pixel·ΔE the viewer would see if its
- * whole radiance were wrong (imp_sum × its peak), the units of leaf_priority. */
+/* The largest source radiance a node could send: its corners', or its bound. */
+static float source_peak(const cache *c, const mesh_qnode *n)
+{
+    source_levels s = source_levels_of(c, n);
+    return fmaxf(s.hi, s.bound);
+}
+
+/* Priority of an unseen source leaf: pixel·ΔE the viewer would see of its
+ * error, the units of leaf_priority: imp_sum × the radiance it may be off by.
+ * Where a corner sends light, the light meshes have looked there, and the leaf
+ * may be off by about its corners' spread (linear interpolation, as the
+ * on-screen contrast). Where every corner is dark (V = 0 sends exactly 0), a beam
+ * through a gap may still lie between them: the whole bound. With the bound for
+ * every leaf, the walls the Veach door's beam lights (bound 3-9 times their
+ * light) kept ahead of visible leaves at the door's base for the whole run
+ * (docs/cache.md, "The line along the door's base"). */
 static float source_priority(const cache *c, uint32_t node, const mesh_qnode *n)
 {
     float imax, isum;
     cache_node_importance(c, node, &imax, &isum);
-    return isum * source_peak(c, n);
+    source_levels s = source_levels_of(c, n);
+    if (s.hi > 0.0f) return isum * (s.hi - s.lo);
+    return isum * s.bound;
 }
 
 /* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners);
