@@ -191,6 +191,12 @@ typedef struct cache_sched {
      * cache_estimate.c (cache_sched_residual). */
     float *resid[CACHE_KINDS];
     size_t resid_cap[CACHE_KINDS];
+    /* Per node of the direct mesh, unseen leaves only: how many generations of
+     * its ancestors were dark at every corner and every midpoint their test
+     * sampled (0: not so, or not known); the chance that a beam hides between
+     * such corners shrinks with each (source_priority). */
+    uint8_t *dark_gen;
+    size_t dark_gen_cap;
 } cache_sched;
 
 struct cache {

@@ -144,22 +144,58 @@ static float source_peak(const cache *c, const mesh_qnode *n)
     return fmaxf(s.hi, s.bound);
 }
 
+static uint32_t dark_generations(const cache *c, uint32_t node)
+{
+    return node < c->sched.dark_gen_cap ? c->sched.dark_gen[node] : 0u;
+}
+
+static lm_result set_dark_generations(cache *c, uint32_t node, uint32_t gen, lm_error *err)
+{
+    cache_sched *st = &c->sched;
+    if (node >= st->dark_gen_cap) {
+        size_t old = st->dark_gen_cap;
+        if (!LM_GROW(st->dark_gen, st->dark_gen_cap, (size_t)node + 1))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the source's dark generations");
+        memset(st->dark_gen + old, 0, st->dark_gen_cap - old);
+    }
+    st->dark_gen[node] = (uint8_t)(gen < 255u ? gen : 255u);
+    return LM_OK;
+}
+
 /* Priority of an unseen source leaf: pixel·ΔE the viewer would see of its
  * error, the units of leaf_priority: imp_sum × the radiance it may be off by.
  * Where a corner sends light, the light meshes have looked there, and the leaf
  * may be off by about its corners' spread (linear interpolation, as the
  * on-screen contrast). Where every corner is dark (V = 0 sends exactly 0), a beam
- * through a gap may still lie between them: the whole bound. With the bound for
- * every leaf, the walls the Veach door's beam lights (bound 3-9 times their
- * light) kept ahead of visible leaves at the door's base for the whole run
- * (docs/cache.md, "The line along the door's base"). */
+ * through a gap may still lie between them: the bound, a quarter of it for each
+ * generation of ancestors whose test found their corners and midpoints dark
+ * too (a beam that escaped those samples is narrower than their spacing, so it
+ * fills at most about the share of the leaf that one child is of its parent).
+ * With the whole bound for every leaf, the walls the Veach door's beam lights
+ * (bound 3-9 times their light) and the dark ones beside them kept ahead of
+ * visible leaves at the door's base for the whole run (docs/cache.md, "The line
+ * along the door's base"). */
 static float source_priority(const cache *c, uint32_t node, const mesh_qnode *n)
 {
     float imax, isum;
     cache_node_importance(c, node, &imax, &isum);
     source_levels s = source_levels_of(c, n);
     if (s.hi > 0.0f) return isum * (s.hi - s.lo);
-    return isum * s.bound;
+    return isum * ldexpf(s.bound, -2 * (int)dark_generations(c, node));
+}
+
+/* Dark at its corners and at the midpoints its test sampled (an unseen leaf's
+ * test: the children's dark generations). */
+static int source_all_dark(const cache *c, const mesh_qnode *n, const uint32_t mid[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        float a[3], m[3];
+        mesh_qmesh_get_value(c->direct, n->v[k], a);
+        mesh_qmesh_get_value(c->direct, mid[k], m);
+        for (int ch = 0; ch < 3; ++ch)
+            if (a[ch] > 0.0f || m[ch] > 0.0f) return 0;
+    }
+    return 1;
 }
 
 /* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners);
@@ -524,11 +560,12 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         float sum_de = 0.0f, sum_de2 = 0.0f, sum_dn2 = 0.0f;
         int tested_mid = 0;
         int combined = leaves[i].mirror != MESH_QMESH_NONE;
-        if (source_only(pixels, kind, n)) {
+        int unseen = source_only(pixels, kind, n);
+        if (unseen) {
             found = source_split_seen(c, leaves[i].node, n, leaves[i].mid);
             px = 0.0f;
         }
-        for (int k = 0; k < 3 && !found && !source_only(pixels, kind, n); ++k) {
+        for (int k = 0; k < 3 && !found && !unseen; ++k) {
             float a[3], b[3], fresh[3], interp[3], lf[3], li[3];
             mesh_qmesh_get_value(m, corner[k], a);
             mesh_qmesh_get_value(m, corner[(k + 1) % 3], b);
@@ -570,9 +607,11 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         res->tested++;
         if (found || px > min_pixels) {
             res->split++;
+            uint32_t gen = unseen && source_all_dark(c, n, leaves[i].mid) ? dark_generations(c, leaves[i].node) + 1 : 0;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
                 const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
-                r = set_residual(c, kind, child + k, 0.25f * interp_err, 0, err);
+                if (unseen) r = set_dark_generations(c, child + k, gen, err);
+                if (r == LM_OK) r = set_residual(c, kind, child + k, 0.25f * interp_err, 0, err);
                 if (r == LM_OK) r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
             }
         } else {
@@ -779,6 +818,7 @@ void cache_sched_free(cache_sched *st)
         free(st->roots[k]);
         free(st->resid[k]);
     }
+    free(st->dark_gen);
     memset(st, 0, sizeof *st);
 }
 
@@ -788,7 +828,7 @@ size_t cache_sched_bytes(const cache_sched *st)
     for (int k = 0; k < CACHE_KINDS; ++k)
         b += st->q[k].cap * sizeof(cache_queue_entry) + st->done_cap[k] +
              (st->prio_cap[k] + st->resid_cap[k]) * sizeof(float);
-    return b;
+    return b + st->dark_gen_cap;
 }
 
 void cache_sched_requeue(cache_sched *st, int kind)
