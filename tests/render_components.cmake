@@ -1,10 +1,9 @@
 # `lumesh render --components`: the terms drawn one at a time add up to the whole
 # image. On the built-in Cornell box, deterministic (the same cache each run),
 # 48x36, one render per term and one of all; image_sum_check then checks the
-# whole against the sum of the parts, and that each part has light (the box's
-# lamp: emission; its direct, indirect and, from none of its materials,
-# no specular term, so that one is left out). A name it does not know is a
-# usage error (cli_tests.cmake).
+# whole against the sum of the parts, and that each part has light. The box has
+# no material with ks > 0, so its specular term is zero and left out. A name it
+# does not know is a usage error (cli_tests.cmake).
 #   -DLUMESH=path -DCHECK=image_sum_check -DDIR=work directory
 cmake_minimum_required(VERSION 3.19)
 file(REMOVE_RECURSE ${DIR})

@@ -109,6 +109,29 @@ void cache_destroy(cache *c); /* NULL is a no-op */
  * stands in for indirect until the coarse direct mesh exists; it exists after this). */
 lm_result cache_init(cache *c, lm_error *err);
 
+/* The cache's estimate of its error (cache_estimate_error, below, says what each
+ * figure means). */
+typedef struct cache_mesh_estimate {
+    double pixels;            /* pixels this mesh's visible leaves cover */
+    double interpolation;     /* pixel-weighted mean ΔE */
+    double noise;             /* pixel-weighted mean ΔE */
+    double max;               /* the largest leaf's interpolation + noise */
+    double pixels_above_jnd;  /* pixels in leaves whose interpolation + noise exceeds the JND */
+    double pixels_untested;   /* pixels in leaves larger than a pixel that no test of their own has
+                                 looked at (a root, or a child taking its parent's figure): there the
+                                 estimate is a guess */
+} cache_mesh_estimate;
+
+typedef struct cache_estimate {
+    cache_mesh_estimate direct, indirect, specular; /* specular: zero without a specular mesh */
+    double pixels;            /* pixels that see a scene triangle (the pixel counts' sum) */
+    double mean;              /* mean ΔE over those pixels: the meshes' errors added */
+    double above_jnd;         /* fraction of those pixels in a leaf above the JND (the meshes' summed, ≤ 1) */
+    double untested;          /* fraction of those pixels in a leaf not tested yet (the worst mesh's):
+                                 the estimate means little until this is near 0 */
+    float jnd;                /* the JND it was measured against */
+} cache_estimate;
+
 typedef struct cache_refine_desc {
     const uint32_t *pixels;   /* per scene triangle, pixels it covers (rend_id); NULL: all 1e6 */
     uint32_t budget;          /* leaves to test in this call; 0 = 256 */
@@ -122,6 +145,9 @@ typedef struct cache_refine_result {
                                         (cache_estimate_converged) */
     int stuck;                       /* nothing left to do, yet not converged: the estimate's error is
                                         where no test or ray count reaches (reported, not claimed) */
+    int estimated;                   /* non-zero: estimate holds the estimate the claim was made from
+                                        (made when nothing is left to do; cache_estimate_error) */
+    cache_estimate estimate;
 } cache_refine_result;
 
 /* Tests the edges of the highest-priority leaves of the direct, indirect and
@@ -205,26 +231,7 @@ void cache_get_stats(cache *c, cache_stats *out);
  * direct estimate's penumbra noise (SAMP_EMBREE_PENUMBRA_RMS), or transport the
  * cache does not model (bounces beyond desc.bounces). bench/indirect.sh compares
  * it with the measured error against the reference. */
-typedef struct cache_mesh_estimate {
-    double pixels;            /* pixels this mesh's visible leaves cover */
-    double interpolation;     /* pixel-weighted mean ΔE */
-    double noise;             /* pixel-weighted mean ΔE */
-    double max;               /* the largest leaf's interpolation + noise */
-    double pixels_above_jnd;  /* pixels in leaves whose interpolation + noise exceeds the JND */
-    double pixels_untested;   /* pixels in leaves larger than a pixel that no test of their own has
-                                 looked at (a root, or a child taking its parent's figure): there the
-                                 estimate is a guess */
-} cache_mesh_estimate;
-
-typedef struct cache_estimate {
-    cache_mesh_estimate direct, indirect, specular; /* specular: zero without a specular mesh */
-    double pixels;            /* pixels that see a scene triangle (the pixel counts' sum) */
-    double mean;              /* mean ΔE over those pixels: the meshes' errors added */
-    double above_jnd;         /* fraction of those pixels in a leaf above the JND (the meshes' summed, ≤ 1) */
-    double untested;          /* fraction of those pixels in a leaf not tested yet (the worst mesh's):
-                                 the estimate means little until this is near 0 */
-    float jnd;                /* the JND it was measured against */
-} cache_estimate;
+/* (cache_mesh_estimate and cache_estimate are declared above cache_refine_result.) */
 
 /* pixels: per scene triangle, pixels it covers (as cache_refine_desc.pixels);
  * NULL: every triangle 1e6 (the estimate of the whole surface). */

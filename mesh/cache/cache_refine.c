@@ -610,7 +610,9 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             uint32_t gen = unseen && source_all_dark(c, n, leaves[i].mid) ? dark_generations(c, leaves[i].node) + 1 : 0;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
                 const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
-                if (unseen) r = set_dark_generations(c, child + k, gen, err);
+                /* Every child of the direct mesh, seen or not: a node id comes back
+                 * after a merge, and a leaf seen now may be unseen after a move. */
+                if (kind == KIND_DIRECT) r = set_dark_generations(c, child + k, gen, err);
                 if (r == LM_OK) r = set_residual(c, kind, child + k, 0.25f * interp_err, 0, err);
                 if (r == LM_OK) r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
             }
@@ -791,9 +793,9 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     }
     res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2]);
     if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0) {
-        cache_estimate e;
-        r = cache_estimate_error(c, desc->pixels, &e, err);
-        res.converged = r == LM_OK && cache_estimate_converged(&e);
+        r = cache_estimate_error(c, desc->pixels, &res.estimate, err);
+        res.estimated = r == LM_OK;
+        res.converged = r == LM_OK && cache_estimate_converged(&res.estimate);
         res.stuck = r == LM_OK && !res.converged;
     }
     if (out) *out = res;

@@ -147,8 +147,8 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
 
 /* The error estimate walks every visible leaf (25 ms on CornellBox-Water, 110 ms
  * at 70k triangles): made again at most every ESTIMATE_SECONDS while refining, and
- * always when refinement stops (the convergence claim's own estimate is made by
- * cache_refine, apart). */
+ * always when refinement stops (then it is the one cache_refine made for its
+ * convergence claim, cache_refine_result.estimate, not made twice). */
 #define ESTIMATE_SECONDS 0.5
 
 static lm_result fill_snapshot(snapshot_store *st, cache *c, const cache_estimate *estimate, int debug,
@@ -349,7 +349,10 @@ static void *worker_main(void *arg)
         idle = (!paused && budget && (res.converged || res.stuck)) ||
                (w->desc.max_tested && tested >= w->desc.max_tested);
         double now = lm_now_seconds();
-        if (r == LM_OK && (idle || nedit || new_view || now - w->estimate_at >= ESTIMATE_SECONDS)) {
+        if (r == LM_OK && budget && res.estimated) { /* cache_refine made it for its claim: the same */
+            w->estimate = res.estimate;
+            w->estimate_at = now;
+        } else if (r == LM_OK && (idle || nedit || new_view || now - w->estimate_at >= ESTIMATE_SECONDS)) {
             r = cache_estimate_error(c, w->pixels, &w->estimate, &err);
             w->estimate_at = now;
         }
