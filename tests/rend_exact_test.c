@@ -11,6 +11,8 @@
  * pixel (rend_frame.h), so the exact pixel is the mean of that formula over the
  * same points. Once the cache has converged, every pixel must be within the JND
  * (tone-mapped CIE76 ΔE 2, the refinement's own criterion) of the exact one.
+ * Then a worker that refines on past the JND (jnd_floor) must keep lowering the
+ * error at least at a Monte Carlo rate in its samples.
  *
  * The expected values span a factor of several across the image (the footprint
  * reaches past the light's edge, which is off the camera's axis), so a wrong
@@ -36,6 +38,50 @@ static const test_plane plane = {.kd = {0.6, 0.4, 0.2}, .le = {5.0, 7.0, 9.0}, .
                                  .light_half = 0.5, .light_height = 1.0, .cam_height = 0.8, .fov_y = 100.0,
                                  .width = W, .height = H};
 
+/* The image of snap against the closed form: mean and largest ΔE, pixels above
+ * the JND, relMSE as `lumesh compare` computes it (linear, (a−b)²/(b²+0.01) over
+ * pixels and channels), and the range of the exact green values. */
+typedef struct exact_error {
+    double mean_de, max_de, relmse, lo, hi;
+    int worst, above;
+} exact_error;
+
+static int measure(rend_frame *f, const scene *s, const cache_snapshot *snap, float *img, exact_error *e)
+{
+    lm_error err;
+    if (rend_frame_draw(f, &s->cameras[0], snap, img, &err) != LM_OK) return 0;
+    tm_desc tm = {.exposure = s->exposure};
+    *e = (exact_error){.lo = INFINITY};
+    for (int py = 0; py < H; ++py)
+        for (int px = 0; px < W; ++px) {
+            double G = test_plane_pixel_G(&plane, px, py, SS);
+            float exact[3], d_a[3], d_b[3], lab_a[3], lab_b[3];
+            for (int k = 0; k < 3; ++k) exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G);
+            const float *got = img + 3 * ((size_t)py * W + (size_t)px);
+            tm_to_display(&tm, got, d_a);
+            tm_to_display(&tm, exact, d_b);
+            tm_display_to_lab(d_a, lab_a);
+            tm_display_to_lab(d_b, lab_b);
+            double de = tm_delta_e(lab_a, lab_b);
+            e->mean_de += de / (W * H);
+            if (de > e->max_de) e->max_de = de, e->worst = py * W + px;
+            e->above += de > JND;
+            for (int k = 0; k < 3; ++k)
+                e->relmse += (got[k] - exact[k]) * (got[k] - exact[k]) / (exact[k] * exact[k] + 0.01) / (3.0 * W * H);
+            e->lo = fmin(e->lo, exact[1]);
+            e->hi = fmax(e->hi, exact[1]);
+        }
+    return 1;
+}
+
+/* Light samples and gathers a snapshot's cache has taken. */
+static double samples_taken(const cache_snapshot *snap)
+{
+    double n = (double)(snap->stats.direct.samples + snap->stats.indirect.samples);
+    for (uint32_t l = 0; l < snap->stats.light_count; ++l) n += (double)snap->stats.lights[l].samples;
+    return n;
+}
+
 int main(void)
 {
     glctx *ctx = NULL;
@@ -60,34 +106,42 @@ int main(void)
     if (wk)
         CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = SS}, &f,
                                 &err) == LM_OK);
-    if (f && snap && img) {
-        CHECK(rend_frame_draw(f, &s->cameras[0], snap, img, &err) == LM_OK);
-        tm_desc tm = {.exposure = s->exposure};
-        double sum_de = 0.0, max_de = 0.0, lo = INFINITY, hi = 0.0;
-        int worst = 0, above = 0;
-        for (int py = 0; py < H; ++py)
-            for (int px = 0; px < W; ++px) {
-                double G = test_plane_pixel_G(&plane, px, py, SS);
-                float exact[3], d_a[3], d_b[3], lab_a[3], lab_b[3];
-                for (int k = 0; k < 3; ++k) exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G);
-                const float *got = img + 3 * ((size_t)py * W + (size_t)px);
-                tm_to_display(&tm, got, d_a);
-                tm_to_display(&tm, exact, d_b);
-                tm_display_to_lab(d_a, lab_a);
-                tm_display_to_lab(d_b, lab_b);
-                double de = tm_delta_e(lab_a, lab_b);
-                sum_de += de;
-                if (de > max_de) max_de = de, worst = py * W + px;
-                above += de > JND;
-                lo = fmin(lo, exact[1]);
-                hi = fmax(hi, exact[1]);
-            }
+    exact_error e1 = {0};
+    int measured = f && snap && img && measure(f, s, snap, img, &e1);
+    CHECK(measured);
+    if (measured) {
         printf("exact plane %dx%d (%dx%d samples a pixel), %llu leaves tested, %u direct triangles: mean ΔE %.4f, "
-               "max %.4f at pixel (%d, %d), %d pixels above the JND; exact values span %.3f..%.3f\n",
-               W, H, SS, SS, (unsigned long long)snap->tested, snap->direct.triangle_count, sum_de / (W * H), max_de,
-               worst % W, worst / W, above, lo, hi);
-        CHECK_MSG(max_de <= JND, "worst pixel ΔE %.3f above the JND", max_de);
-        CHECK(hi > 3.0 * lo); /* the image is far from uniform */
+               "max %.4f at pixel (%d, %d), %d pixels above the JND, relMSE %.3g; exact values span %.3f..%.3f\n",
+               W, H, SS, SS, (unsigned long long)snap->tested, snap->direct.triangle_count, e1.mean_de, e1.max_de,
+               e1.worst % W, e1.worst / W, e1.above, e1.relmse, e1.lo, e1.hi);
+        CHECK_MSG(e1.max_de <= JND, "worst pixel ΔE %.3f above the JND", e1.max_de);
+        CHECK(e1.hi > 3.0 * e1.lo); /* the image is far from uniform */
+    }
+    /* Never plateau (cache_worker_desc.jnd_floor): converged at the JND, the
+     * worker refines on to JND/8; the error must fall at least as fast in the
+     * samples taken as a Monte Carlo estimate's (relMSE ∝ 1/N: after 4N
+     * samples at most a third of that after N), and it must fall. */
+    double n1 = snap ? samples_taken(snap) : 0;
+    cache_worker_destroy(wk);
+    wk = NULL;
+    if (ip)
+        CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = {.backend = SAMP_BACKEND_EMBREE},
+                                                       .pixels = ids.pixels, .jnd_floor = JND / 8},
+                                  &wk, &err) == LM_OK);
+    snap = test_wait_finished(wk, 120.0);
+    CHECK(snap && snap->converged && !snap->failed && snap->jnd == JND / 8);
+    exact_error e2 = {0};
+    measured = measured && snap && measure(f, s, snap, img, &e2);
+    CHECK(measured && e1.relmse > 0);
+    if (measured && e1.relmse > 0) {
+        double n2 = samples_taken(snap), mc = e1.relmse * (n1 / n2);
+        printf("refined on to ΔE %.2f: %.0f samples (%.2fx), relMSE %.3g (%.3g of the JND's; a Monte Carlo "
+               "estimate's %.3g), mean ΔE %.4f, max %.4f\n",
+               (double)snap->jnd, n2, n2 / n1, e2.relmse, e2.relmse / e1.relmse, mc, e2.mean_de, e2.max_de);
+        CHECK_MSG(e2.relmse <= 0.5 * e1.relmse, "relMSE %.3g after tightening, %.3g before", e2.relmse, e1.relmse);
+        CHECK_MSG(e2.relmse <= mc * 4.0 / 3.0, "relMSE %.3g with %.2fx the samples: slower than 1/N", e2.relmse,
+                  n2 / n1);
+        CHECK(e2.max_de <= e1.max_de);
     }
     free(img);
     rend_frame_destroy(f);

@@ -378,6 +378,18 @@ lm_result cache_requeue(cache *c, lm_error *err)
     return LM_OK;
 }
 
+lm_result cache_set_jnd(cache *c, float jnd, lm_error *err)
+{
+    if (!c || !(jnd > 0.0f) || !isfinite(jnd))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_jnd: the JND must be a positive ΔE, not %g", (double)jnd);
+    if (jnd == c->desc.jnd) return LM_OK;
+    c->desc.jnd = jnd;
+    cache_sched_requeue(&c->sched, CACHE_KINDS);
+    return LM_OK;
+}
+
+float cache_get_jnd(const cache *c) { return c->desc.jnd; }
+
 /* ---- refinement (cache_refine.c) ------------------------------------------------ */
 
 lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err)

@@ -173,6 +173,12 @@ lm_result cache_regather_indirect(cache *c, lm_error *err);
 /* The pixel counts given to cache_refine changed (a new view): every mesh's
  * leaves are scheduled again by the new priorities at the next cache_refine. */
 lm_result cache_requeue(cache *c, lm_error *err);
+/* The JND refinement works to from now on (ΔE; > 0): every leaf is tested again
+ * against it at the next cache_refine, and the error estimate counts pixels above
+ * it. The refinement worker halves it after each convergence, down to a floor
+ * (cache_worker_desc.jnd_floor: "never plateau", docs/cache.md). */
+lm_result cache_set_jnd(cache *c, float jnd, lm_error *err);
+float cache_get_jnd(const cache *c);
 lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err);
 
 /* Changes light `light`'s radiance (area light, W·m⁻²·sr⁻¹) or intensity (point

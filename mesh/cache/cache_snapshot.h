@@ -68,11 +68,17 @@ typedef struct cache_snapshot {
     samp_stats quick_sampler;    /* the quick start's sampler (the coarse cache); zero without one */
     double published_at;         /* lm_now_seconds() when it was committed */
     uint64_t tested;             /* leaves tested so far */
-    int converged;               /* nothing was left to do and the estimate was below the JND
-                                    (cache_estimate_converged) when it was made */
-    int finished;                /* converged, nothing left the cache can do (the estimate still above
-                                    the JND: see estimate), or max_tested reached: no newer snapshot
-                                    without an edit */
+    int converged;               /* nothing was left to do and the estimate was below the cache's JND
+                                    (cache_desc.jnd, cache_estimate_converged) when it was made, or
+                                    earlier since the last edit or view (the worker then refines on
+                                    to a lower JND: cache_worker_desc.jnd_floor) */
+    double converged_at;         /* converged: lm_now_seconds() of the first converged snapshot since
+                                    the last edit or view */
+    float jnd;                   /* the JND refinement works to now: the cache's, or lower once it
+                                    has converged there (cache_worker_desc.jnd_floor) */
+    int finished;                /* converged (at the floor JND when the worker tightens), nothing left
+                                    the cache can do (the estimate still above the JND: see estimate),
+                                    or max_tested reached: no newer snapshot without an edit */
     int failed;                  /* the worker stopped on an error (message in error) */
     char error[256];
 } cache_snapshot;

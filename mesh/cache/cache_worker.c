@@ -178,6 +178,7 @@ static lm_result fill_snapshot(snapshot_store *st, cache *c, const cache_estimat
     st->snap.generation = generation;
     st->snap.tested = tested;
     st->snap.converged = converged;
+    st->snap.jnd = cache_get_jnd(c);
     st->snap.failed = 0;
     st->snap.error[0] = 0;
     return LM_OK;
@@ -284,6 +285,11 @@ static void *worker_main(void *arg)
     uint64_t generation = 0, tested = 0;
     lm_result r = start_cache(w, &sp, &c, &generation, &buf, &buf_cap, &err);
     int idle = 0; /* converged or max_tested reached: wait for an edit */
+    /* Never plateau (desc.jnd_floor): the cache's own JND, and whether it has
+     * converged there since the last edit or view. */
+    const float base_jnd = c ? cache_get_jnd(c) : 0.0f;
+    int reached = 0;
+    double reached_at = 0; /* when it first did (published with the snapshots) */
     while (r == LM_OK) {
         light_edit edits[MAX_EDITS];
         uint32_t nedit = 0;
@@ -334,7 +340,12 @@ static void *worker_main(void *arg)
         int new_view = 0;
         if (r == LM_OK) r = take_pixels(w, c, &new_view, &err);
         if (r != LM_OK) break;
-        if (nedit || new_view) idle = 0;
+        if (nedit || new_view) {
+            idle = reached = 0;
+            /* What changed is refined to the cache's JND first, then tightened again. */
+            if (r == LM_OK && cache_get_jnd(c) != base_jnd) r = cache_set_jnd(c, base_jnd, &err);
+            if (r != LM_OK) break;
+        }
         cache_refine_result res = {0};
         uint32_t budget = w->desc.step_budget ? w->desc.step_budget : 512;
         if (w->desc.max_tested && tested + budget > w->desc.max_tested) budget = (uint32_t)(w->desc.max_tested - tested);
@@ -345,9 +356,16 @@ static void *worker_main(void *arg)
         /* Converged: the cache's estimate says so (cache_estimate_converged); nothing
          * left to do without converging (stuck) idles too, and says so. After an edit
          * while paused nothing was tested: every leaf is queued again (not converged). */
-        int converged = !paused && budget && res.converged;
+        int converged_now = !paused && budget && res.converged;
+        if (converged_now && !reached) reached_at = lm_now_seconds();
+        reached |= converged_now;
         idle = (!paused && budget && (res.converged || res.stuck)) ||
                (w->desc.max_tested && tested >= w->desc.max_tested);
+        /* Converged above the floor: half the JND, and on (the estimate and the
+         * snapshot below are still the converged ones; the next step requeues). */
+        float jnd = cache_get_jnd(c);
+        int tighten = converged_now && !(w->desc.max_tested && tested >= w->desc.max_tested) &&
+                      w->desc.jnd_floor > 0.0f && jnd > w->desc.jnd_floor;
         double now = lm_now_seconds();
         if (r == LM_OK && budget && res.estimated) { /* cache_refine made it for its claim: the same */
             w->estimate = res.estimate;
@@ -357,8 +375,13 @@ static void *worker_main(void *arg)
             w->estimate_at = now;
         }
         if (r == LM_OK)
-            r = fill_snapshot(w->back, c, &w->estimate, debug, ++generation, tested, converged, &buf, &buf_cap, &err);
-        w->back->snap.finished = idle;
+            r = fill_snapshot(w->back, c, &w->estimate, debug, ++generation, tested, reached, &buf, &buf_cap, &err);
+        w->back->snap.finished = idle && !tighten;
+        w->back->snap.converged_at = reached ? reached_at : 0;
+        if (r == LM_OK && tighten) {
+            r = cache_set_jnd(c, fmaxf(0.5f * jnd, w->desc.jnd_floor), &err);
+            idle = 0;
+        }
         if (r == LM_OK) samp_get_stats(sp, &w->back->snap.sampler);
         w->back->snap.quick_sampler = w->quick_stats;
         if (r == LM_OK) commit(w);
@@ -415,6 +438,9 @@ lm_result cache_worker_create(const cache_worker_desc *desc, cache_worker **out,
 {
     *out = NULL;
     if (!desc || !desc->scene) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker: needs a scene");
+    if (!(desc->jnd_floor >= 0.0f) || !isfinite(desc->jnd_floor))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker: the JND floor must be a finite ΔE >= 0, not %g",
+                       (double)desc->jnd_floor);
     cache_worker *w = calloc(1, sizeof *w);
     if (!w) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the refinement worker");
     w->desc = *desc;

@@ -57,6 +57,11 @@ typedef struct cache_worker_desc {
                                     Embree sampler, published, then gathered again (cache_worker.c) */
     uint32_t step_budget;        /* leaves tested between publications; 0 = 512 */
     uint64_t max_tested;         /* stop after this many leaves tested (deterministic runs); 0 = no limit */
+    float jnd_floor;             /* ΔE; > 0: never plateau. Once the cache has converged at its JND
+                                    (cache_desc.jnd), the worker halves the JND and refines on, and
+                                    again at each convergence, down to this floor; only then is it
+                                    finished. An edit or a new view starts again at the cache's JND.
+                                    0 = stop at the JND (the paper's behaviour) */
     int publish_debug;           /* non-zero: snapshots also carry the light meshes and per-corner
                                     cache_snapshot_corner data (debug overlays); 0 = off, no extra cost
                                     (on Water about 10% of the refinement); cache_worker_set_publish_debug

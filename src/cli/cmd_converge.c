@@ -7,10 +7,11 @@
  * written (EXR, linear, and PNG, tone-mapped) and compared with the reference by
  * cmp_compare (every metric of `lumesh compare`). The refinement worker keeps
  * refining on its own thread meanwhile, so measuring costs it nothing but a
- * share of the machine. Once the cache has converged (its estimate below the
- * JND), or has finished without (nothing left it can do), later snapshots show
- * the same image: they are recorded at their times without waiting (state
- * "converged" or "finished").
+ * share of the machine. Once the cache has converged at the scene's JND it
+ * refines on to lower ones (rend_session_desc.jnd_floor: state "below-jnd"); once
+ * it has converged at the lowest, or has finished without (nothing left it can
+ * do), later snapshots show the same image: they are recorded at their times
+ * without waiting (state "converged" or "finished").
  *
  * With --vs-path-tracer the reference renderer's progressive path tracer (same
  * transport, every core) then runs for the same times, counted the same way
@@ -52,10 +53,12 @@ static void on_sigint(int sig)
     interrupted = 1;
 }
 
-/* converged: the cache's estimate is below the JND (cache_estimate_converged);
+/* converged: the cache's estimate is below the JND (cache_estimate_converged), at
+ * the lowest JND it refines to (rend_session_desc.jnd_floor);
+ * below-jnd: it was below the scene's JND, and the worker refines on to a lower one;
  * finished: nothing left it can do, yet its estimate is above the JND somewhere. */
-typedef enum row_state { ROW_REFINING = 0, ROW_CONVERGED, ROW_NO_SNAPSHOT, ROW_FINISHED } row_state;
-static const char *const state_names[] = {"refining", "converged", "no-snapshot", "finished"};
+typedef enum row_state { ROW_REFINING = 0, ROW_CONVERGED, ROW_NO_SNAPSHOT, ROW_FINISHED, ROW_BELOW_JND } row_state;
+static const char *const state_names[] = {"refining", "converged", "no-snapshot", "finished", "below-jnd"};
 
 /* One measured image. */
 typedef struct conv_row {
@@ -69,6 +72,7 @@ typedef struct conv_row {
     double est_delta_e;       /* lumesh: the cache's own estimate of delta_e_mean (cache_estimate, over the image) */
     double est_above_jnd;     /* lumesh: its estimated fraction of pixels above the JND */
     double est_untested;      /* lumesh: the fraction of pixels in leaves not tested yet (the estimate a guess) */
+    double jnd;               /* lumesh: the JND the cache refined to (below the scene's once converged) */
     cmp_result m;
     char image[64];           /* file name in DIR (EXR; the PNG beside it) */
 } conv_row;
@@ -181,6 +185,7 @@ static void snapshot_samples(const conv_ctx *c, const cache_snapshot *snap, conv
     row->est_delta_e = snap->estimate.mean * share;
     row->est_above_jnd = snap->estimate.above_jnd * share;
     row->est_untested = snap->estimate.untested * share;
+    row->jnd = snap->jnd;
 }
 
 static void keep_final(conv_ctx *c, const cache_snapshot *snap)
@@ -271,10 +276,11 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
         double now = lm_now_seconds() - t0;
         if (snap && snap->finished) {
             row->state = snap->converged ? ROW_CONVERGED : ROW_FINISHED;
-            if (c->converged_at < 0 && snap->converged) c->converged_at = snap->published_at - t0;
+            if (c->converged_at < 0 && snap->converged) c->converged_at = snap->converged_at - t0;
             row->seconds = row->target > now ? row->target : now;
         } else {
-            row->state = snap ? ROW_REFINING : ROW_NO_SNAPSHOT;
+            row->state = !snap ? ROW_NO_SNAPSHOT : snap->converged ? ROW_BELOW_JND : ROW_REFINING;
+            if (c->converged_at < 0 && snap && snap->converged) c->converged_at = snap->converged_at - t0;
             row->seconds = now;
         }
         if (snap) snapshot_samples(c, snap, row);
@@ -358,7 +364,7 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
     OUT("method,target_seconds,seconds,state,leaves_tested");
     for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
     OUT(",spp_min,spp_max,rays,rmse,relmse,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
-        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,image\n");
+        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,image\n");
     for (int k = 0; k < nrun; ++k)
         for (int i = 0; i < runs[k].count; ++i) {
             const conv_row *w = &runs[k].rows[i];
@@ -377,8 +383,8 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
             OUT(",%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,", w->m.rmse, w->m.relmse, w->m.psnr, w->m.mean_abs_error,
                 w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max);
             OUT("%.5f,", w->m.delta_e_above_jnd);
-            if (!pt) OUT("%.4f,%.5f,%.5f", w->est_delta_e, w->est_above_jnd, w->est_untested);
-            else OUT(",,");
+            if (!pt) OUT("%.4f,%.5f,%.5f,%.4g", w->est_delta_e, w->est_above_jnd, w->est_untested, w->jnd);
+            else OUT(",,,");
             OUT(",%s\n", w->image);
         }
 #undef OUT
@@ -410,6 +416,7 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
             cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->est_delta_e, 1e-5));
             cJSON_AddNumberToObject(m, "fraction_above_jnd", rounded(w->est_above_jnd, 1e-6));
             cJSON_AddNumberToObject(m, "fraction_untested", rounded(w->est_untested, 1e-6));
+            cJSON_AddNumberToObject(m, "jnd", rounded(w->jnd, 1e-5));
         }
         if ((m = cJSON_AddObjectToObject(o, "samples")))
             for (uint32_t k = 0; k < c->light_count + 3; ++k)

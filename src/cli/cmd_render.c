@@ -2,14 +2,17 @@
  *
  * A render session (rend_session.h): the ID pass gives the pixels per triangle;
  * the refinement worker refines the multi-mesh cache (its own sampler, `--sampler`, chosen at the cache's 2%
- * tolerance by default) until nothing is left to test, `--seconds` have passed,
- * or `--samples` leaf tests are done; the renderer's passes draw the last
+ * tolerance by default) until it has converged at its JND (or nothing is left to
+ * test), or `--seconds` have passed (refining on to a lower JND meanwhile), or
+ * `--samples` leaf tests are done; the renderer's passes draw the last
  * snapshot; the image is written linear (EXR) or tone-mapped (PNG), through a
  * temporary file (img_write), so a failure leaves no partial file.
  */
+#define _POSIX_C_SOURCE 200809L
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "src/base/tonemap.h"
 #include "src/cli/app_stats.h"
@@ -20,6 +23,35 @@
 #include "src/scene/scene.h"
 
 enum { DEFAULT_SECONDS_LIMIT = 600 }; /* without --seconds or --samples: until converged, at most this */
+
+/* The progress line on a terminal (stderr), as `lumesh reference` shows its own:
+ * time against the limit, leaves tested, samples, and the cache's estimate of its
+ * error against the JND it refines to. */
+typedef struct render_progress {
+    double t0, limit, last;
+    int tty, shown;
+} render_progress;
+
+static void show_progress(void *user, const cache_snapshot *snap)
+{
+    render_progress *p = user;
+    double now = lm_now_seconds();
+    if (!p->tty || !snap || now - p->last < 0.1) return;
+    p->last = now;
+    p->shown = 1;
+    double t = now - p->t0, f = p->limit > 0 ? t / p->limit : 0;
+    char bar[31];
+    int filled = (int)((f > 1 ? 1 : f) * 30.0 + 0.5);
+    for (int i = 0; i < 30; ++i) bar[i] = i < filled ? '#' : '.';
+    bar[30] = '\0';
+    uint64_t light = 0;
+    for (uint32_t l = 0; l < snap->stats.light_count; ++l) light += snap->stats.lights[l].samples;
+    fprintf(stderr, "\rrender [%s] %.1f s  %llu leaves  %llu light + %llu indirect samples  est. dE %.2f (JND %.3g)%s   ",
+            bar, t, (unsigned long long)snap->tested, (unsigned long long)light,
+            (unsigned long long)snap->stats.indirect.samples, snap->estimate.mean, (double)snap->jnd,
+            snap->converged ? " converged" : "");
+    fflush(stderr);
+}
 
 /* --components LIST: the composite's terms to draw (rend_frame_set_components),
  * a comma-separated list of direct, indirect, specular and emission; each term
@@ -117,8 +149,10 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (!mask)
         return app_usage_error(cmd, "--components takes a comma-separated list of direct, indirect, specular and "
                                     "emission, not '%s'", components);
+    /* With --seconds the cache keeps sharpening past its JND until the time is up
+     * (rend_session_desc.jnd_floor); otherwise it stops there, as --samples does. */
     rend_session_desc sd = {.supersample = (int)supersample, .max_tested = (uint64_t)samples,
-                            .publish_debug = debug_dir != NULL};
+                            .publish_debug = debug_dir != NULL, .jnd_floor = opts[1].seen ? 0.0f : -1.0f};
     if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
     /* Reproducible runs: a stop counted in leaf tests, not seconds, and no timing-based
      * calibration (auto picks its back ends by measured speed). */
@@ -151,7 +185,11 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     const cache_snapshot *snap = NULL;
     double limit = opts[1].seen ? seconds : DEFAULT_SECONDS_LIMIT;
     r = rend_session_create(&sd, &rs, &err);
-    if (r == LM_OK) r = rend_session_wait(rs, &(rend_session_wait_desc){.until = t0 + limit}, &snap, &err);
+    render_progress prog = {.t0 = t0, .limit = opts[1].seen ? seconds : 0, .tty = isatty(STDERR_FILENO)};
+    if (r == LM_OK)
+        r = rend_session_wait(rs, &(rend_session_wait_desc){.until = t0 + limit, .on_look = show_progress, .user = &prog},
+                              &snap, &err);
+    if (prog.shown) fputc('\n', stderr);
     rgb = r == LM_OK ? malloc((size_t)w * (size_t)h * 3 * sizeof *rgb) : NULL;
     if (r == LM_OK && !rgb) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
     if (r == LM_OK && mask != REND_FRAME_COMPONENTS_ALL) {
@@ -189,11 +227,12 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         uint64_t light = 0;
         for (uint32_t l = 0; l < st->light_count; ++l) light += st->lights[l].samples;
         printf("wrote %s: %dx%d, %.2f s, %s after %llu leaves tested; samples: %llu light, %llu indirect; %u direct, "
-               "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND, %.1f%% untested%s\n",
+               "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND it refines to (dE %.3g), "
+               "%.1f%% untested%s\n",
                out, w, h, elapsed, snap->converged ? "converged" : "stopped", (unsigned long long)snap->tested,
                (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
                snap->indirect.triangle_count, snap->specular.triangle_count, snap->estimate.mean,
-               100.0 * snap->estimate.above_jnd, 100.0 * snap->estimate.untested,
+               100.0 * snap->estimate.above_jnd, (double)snap->jnd, 100.0 * snap->estimate.untested,
                snap->finished && !snap->converged && !snap->failed ? " (nothing left it can improve)" : "");
     }
     if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, rs, rgb, snap, &err);

@@ -2,6 +2,7 @@
  * (rend_session.h). */
 #include "src/render/rend_session.h"
 
+#include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -28,6 +29,7 @@ void rend_session_desc_defaults(rend_session_desc *d)
     if (d->gl_platform == GLCTX_DEFAULT) d->gl_platform = GLCTX_EGL;
     if (d->sampler.gl_platform == GLCTX_DEFAULT) d->sampler.gl_platform = d->gl_platform;
     if (d->supersample == 0) d->supersample = REND_FRAME_SUPERSAMPLE_DEFAULT;
+    if (d->jnd_floor == 0) d->jnd_floor = REND_SESSION_JND_FLOOR_DEFAULT;
     if (d->camera && d->width == 0 && d->height == 0) {
         d->width = d->camera->width;
         d->height = d->camera->height;
@@ -40,6 +42,8 @@ static lm_result check_desc(const rend_session_desc *d, lm_error *err)
     if ((unsigned)d->order >= REND_SESSION_ORDER_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: order %d is none of rend_session_order",
                        (int)d->order);
+    if (isnan(d->jnd_floor))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: jnd_floor is not a number");
     if (d->order == REND_SESSION_ID_FIRST && !d->camera)
         return lm_fail(err, LM_ERR_INVALID_ARG,
                        "rend_session_create: REND_SESSION_ID_FIRST needs a camera for the first ID pass");
@@ -75,7 +79,8 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, lm_error 
     }
     return cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels = pixels,
                                                     .pixels_later = pixels == NULL, .max_tested = d->max_tested,
-                                                    .publish_debug = d->publish_debug, .cache = cd},
+                                                    .publish_debug = d->publish_debug, .cache = cd,
+                                                    .jnd_floor = d->jnd_floor > 0 ? d->jnd_floor : 0},
                                &rs->wk, err);
 }
 
@@ -215,6 +220,7 @@ lm_result rend_session_wait(rend_session *rs, const rend_session_wait_desc *w, c
         lm_result r = rend_session_acquire(rs, &s, err);
         if (snap) *snap = s;
         if (r != LM_OK) return r;
+        if (w->on_look) w->on_look(w->user, s);
         if (s && (s->finished || w->first || (w->until > 0 && lm_now_seconds() >= w->until))) break;
         lm_sleep_seconds(period);
     }

@@ -70,6 +70,10 @@ extern "C" {
 /* The sampler's defaults for a preview (rend_session_desc_defaults): the mean
  * relative error tolerated in penumbra and in indirect samples, the cache's 2%. */
 #define REND_SESSION_TARGET_ERROR_DEFAULT 0.02f
+/* The worker's JND floor (cache_worker_desc.jnd_floor) by default: after converging
+ * at the cache's JND (ΔE 2) it halves it four times, so a still view keeps
+ * sharpening (docs/cache.md "Never plateau"). */
+#define REND_SESSION_JND_FLOOR_DEFAULT 0.125f
 
 typedef enum rend_session_order {
     REND_SESSION_ID_FIRST = 0,  /* default; needs desc.camera */
@@ -100,6 +104,9 @@ typedef struct rend_session_desc {
     uint64_t max_tested;           /* the worker stops after this many leaf tests; 0 = no limit */
     int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
     int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */
+    float jnd_floor;               /* ΔE: after converging, the worker refines on to this JND
+                                      (cache_worker_desc.jnd_floor); 0 = REND_SESSION_JND_FLOOR_DEFAULT;
+                                      < 0: it stops at the cache's JND */
 } rend_session_desc;
 
 /* Fills d's zero fields with the defaults above (idempotent). */
@@ -142,6 +149,10 @@ typedef struct rend_session_wait_desc {
     int first;                        /* non-zero: stop at the first snapshot */
     volatile sig_atomic_t *stop;      /* non-NULL: stop when it becomes non-zero (a SIGINT handler's) */
     double nap;                       /* seconds between looks; 0 = 0.005 */
+    void (*on_look)(void *user, const cache_snapshot *snap); /* non-NULL: called after each look with the
+                                                                snapshot acquired (NULL before the first),
+                                                                on this thread: a progress display */
+    void *user;                       /* on_look's */
 } rend_session_wait_desc;
 
 /* Acquires until a snapshot is finished, or (with one) `until` has come or

@@ -145,15 +145,17 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
                                 fps, v->fb_w, v->fb_h, 1e3 * v->times.total, 1e3 * v->times.material,
                                 1e3 * v->times.radiance, 1e3 * v->times.composite);
     if (s && k < size) {
-        const char *state = v->paused     ? "paused"
-                            : s->converged ? "converged"
-                            : s->finished  ? "finished (the estimate is still above the JND)"
-                                           : "running";
+        /* Past convergence the worker sharpens on to a lower JND (rend_session_desc.jnd_floor). */
+        const char *state = v->paused                     ? "paused"
+                            : s->converged && s->finished ? "converged"
+                            : s->converged                ? "converged, sharpening"
+                            : s->finished                 ? "finished (the estimate is still above the JND)"
+                                                          : "running";
         k += (size_t)snprintf(out + k, size - k,
-                              "refinement: %s, %.0f samples/s, %.1f MB; estimated mean dE %.2f, %.1f%% above the JND, "
-                              "%.0f%% untested\nsamples:",
+                              "refinement: %s, %.0f samples/s, %.1f MB; estimated mean dE %.2f, %.1f%% above the JND "
+                              "(%.3g), %.0f%% untested\nsamples:",
                               state, v->rate, s->stats.bytes / 1048576.0, s->estimate.mean,
-                              100.0 * s->estimate.above_jnd, 100.0 * s->estimate.untested);
+                              100.0 * s->estimate.above_jnd, (double)s->jnd, 100.0 * s->estimate.untested);
         for (uint32_t l = 0; l < s->stats.light_count && l < 8 && k < size; ++l)
             k += (size_t)snprintf(out + k, size - k, " light%u %llu,", l, (unsigned long long)s->stats.lights[l].samples);
         if (k < size)
