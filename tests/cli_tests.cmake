@@ -105,6 +105,8 @@ lumesh_cli_test(converge_missing_reference 2 ARGS converge --reference ${CMAKE_C
 lumesh_cli_test(render_deterministic_needs_samples 1 ARGS render -o x.exr --deterministic ERR "--deterministic needs --samples")
 lumesh_cli_test(render_bad_components 1 ARGS render -o x.exr --components direct,glow
   ERR "--components takes a comma-separated list of direct, indirect, specular and emission, not 'direct,glow'")
+lumesh_cli_test(render_bad_accumulate 1 ARGS render -o x.exr --accumulate 9
+  ERR "--accumulate wants a whole number from 1 to 8, not '9'")
 lumesh_cli_test(view_width_without_height 1 ARGS view --sampler embree --gl osmesa --width 640
   ERR "give both --width and --height")
 # A bad script fails before any window opens, naming the file and line.

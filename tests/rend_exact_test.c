@@ -121,6 +121,61 @@ int main(void)
      * worker refines on to JND/8; the error must fall at least as fast in the
      * samples taken as a Monte Carlo estimate's (relMSE ∝ 1/N: after 4N
      * samples at most a third of that after N), and it must fall. */
+    /* The jitter (rend_frame_set_jitter) moves the samples by whole output pixels
+     * here, right and down: pixel (x, y) must show what the plain image has at
+     * (x + 1, y) or (x, y + 1), value for value up to the rasterizer's rounding of
+     * the moved triangles. */
+    float *moved = malloc((size_t)W * H * 3 * sizeof *moved);
+    CHECK(moved != NULL);
+    for (int dir = 0; measured && moved && dir < 2; ++dir) {
+        CHECK(rend_frame_draw(f, &s->cameras[0], snap, img, &err) == LM_OK);
+        rend_frame_set_jitter(f, dir == 0 ? 1.0f : 0.0f, dir == 1 ? 1.0f : 0.0f);
+        CHECK(rend_frame_draw(f, &s->cameras[0], snap, moved, &err) == LM_OK);
+        rend_frame_set_jitter(f, 0.0f, 0.0f);
+        double worst = 0.0;
+        for (int py = 0; py + (dir == 1) < H; ++py)
+            for (int px = 0; px + (dir == 0) < W; ++px)
+                for (int k = 0; k < 3; ++k) {
+                    float a = moved[3 * ((size_t)py * W + (size_t)px) + (size_t)k];
+                    float b = img[3 * ((size_t)(py + (dir == 1)) * W + (size_t)(px + (dir == 0))) + (size_t)k];
+                    worst = fmax(worst, fabs(a - b) / fmax(fabs(b), 1e-3));
+                }
+        printf("jitter by one pixel %s: the plain image shifted within %.2g (relative)\n", dir ? "down" : "right",
+               worst);
+        CHECK_MSG(worst < 1e-3, "jitter %s: %.3g from the shifted image", dir ? "down" : "right", worst);
+    }
+    /* Accumulated: k×k draws whose offsets stratify one sub-pixel cell make a
+     * (k·SS)² grid per pixel (rend_session_draw_accumulated's pattern): within the
+     * JND of the exact mean over that grid. */
+    enum { K = 2 };
+    for (int i = 0; measured && moved && i < K * K; ++i) {
+        float jx = (((float)(i % K) + 0.5f) / K - 0.5f) / SS, jy = (((float)(i / K) + 0.5f) / K - 0.5f) / SS;
+        rend_frame_set_jitter(f, jx, jy);
+        CHECK(rend_frame_draw(f, &s->cameras[0], snap, i ? moved : img, &err) == LM_OK);
+        for (size_t j = 0; i && j < (size_t)W * H * 3; ++j) img[j] += moved[j];
+    }
+    rend_frame_set_jitter(f, 0.0f, 0.0f);
+    if (measured && moved) {
+        tm_desc tm = {.exposure = s->exposure};
+        double worst = 0.0;
+        for (int py = 0; py < H; ++py)
+            for (int px = 0; px < W; ++px) {
+                double G = test_plane_pixel_G(&plane, px, py, K * SS);
+                float exact[3], got[3], d_a[3], d_b[3], lab_a[3], lab_b[3];
+                for (int k = 0; k < 3; ++k) {
+                    exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G);
+                    got[k] = img[3 * ((size_t)py * W + (size_t)px) + (size_t)k] / (K * K);
+                }
+                tm_to_display(&tm, got, d_a);
+                tm_to_display(&tm, exact, d_b);
+                tm_display_to_lab(d_a, lab_a);
+                tm_display_to_lab(d_b, lab_b);
+                worst = fmax(worst, tm_delta_e(lab_a, lab_b));
+            }
+        printf("%dx%d jittered draws against the exact %dx%d grid: worst ΔE %.3f\n", K, K, K * SS, K * SS, worst);
+        CHECK_MSG(worst <= JND, "accumulated: worst ΔE %.3f", worst);
+    }
+    free(moved);
     double n1 = snap ? samples_taken(snap) : 0;
     cache_worker_destroy(wk);
     wk = NULL;

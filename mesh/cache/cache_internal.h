@@ -149,6 +149,7 @@ typedef struct cache_source_state {
      * there (ΔE per W·m⁻²·sr⁻¹); imp_sum: the same summed over the gathers, each
      * weighted by the pixels its vertex stands for (pixel·ΔE per unit radiance). */
     float *imp_max, *imp_sum;
+    float *imp_sub;            /* imp_sum recorded at the node and all its descendants (the cut's weight) */
     size_t imp_cap;
     int imp_any;               /* some importance has been recorded */
     uint32_t *grown;           /* cache_record_importance's answer */

@@ -149,6 +149,16 @@ static lm_result fetch_visibility_single(cache *c, const cache_site *sites, uint
     return r;
 }
 
+/* The shallowest dyadic level whose lattice holds the point (w1, w2). */
+static int lattice_depth(double w1, double w2)
+{
+    for (int k = 0; k <= MESH_DEPTH_MAX; ++k) {
+        double a = ldexp(w1, k), b = ldexp(w2, k);
+        if (a == floor(a) && b == floor(b)) return k;
+    }
+    return MESH_DEPTH_MAX + 1;
+}
+
 lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err)
 {
     const uint32_t L = c->light_count;
@@ -205,7 +215,11 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
                     continue;
                 }
                 if (ln->depth > st->depth) { /* cannot happen: sites lie on the lattice of depth+1 */
-                    r = lm_fail(err, LM_ERR_RUNTIME, "light mesh deeper than its radiance site");
+                    r = lm_fail(err, LM_ERR_RUNTIME,
+                                "light %u's mesh leaf %u (depth %d) is deeper than its radiance site %u (depth %d, "
+                                "lattice depth %d, scene triangle %u at %.17g, %.17g)",
+                                l, leaf, (int)ln->depth, st->vid, (int)st->depth, lattice_depth(st->w1, st->w2),
+                                st->tri, st->w1, st->w2);
                     break;
                 }
                 int u = uniform_V(m, ln); /* read before the split: the pool may move */

@@ -56,6 +56,7 @@ void cache_source_free(cache_source_state *st)
     free(st->cut_heap);
     free(st->imp_max);
     free(st->imp_sum);
+    free(st->imp_sub);
     free(st->grown);
     free(st->pilot_vid);
     free(st->pilot_count);
@@ -70,7 +71,7 @@ size_t cache_source_bytes(const cache_source_state *st)
     return st->cut_cap * (sizeof *st->cut_err + sizeof *st->cut_open + sizeof *st->cut_heap) +
            (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (6 * sizeof(float) + 1) +
            st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf +
-           st->imp_cap * 2 * sizeof(float) + st->grown_cap * sizeof(uint32_t) +
+           st->imp_cap * 3 * sizeof(float) + st->grown_cap * sizeof(uint32_t) +
            st->pilot_cap * (2 + CACHE_IMPORTANCE_RAYS * 2) * sizeof(uint32_t);
 }
 
@@ -137,15 +138,25 @@ static struct source_pick heap_pop(struct source_pick *h, uint32_t *n)
 
 /* What an error over a node weighs when the cut is chosen: its importance once
  * any is known (a node nothing visible gathers from weighs nothing beyond a
- * trace of its area, so ties still open the larger), its area before. */
+ * trace of its area, so ties still open the larger), its area before.
+ * The importance of a node is what was recorded anywhere inside it (imp_sub:
+ * the cut opens from the roots, and hits recorded at a fine cut are inside
+ * the coarse nodes it must open first), or its area's share of an ancestor's
+ * where that is more (a node nothing was recorded in yet). With the node's own
+ * records only, a root whose hits were all recorded at its descendants weighed
+ * what its few early gathers gave it: the cut left it closed, the gathers then
+ * recorded at it and the next cut opened it again — the indirect light of
+ * CornellBox-Original dipped by a quarter and back while refining
+ * (docs/cache.md, "A dip of the indirect source"). */
 static float cut_weight(const cache *c, uint32_t node)
 {
     const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
     float area = (float)(c->s->tri_areas[n->tri] * ldexp(1.0, -2 * (int)n->depth));
     if (!c->src.imp_any) return area;
-    float imax, isum;
-    cache_node_importance(c, node, &imax, &isum);
-    return isum + 1e-9f * area;
+    float sub = 0.0f, share = 1.0f;
+    for (uint32_t a = node; a != MESH_QMESH_NONE; a = mesh_qmesh_node(c->direct, a)->parent, share *= 0.25f)
+        if (a < c->src.imp_cap) sub = fmaxf(sub, c->src.imp_sub[a] * share);
+    return sub + 1e-9f * area;
 }
 
 /* Marks in c->src.cut_open the nodes the cut opens. */
@@ -959,10 +970,12 @@ static lm_result grow_importance(cache_source_state *st, uint32_t limit, lm_erro
     if (limit <= st->imp_cap) return LM_OK;
     size_t cap = lm_grow_capacity(st->imp_cap, limit, 1024, SIZE_MAX / sizeof(float));
     if (!cap || !lm_realloc_array(&st->imp_max, st->imp_cap, cap, sizeof *st->imp_max) ||
-        !lm_realloc_array(&st->imp_sum, st->imp_cap, cap, sizeof *st->imp_sum))
+        !lm_realloc_array(&st->imp_sum, st->imp_cap, cap, sizeof *st->imp_sum) ||
+        !lm_realloc_array(&st->imp_sub, st->imp_cap, cap, sizeof *st->imp_sub))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source's importance");
     memset(st->imp_max + st->imp_cap, 0, (cap - st->imp_cap) * sizeof *st->imp_max);
     memset(st->imp_sum + st->imp_cap, 0, (cap - st->imp_cap) * sizeof *st->imp_sum);
+    memset(st->imp_sub + st->imp_cap, 0, (cap - st->imp_cap) * sizeof *st->imp_sub);
     st->imp_cap = cap;
     return LM_OK;
 }
@@ -1023,6 +1036,8 @@ lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n,
             uint32_t node = st->leaf_buf[st->pilot_tri[at]].leaf;
             float w = st->pilot_weight[at] * g, before = st->imp_max[node];
             st->imp_sum[node] += px * w;
+            for (uint32_t a = node; a != MESH_QMESH_NONE; a = mesh_qmesh_node(c->direct, a)->parent)
+                st->imp_sub[a] += px * w;
             if (!(w > before)) continue;
             st->imp_max[node] = w;
             st->imp_any = 1;

@@ -56,7 +56,10 @@ static void on_sigint(int sig)
 /* converged: the cache's estimate is below the JND (cache_estimate_converged), at
  * the lowest JND it refines to (rend_session_desc.jnd_floor);
  * below-jnd: it was below the scene's JND, and the worker refines on to a lower one;
- * finished: nothing left it can do, yet its estimate is above the JND somewhere. */
+ * finished: nothing left it can do at the JND it refines to, yet its estimate is
+ * above that JND somewhere (below the scene's JND when it converged there before:
+ * the column jnd says which);
+ */
 typedef enum row_state { ROW_REFINING = 0, ROW_CONVERGED, ROW_NO_SNAPSHOT, ROW_FINISHED, ROW_BELOW_JND } row_state;
 static const char *const state_names[] = {"refining", "converged", "no-snapshot", "finished", "below-jnd"};
 
@@ -94,6 +97,7 @@ typedef struct conv_ctx {
     int time_count;
     double seconds;           /* --seconds */
     int supersample;          /* --supersample: s×s samples a pixel in the measured images */
+    int accumulate;           /* --accumulate: k×k jittered draws of a converged snapshot */
     int tty;
     uint32_t light_count;     /* mesh columns: light_count + 3 */
     double first_image;       /* seconds from the scene loaded; < 0 until drawn */
@@ -275,7 +279,8 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
         }
         double now = lm_now_seconds() - t0;
         if (snap && snap->finished) {
-            row->state = snap->converged ? ROW_CONVERGED : ROW_FINISHED;
+            /* Converged at the JND it refined to last, or stopped above it. */
+            row->state = snap->converged && cache_estimate_converged(&snap->estimate) ? ROW_CONVERGED : ROW_FINISHED;
             if (c->converged_at < 0 && snap->converged) c->converged_at = snap->converged_at - t0;
             row->seconds = row->target > now ? row->target : now;
         } else {
@@ -284,7 +289,12 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
             row->seconds = now;
         }
         if (snap) snapshot_samples(c, snap, row);
-        r = rend_session_draw(rs, REND_SESSION_FINAL, cam, rgb, err);
+        /* A converged cache changes slowly: a resting view accumulates jittered
+         * frames of it (rend_session_draw_accumulated); the row is dated when
+         * that image is complete. While refining, one draw. */
+        int k = snap && snap->converged ? c->accumulate : 1;
+        r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, k, rgb, err);
+        if (k > 1) row->seconds = fmax(row->seconds, lm_now_seconds() - t0);
         c->frames++;
         rend_session_get_info(rs, &in);
         if (r == LM_OK) c->frame_times = in.times[REND_SESSION_FINAL];
@@ -452,6 +462,8 @@ static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_
     cJSON_AddNumberToObject(j, "height", c->h);
     cJSON_AddNumberToObject(j, "exposure", c->exposure);
     cJSON_AddNumberToObject(j, "seconds", c->seconds);
+    cJSON_AddNumberToObject(j, "supersample", c->supersample);
+    cJSON_AddNumberToObject(j, "accumulate", c->accumulate);
     cJSON_AddBoolToObject(j, "interrupted", interrupted != 0);
     if (c->first_image >= 0)
         cJSON_AddNumberToObject(j, "first_image_seconds", rounded(c->first_image, 1e-5));
@@ -526,7 +538,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     const char *ref_path = NULL, *dir = NULL, *sampler = NULL, *gl_name = NULL, *list = NULL, *camera = NULL,
                *stats_path = NULL;
     double seconds = 0;
-    long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT;
+    long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = 3;
     long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
     int vs_pt = 0, single = 0;
     app_opt opts[] = {
@@ -540,6 +552,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         {"--stats", NULL, APP_OPT_STRING, &stats_path},
         {"--seed", NULL, APP_OPT_INT, &seed, 0, 4294967295.0},
         {"--supersample", NULL, APP_OPT_INT, &supersample, 1, REND_FRAME_SUPERSAMPLE_MAX},
+        {"--accumulate", NULL, APP_OPT_INT, &accumulate, 1, REND_SESSION_ACCUMULATE_MAX},
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
         {"--gl", NULL, APP_OPT_STRING, &gl_name},
     };
@@ -560,6 +573,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     c.dir = dir;
     c.seconds = seconds;
     c.supersample = (int)supersample;
+    c.accumulate = (int)accumulate;
     c.first_image = c.converged_at = -1;
     if (!parse_times(list, seconds, c.times, &c.time_count))
         return app_usage_error(cmd, "--snapshots takes increasing positive seconds separated by commas, "

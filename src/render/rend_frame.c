@@ -50,6 +50,7 @@ struct rend_frame {
     GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
     GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
     unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
+    float jitter[2];                 /* rend_frame_set_jitter: output pixels, right and down */
     int comp_valid;                  /* the output holds the composite of the current inputs ... */
     unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
     GLuint mat_fbo, mat_tex, mat_depth; /* R32UI material codes */
@@ -488,6 +489,17 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
     double start = lm_now_seconds(), t0 = start;
     float vp[16];
     camera_viewproj(cam, f->sw, f->sh, camera_near(s), vp);
+    /* A jitter moves the samples by (jx, jy) pixels over the image, i.e. the image
+     * the other way under the sample grid: NDC x by −2·jx/width, y by +2·jy/height
+     * (image rows go down, NDC y up), row 3 (w_clip) added to rows 0 and 1.
+     * tests/rend_exact_test.c: a jitter of one pixel is the image shifted by one. */
+    if (f->jitter[0] != 0.0f || f->jitter[1] != 0.0f) {
+        float ax = -2.0f * f->jitter[0] / (float)w, ay = 2.0f * f->jitter[1] / (float)h;
+        for (int c = 0; c < 4; ++c) {
+            vp[c * 4 + 0] += ax * vp[c * 4 + 3];
+            vp[c * 4 + 1] += ay * vp[c * 4 + 3];
+        }
+    }
     GLint viewport[4], scissor_box[4], draw_fbo = 0;
     gl->GetIntegerv(GL_VIEWPORT, viewport);
     gl->GetIntegerv(GL_SCISSOR_BOX, scissor_box);
@@ -627,6 +639,14 @@ void rend_frame_set_components(rend_frame *f, unsigned components)
 }
 
 unsigned rend_frame_get_components(const rend_frame *f) { return f->components; }
+
+int rend_frame_get_supersample(const rend_frame *f) { return f->desc.supersample; }
+
+void rend_frame_set_jitter(rend_frame *f, float jx, float jy)
+{
+    f->jitter[0] = isfinite(jx) ? jx : 0.0f;
+    f->jitter[1] = isfinite(jy) ? jy : 0.0f;
+}
 
 lm_result rend_frame_set_emission(rend_frame *f, uint32_t material, const float le[3], lm_error *err)
 {

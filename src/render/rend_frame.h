@@ -145,6 +145,14 @@ void rend_frame_get_output(const rend_frame *f, rend_frame_output *out);
  * Applied at the next draw; the radiance images are kept. */
 void rend_frame_set_components(rend_frame *f, unsigned components);
 unsigned rend_frame_get_components(const rend_frame *f);
+/* Moves every sample of the next draws by (jx, jy) output pixels (right, down)
+ * from the s×s grid's centres: a sequence of jitters averaged over draws is a
+ * finer box filter (rend_session_draw_accumulated). The material and radiance
+ * images follow it like a camera move (drawn again when it changes). 0, 0 by
+ * default; values that are not finite are taken as 0. */
+void rend_frame_set_jitter(rend_frame *f, float jx, float jy);
+/* s of this renderer (desc.supersample resolved). */
+int rend_frame_get_supersample(const rend_frame *f);
 /* The emitted radiance the composite shows for `material` from the next draw on
  * (a light edit: the cache's direct values change through cache_set_light, the
  * emitter's own Le here). Needs gl's context current. */

@@ -266,6 +266,37 @@ lm_result rend_session_draw(rend_session *rs, rend_session_renderer_kind kind, c
     return r;
 }
 
+lm_result rend_session_draw_accumulated(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam,
+                                        int k, float *rgb, lm_error *err)
+{
+    if (!rgb) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_draw_accumulated: no image to write");
+    if (k <= 1) return rend_session_draw(rs, kind, cam, rgb, err);
+    if (k > REND_SESSION_ACCUMULATE_MAX) k = REND_SESSION_ACCUMULATE_MAX;
+    rend_frame *f;
+    lm_result r = rend_session_renderer(rs, kind, &f, err);
+    if (r != LM_OK) return r;
+    size_t n = (size_t)rs->info.width * (size_t)rs->info.height * 3;
+    float *one = malloc(n * sizeof *one);
+    if (!one) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", rs->info.width, rs->info.height);
+    /* The k×k offsets stratify one cell of the s×s grid: with the grid's own s×s
+     * points they make a regular (k·s)×(k·s) grid in every pixel. */
+    const float cell = 1.0f / (float)rend_frame_get_supersample(f);
+    double sum_seconds = 0.0;
+    for (int i = 0; r == LM_OK && i < k * k; ++i) {
+        float jx = (((float)(i % k) + 0.5f) / (float)k - 0.5f) * cell, jy = (((float)(i / k) + 0.5f) / (float)k - 0.5f) * cell;
+        rend_frame_set_jitter(f, jx, jy);
+        r = rend_session_draw(rs, kind, cam, i == 0 ? rgb : one, err);
+        sum_seconds += rs->info.times[kind].total;
+        for (size_t j = 0; r == LM_OK && i > 0 && j < n; ++j) rgb[j] += one[j];
+    }
+    rend_frame_set_jitter(f, 0.0f, 0.0f);
+    const float scale = 1.0f / (float)(k * k);
+    for (size_t j = 0; r == LM_OK && j < n; ++j) rgb[j] *= scale;
+    rs->info.times[kind].total = sum_seconds;
+    free(one);
+    return r;
+}
+
 void rend_session_get_info(const rend_session *rs, rend_session_info *out)
 {
     if (!out) return;

@@ -172,6 +172,17 @@ void rend_session_drop_renderer(rend_session *rs, rend_session_renderer_kind kin
 lm_result rend_session_draw(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam, float *rgb,
                             lm_error *err);
 
+/* The last acquired snapshot drawn k×k times by renderer `kind`, each with the
+ * sample grid moved by one of k×k offsets that stratify a cell of the s×s grid
+ * (rend_frame_set_jitter), averaged into rgb (width·height·3 floats, required):
+ * a (k·s)×(k·s) box filter per pixel, the anti-aliasing of a still view without
+ * the memory of a larger s (docs/renderer.md). k ≤ 1 is rend_session_draw;
+ * k is at most REND_SESSION_ACCUMULATE_MAX. Costs k² draws, each a full redraw;
+ * info.times[kind].total is their sum. */
+enum { REND_SESSION_ACCUMULATE_MAX = 8 };
+lm_result rend_session_draw_accumulated(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam,
+                                        int k, float *rgb, lm_error *err);
+
 typedef struct rend_session_info {
     int width, height;              /* pixels of the ID pass and the renderers */
     uint64_t id_passes;             /* ID passes run */
