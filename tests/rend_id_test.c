@@ -6,7 +6,8 @@
  *   - GPU counting and read-back counting give identical pixels per triangle;
  *   - the counts sum to the covered pixels, the visible list is exactly the
  *     triangles with pixels;
- *   - a camera looking away from everything sees nothing.
+ *   - a camera looking away from everything sees nothing;
+ *   - camera_triangle_pixels (no GL, no occlusion) guesses at least the counts.
  * Prints the time of both counting modes at 640×480.
  */
 #include <math.h>
@@ -104,6 +105,27 @@ static void check_scene(const GladGLContext *gl, const char *name)
     CHECK(sum == rc.covered && nvis == rc.visible_count);
     for (uint32_t i = 0; i + 1 < rc.visible_count; ++i) CHECK(rc.visible[i] < rc.visible[i + 1]);
 
+    /* The guess without GL (camera_triangle_pixels: projected areas, no
+     * occlusion) is at least each triangle's count, up to the rasterizer's
+     * rounding along its edges, and the triangles nothing hides get their count. */
+    uint32_t *guess = malloc(s->tri_count * sizeof *guess);
+    CHECK(guess != NULL);
+    uint64_t guessed = 0;
+    int below = 0, matched = 0, whole = 0;
+    for (uint32_t t = 0; guess && t < s->tri_count; ++t) {
+        if (t == 0) camera_triangle_pixels(s, cam, W, H, guess);
+        guessed += guess[t];
+        double slack = 2.0 * sqrt((double)guess[t]) + 4.0;
+        below += rc.pixels[t] > guess[t] + slack;
+        if (rc.pixels[t] > 100 && fabs((double)rc.pixels[t] - guess[t]) <= slack) matched++;
+        whole += rc.pixels[t] > 100;
+    }
+    printf("  guessed pixels: %llu over all triangles (%llu covered); %d triangles above their guess, %d of %d "
+           "large ones match it\n",
+           (unsigned long long)guessed, (unsigned long long)rc.covered, below, matched, whole);
+    CHECK(below == 0 && guessed >= rc.covered);
+    CHECK(matched > 0);
+
     /* Looking away from the box into the void. */
     scene_camera away = *cam;
     for (int k = 0; k < 3; ++k) away.target[k] = 2.0f * cam->position[k] - cam->target[k];
@@ -113,6 +135,11 @@ static void check_scene(const GladGLContext *gl, const char *name)
     CHECK(rend_id_render(gpu, &away, &ra, &err) == LM_OK);
     CHECK_MSG(ra.covered == 0 && ra.visible_count == 0, "looking away: %llu pixels covered",
               (unsigned long long)ra.covered);
+    guessed = 0;
+    if (guess) camera_triangle_pixels(s, &away, W, H, guess);
+    for (uint32_t t = 0; guess && t < s->tri_count; ++t) guessed += guess[t];
+    CHECK_MSG(guessed == 0, "looking away: %llu pixels guessed", (unsigned long long)guessed);
+    free(guess);
 
     /* Speed of both counting modes at 640×480 (printed, not asserted). */
     rend_id *big[2] = {NULL, NULL};

@@ -260,6 +260,32 @@ done:
     rend_id_destroy(after);
 }
 
+/* first_budget: the first snapshot has been refined by the camera's guessed
+ * pixel counts, and refinement goes on before the ID pass. */
+static void test_first_budget(glctx *ctx, const scene *s)
+{
+    enum { BUDGET = 64 };
+    lm_error err = {{0}};
+    rend_session *rs = NULL;
+    lm_result r = rend_session_create(&(rend_session_desc){.scene = s, .order = REND_SESSION_WORKER_FIRST,
+                                                           .gl = glctx_gl(ctx), .camera = &s->cameras[0],
+                                                           .width = W, .height = H, .first_budget = BUDGET,
+                                                           .max_tested = 4 * BUDGET, .sampler = k_sampler},
+                                      &rs, &err);
+    CHECK_MSG(r == LM_OK, "%s", err.msg);
+    if (r != LM_OK) return;
+    const cache_snapshot *snap = NULL;
+    r = rend_session_wait(rs, &(rend_session_wait_desc){.first = 1, .nap = 0.001}, &snap, &err);
+    uint64_t first = snap ? snap->tested : 0;
+    CHECK_MSG(r == LM_OK && snap && first > 0 && first <= BUDGET, "first snapshot: %llu leaves tested",
+              (unsigned long long)first);
+    r = rend_session_wait(rs, &(rend_session_wait_desc){.until = lm_now_seconds() + 60}, &snap, &err);
+    CHECK_MSG(r == LM_OK && snap && snap->finished && snap->tested == 4 * BUDGET,
+              "before the ID pass: %llu leaves tested", snap ? (unsigned long long)snap->tested : 0ull);
+    rend_session_destroy(rs);
+    CHECK(glctx_make_current(ctx, &err) == LM_OK);
+}
+
 int main(void)
 {
     lm_error err = {{0}};
@@ -281,6 +307,7 @@ int main(void)
         test_id_first(glctx_gl(ctx), s, want, got);
         CHECK(glctx_make_current(ctx, &err) == LM_OK); /* the session made and released its own */
         test_worker_first(ctx, s, want, got);
+        test_first_budget(ctx, s);
     }
     free(want);
     free(got);

@@ -57,6 +57,7 @@ struct cache_worker {
     int new_eye_set;                  /* ... when this is non-zero */
     samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
     cache_estimate estimate;          /* the worker's: the last error estimate, and when it was made */
+    uint64_t first_tested;            /* the worker's: leaves tested before the first publication */
     double estimate_at;
 };
 
@@ -233,12 +234,20 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
         r = cache_create(&cd, c, err);
     }
     if (r == LM_OK) r = cache_init(*c, err);
+    /* A few rounds before the first image, by the pixel counts given at creation
+     * (measured in docs/renderer.md, "The first image"). */
+    if (r == LM_OK && w->desc.first_budget && w->pixels) {
+        cache_refine_result res;
+        r = cache_refine(*c, &(cache_refine_desc){.pixels = w->pixels, .budget = w->desc.first_budget}, &res, err);
+        if (r == LM_OK) w->first_tested = res.tested;
+    }
     pthread_mutex_lock(&w->lock);
     int debug = w->debug_wanted;
     pthread_mutex_unlock(&w->lock);
     if (r == LM_OK) r = cache_estimate_error(*c, w->pixels, &w->estimate, err);
     w->estimate_at = lm_now_seconds();
-    if (r == LM_OK) r = fill_snapshot(w->back, *c, &w->estimate, debug, ++*generation, 0, 0, buf, buf_cap, err);
+    if (r == LM_OK)
+        r = fill_snapshot(w->back, *c, &w->estimate, debug, ++*generation, w->first_tested, 0, buf, buf_cap, err);
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
     if (r == LM_OK) commit(w);
     if (r == LM_OK && !w->desc.no_quick_start) samp_get_stats(first, &w->quick_stats);
@@ -282,8 +291,9 @@ static void *worker_main(void *arg)
     cache *c = NULL;
     mesh_qmesh_tri *buf = NULL;
     size_t buf_cap = 0;
-    uint64_t generation = 0, tested = 0;
+    uint64_t generation = 0;
     lm_result r = start_cache(w, &sp, &c, &generation, &buf, &buf_cap, &err);
+    uint64_t tested = w->first_tested;
     int idle = 0; /* converged or max_tested reached: wait for an edit */
     /* Never plateau (desc.jnd_floor): the cache's own JND, and whether it has
      * converged there since the last edit or view. */

@@ -8,6 +8,7 @@
 
 #include "src/gpu/gl_context.h"
 #include "src/render/rend_id.h"
+#include "src/scene/camera.h"
 
 struct rend_session {
     rend_session_desc d;              /* defaults applied; d.camera points at cam */
@@ -69,7 +70,7 @@ static lm_result make_context(rend_session *rs, lm_error *err)
     return r;
 }
 
-static lm_result make_worker(rend_session *rs, const uint32_t *pixels, lm_error *err)
+static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t first_budget, lm_error *err)
 {
     const rend_session_desc *d = &rs->d;
     cache_desc cd = {.single_mesh = d->single_mesh};
@@ -79,6 +80,7 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, lm_error 
     }
     return cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels = pixels,
                                                     .pixels_later = pixels == NULL, .max_tested = d->max_tested,
+                                                    .first_budget = first_budget,
                                                     .publish_debug = d->publish_debug, .cache = cd,
                                                     .jnd_floor = d->jnd_floor > 0 ? d->jnd_floor : 0},
                                &rs->wk, err);
@@ -124,9 +126,19 @@ lm_result rend_session_create(const rend_session_desc *desc, rend_session **out,
         rend_id_result ids;
         r = make_context(rs, err);
         if (r == LM_OK) r = id_pass(rs, &rs->cam, &ids, err);
-        if (r == LM_OK) r = make_worker(rs, ids.pixels, err);
+        if (r == LM_OK) r = make_worker(rs, ids.pixels, 0, err);
+    } else if (d.first_budget && d.camera && d.width > 0 && d.height > 0) {
+        /* No ID pass yet: the triangles' projected areas stand in for its counts,
+         * so the first image already has rounds of refinement (and refinement
+         * goes on before the ID pass corrects the counts). */
+        uint32_t *guess = malloc((d.scene->tri_count ? d.scene->tri_count : 1) * sizeof *guess);
+        if (!guess) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory guessing the pixels per triangle");
+        if (r == LM_OK) camera_triangle_pixels(d.scene, d.camera, d.width, d.height, guess);
+        if (r == LM_OK) r = make_worker(rs, guess, d.first_budget, err);
+        free(guess);
+        if (r == LM_OK) r = make_context(rs, err);
     } else {
-        r = make_worker(rs, NULL, err);
+        r = make_worker(rs, NULL, 0, err);
         if (r == LM_OK) r = make_context(rs, err);
     }
     if (r != LM_OK) {

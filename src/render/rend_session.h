@@ -74,6 +74,10 @@ extern "C" {
  * at the cache's JND (ΔE 2) it halves it four times, so a still view keeps
  * sharpening (docs/cache.md "Never plateau"). */
 #define REND_SESSION_JND_FLOOR_DEFAULT 0.125f
+/* What converge and view ask for as rend_session_desc.first_budget: leaves tested
+ * before the first image (docs/renderer.md, "The first image": on
+ * CornellBox-Original at 640×480 mean ΔE 13.6 → 1.3 for 5–10 ms more). */
+#define REND_SESSION_FIRST_BUDGET_VIEWER 320u
 
 typedef enum rend_session_order {
     REND_SESSION_ID_FIRST = 0,  /* default; needs desc.camera */
@@ -104,6 +108,10 @@ typedef struct rend_session_desc {
     uint64_t max_tested;           /* the worker stops after this many leaf tests; 0 = no limit */
     int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
     int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */
+    uint32_t first_budget;         /* WORKER_FIRST with a camera and a size: leaves the worker tests before
+                                      its first snapshot, by pixel counts guessed from the camera
+                                      (camera_triangle_pixels), and it refines on by them until the ID
+                                      pass: a first image with shadows (docs/renderer.md); 0 = none */
     float jnd_floor;               /* ΔE: after converging, the worker refines on to this JND
                                       (cache_worker_desc.jnd_floor); 0 = REND_SESSION_JND_FLOOR_DEFAULT;
                                       < 0: it stops at the cache's JND */

@@ -2,6 +2,7 @@
 #include "src/scene/camera.h"
 
 #include <math.h>
+#include <string.h>
 
 #include "src/base/vecmath.h"
 
@@ -68,3 +69,62 @@ float camera_near(const scene *s)
     double n = 1e-5 * e;
     return n > 1e-30 ? (float)n : 1e-30f;
 }
+
+/* Sutherland–Hodgman: the part of polygon in[0..n) (2D or 3D points, `dim`
+ * doubles each) where dot(coef, p) + c >= 0; at most n + 1 points out. */
+static int clip_polygon(const double *in, int n, int dim, const double *coef, double c, double *out)
+{
+    int m = 0;
+    for (int i = 0; i < n; ++i) {
+        const double *a = in + dim * i, *b = in + dim * ((i + 1) % n);
+        double da = c, db = c;
+        for (int k = 0; k < dim; ++k) {
+            da += coef[k] * a[k];
+            db += coef[k] * b[k];
+        }
+        if (da >= 0.0) {
+            for (int k = 0; k < dim; ++k) out[dim * m + k] = a[k];
+            ++m;
+        }
+        if ((da >= 0.0) != (db >= 0.0)) {
+            double t = da / (da - db);
+            for (int k = 0; k < dim; ++k) out[dim * m + k] = a[k] + t * (b[k] - a[k]);
+            ++m;
+        }
+    }
+    return m;
+}
+
+void camera_triangle_pixels(const scene *s, const scene_camera *cam, int width, int height, uint32_t *pixels)
+{
+    frame c = camera_frame(cam);
+    const double ty = c.tan_half_fov, tx = ty * (double)width / (double)height, near = camera_near(s);
+    const double keep_front[3] = {0.0, 0.0, 1.0};
+    const double edges[4][3] = {{1, 0, 0}, {-1, 0, (double)width}, {0, 1, 0}, {0, -1, (double)height}};
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        double view[3 * 4], clipped[3 * 4], screen[2 * 8], tmp[2 * 8];
+        for (int k = 0; k < 3; ++k) {
+            lm_dvec3 d = dv3_sub(dv3_load(s->positions + 3 * (size_t)s->tris[t].v[k]), c.pos);
+            view[3 * k] = dv3_dot(d, c.right);
+            view[3 * k + 1] = dv3_dot(d, c.up);
+            view[3 * k + 2] = dv3_dot(d, c.fwd);
+        }
+        int n = clip_polygon(view, 3, 3, keep_front, -near, clipped);
+        for (int k = 0; k < n; ++k) { /* pixels from the top-left corner, as camera_ray_dir */
+            screen[2 * k] = 0.5 * (clipped[3 * k] / (clipped[3 * k + 2] * tx) + 1.0) * width;
+            screen[2 * k + 1] = 0.5 * (1.0 - clipped[3 * k + 1] / (clipped[3 * k + 2] * ty)) * height;
+        }
+        for (int e = 0; e < 4 && n > 0; ++e) {
+            n = clip_polygon(screen, n, 2, edges[e], edges[e][2], tmp);
+            memcpy(screen, tmp, sizeof(double) * 2 * (size_t)n);
+        }
+        double area = 0.0;
+        for (int k = 0; k < n; ++k) {
+            const double *a = screen + 2 * k, *b = screen + 2 * ((k + 1) % n);
+            area += a[0] * b[1] - b[0] * a[1];
+        }
+        area = fabs(0.5 * area);
+        pixels[t] = area >= (double)width * height ? (uint32_t)width * (uint32_t)height : (uint32_t)(area + 0.5);
+    }
+}
+

@@ -55,6 +55,13 @@ camera_basis camera_basis_make(const scene_camera *cam, int width, int height);
  * sx = 2x/W − 1, sy = 1 − 2y/H. */
 lm_vec3 camera_ray_dir(const camera_basis *b, float x, float y);
 
+/* Pixels each scene triangle covers in a width × height image from cam, before
+ * occlusion: the triangle clipped to the near plane and the image, its projected
+ * area rounded (both sides count: surfaces are seen from either). A guess of the
+ * ID pass's counts without GL, to refine by before that pass has run (the first
+ * image: rend_session); pixels holds s->tri_count values. */
+void camera_triangle_pixels(const scene *s, const scene_camera *cam, int width, int height, uint32_t *pixels);
+
 /* A near plane for a scene seen from this camera: small against the scene's
  * extent (1e-5 of it), never 0. */
 float camera_near(const scene *s);

@@ -109,6 +109,20 @@ static lm_result start_session(view_state *v, lm_error *err)
     d.camera = NULL;
     d.width = d.height = 0;
     d.order = REND_SESSION_WORKER_FIRST;
+    /* The first image with shadows (rend_session_desc.first_budget): the scene's
+     * camera at the framebuffer's size guesses the pixel counts until the first
+     * ID pass. */
+    scene_camera first = v->s->cameras[v->camera_index < v->s->camera_count ? v->camera_index : 0];
+    int fw = 0, fh = 0;
+    view_window_framebuffer_size(v->win, &fw, &fh);
+    if (fw > 0 && fh > 0 && v->s->camera_count > 0) {
+        first.width = fw;
+        first.height = fh;
+        d.camera = &first;
+        d.width = fw;
+        d.height = fh;
+        d.first_budget = REND_SESSION_FIRST_BUDGET_VIEWER;
+    }
     d.gl = v->gl;
     d.supersample = 1;
     d.publish_debug = v->overlay != 0;
