@@ -7,6 +7,8 @@
  *   - a camera move through the worker (set_view): the specular mesh starts again
  *     for the new eye (its values there change), the direct mesh keeps every node;
  *   - debug data switched on and off on a finished worker: published at once;
+ *   - AUTO: refinement starts with Embree and the calibration waits for the first
+ *     convergence (with a JND floor), as the snapshots' sampler choice says;
  *   - destroy while refining (a bigger scene): joins cleanly (ASan: nothing leaks).
  */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
@@ -140,6 +142,42 @@ static void test_set_view(const uint32_t *pixels)
 
 static scene *load(void) { return load_json("worker.json", "{\"kd\": [0.6, 0.6, 0.6]}"); }
 
+/* AUTO (samp.h) with a JND floor: refinement starts at once with Embree (no
+ * snapshot waits for a calibration), the calibration comes after the first
+ * convergence, and the snapshots say so in their sampler's choice. */
+static void test_auto_deferred(const scene *s, const uint32_t *pixels)
+{
+    static const char before[] = "auto: Embree at its defaults until the first convergence, calibrated then";
+    lm_error err;
+    cache_worker *w = NULL;
+    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .pixels = pixels, .jnd_floor = 1.0f,
+                                                   .sampler = {.backend = SAMP_BACKEND_AUTO, .seed = 2, .threads = 1,
+                                                               .direct_target_error = 0.02f,
+                                                               .indirect_target_error = 0.02f}},
+                              &w, &err) == LM_OK);
+    const cache_snapshot *snap = NULL;
+    uint64_t gen = 0, refined_before = 0;
+    int wrong_before = 0, calibrated = 0;
+    double t0 = lm_now_seconds();
+    while (w && lm_now_seconds() - t0 < 120.0) {
+        snap = wait_newer(w, gen);
+        if (!snap || snap->failed) break;
+        gen = snap->generation;
+        if (!snap->converged && snap->tested > 0) { /* refining, not yet converged: Embree, no calibration */
+            refined_before = snap->tested;
+            wrong_before += snap->sampler.backend != SAMP_BACKEND_EMBREE || strcmp(snap->sampler.choice, before) != 0;
+        }
+        calibrated |= strstr(snap->sampler.choice, "calibrated in") != NULL;
+        if (snap->finished) break;
+    }
+    printf("auto, deferred: %llu leaves tested before converging, with Embree; then: %s\n",
+           (unsigned long long)refined_before, snap ? snap->sampler.choice : "(no snapshot)");
+    CHECK(snap && snap->finished && !snap->failed && snap->jnd == 1.0f);
+    CHECK(refined_before > 0 && wrong_before == 0);
+    CHECK_MSG(calibrated, "no calibration after converging: %s", snap ? snap->sampler.choice : "");
+    cache_worker_destroy(w);
+}
+
 
 int main(void)
 {
@@ -249,6 +287,7 @@ int main(void)
         cache_worker_destroy(w); /* mid-refinement: must cancel and join */
     }
     test_set_view(pixels);
+    test_auto_deferred(s, pixels);
     free(buf);
     free(pixels);
     cache_destroy(c);

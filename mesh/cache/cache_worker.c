@@ -58,6 +58,13 @@ struct cache_worker {
     samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
     cache_estimate estimate;          /* the worker's: the last error estimate, and when it was made */
     uint64_t first_tested;            /* the worker's: leaves tested before the first publication */
+    /* The worker's: AUTO's calibration, deferred to the first convergence; the
+     * Embree sampler it replaced, kept until the calibrated one has shown its cost
+     * on the cache's own samples (calibrated_check). */
+    int calibrate_later;
+    samp_sampler *fallback;
+    double fallback_cost[2];          /* seconds per direct / indirect point of the fallback; 0: none */
+    char calibration_note[512];       /* AUTO: the snapshots' sampler choice (what was decided, and why) */
     double estimate_at;
 };
 
@@ -209,10 +216,11 @@ static void publish_failure(cache_worker *w, uint64_t generation, const char *ms
 /* ---- the worker thread ---------------------------------------------------------- */
 
 /* The first snapshot as early as possible: the coarse cache is made with a quick
- * Embree sampler (no calibration, few gather rays), published, and only then is
- * the sampler the client asked for made (AUTO calibrates: hundreds of ms) and the
- * coarse indirect gathered again with it. The display has its first image
- * (full geometry, coarse light) while the worker calibrates. */
+ * Embree sampler (no calibration, few gather rays), refined by first_budget
+ * leaves, published, and only then is the sampler the client asked for made and
+ * the coarse indirect gathered again with it. AUTO starts with Embree at its
+ * defaults and calibrates after the first convergence (calibrate_now), so no
+ * refinement waits for a calibration (issue 14; docs/renderer.md). */
 static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint64_t *generation, mesh_qmesh_tri **buf,
                              size_t *buf_cap, lm_error *err)
 {
@@ -255,7 +263,17 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
         *sp = first;
         return r;
     }
-    if (r == LM_OK) r = samp_create(&sd, sp, err);
+    /* AUTO: refinement starts at once with Embree at its default ray counts (it
+     * needs no calibration); the calibration comes once the cache has converged
+     * (calibrate_later, below), so no refinement waits for it. */
+    samp_desc start = sd;
+    if (sd.backend == SAMP_BACKEND_AUTO) {
+        start.backend = SAMP_BACKEND_EMBREE;
+        w->calibrate_later = 1;
+        snprintf(w->calibration_note, sizeof w->calibration_note,
+                 "auto: Embree at its defaults until the first convergence, calibrated then");
+    }
+    if (r == LM_OK) r = samp_create(&start, sp, err);
     if (r == LM_OK) cache_set_sampler(*c, *sp);
     if (r == LM_OK) r = cache_regather_indirect(*c, err);
     if (*c && r != LM_OK) cache_set_sampler(*c, NULL);
@@ -281,6 +299,72 @@ static lm_result take_pixels(cache_worker *w, cache *c, int *taken, lm_error *er
     w->pixels = p;
     lm_result r = eye_set ? cache_set_camera(c, eye, err) : LM_OK;
     return r == LM_OK ? cache_requeue(c, err) : r;
+}
+
+enum { CHECK_DIRECT_POINTS = 256, CHECK_INDIRECT_POINTS = 64 }; /* what the calibrated sampler serves before its check */
+#define CHECK_SLOWER 1.5 /* slower than the fallback by more than this: back to the fallback */
+
+static double cost_per_point(double seconds, uint64_t points) { return points ? seconds / (double)points : 0.0; }
+
+/* The deferred calibration (AUTO, at the first convergence): a calibrated sampler
+ * that picks what the running Embree sampler is (both back ends Embree, the same
+ * gather rays) is dropped; another replaces it, the Embree one kept as fallback. */
+static lm_result calibrate_now(cache_worker *w, cache *c, samp_sampler **sp, lm_error *err)
+{
+    w->calibrate_later = 0;
+    samp_desc sd = w->desc.sampler;
+    sd.scene = w->s;
+    samp_sampler *cal = NULL;
+    lm_result r = samp_create(&sd, &cal, err);
+    if (r != LM_OK) return r;
+    samp_stats cs, run;
+    samp_get_stats(cal, &cs);
+    samp_get_stats(*sp, &run);
+    if (cs.backend == SAMP_BACKEND_EMBREE && cs.indirect_backend == SAMP_BACKEND_EMBREE &&
+        samp_indirect_rays(cal) == samp_indirect_rays(*sp)) {
+        snprintf(w->calibration_note, sizeof w->calibration_note,
+                 "auto: Embree at its defaults until the first convergence; then %.380s: the same, kept", cs.choice);
+        samp_destroy(cal);
+        return LM_OK;
+    }
+    w->fallback = *sp;
+    w->fallback_cost[0] = cost_per_point(run.direct_seconds, run.direct_samples);
+    w->fallback_cost[1] = cost_per_point(run.indirect_seconds, run.indirect_samples);
+    *sp = cal;
+    cache_set_sampler(c, cal);
+    snprintf(w->calibration_note, sizeof w->calibration_note,
+             "auto: Embree at its defaults until the first convergence; then %.380s: in use, on trial", cs.choice);
+    return LM_OK;
+}
+
+/* The calibrated sampler's cost on the cache's own samples against the Embree
+ * sampler it replaced: a calibration timed under load may have picked a slower
+ * back end (issue 14). Slower by CHECK_SLOWER: back to Embree. */
+static void calibrated_check(cache_worker *w, cache *c, samp_sampler **sp)
+{
+    samp_stats st;
+    samp_get_stats(*sp, &st);
+    if (st.direct_samples < CHECK_DIRECT_POINTS && st.indirect_samples < CHECK_INDIRECT_POINTS) return;
+    double now[2] = {cost_per_point(st.direct_seconds, st.direct_samples),
+                     cost_per_point(st.indirect_seconds, st.indirect_samples)};
+    int slower = 0;
+    for (int k = 0; k < 2; ++k)
+        slower |= now[k] > 0.0 && w->fallback_cost[k] > 0.0 && now[k] > CHECK_SLOWER * w->fallback_cost[k];
+    size_t len = strlen(w->calibration_note);
+    const char *trial = strstr(w->calibration_note, ": in use, on trial");
+    if (trial) len = (size_t)(trial - w->calibration_note);
+    snprintf(w->calibration_note + len, sizeof w->calibration_note - len,
+             "; on the cache's samples %.1f / %.1f us a direct / indirect point against Embree's %.1f / %.1f: %s",
+             1e6 * now[0], 1e6 * now[1], 1e6 * w->fallback_cost[0], 1e6 * w->fallback_cost[1],
+             slower ? "slower, back to Embree" : "kept");
+    if (slower) {
+        cache_set_sampler(c, w->fallback);
+        samp_destroy(*sp);
+        *sp = w->fallback;
+    } else {
+        samp_destroy(w->fallback);
+    }
+    w->fallback = NULL;
 }
 
 static void *worker_main(void *arg)
@@ -384,6 +468,7 @@ static void *worker_main(void *arg)
             r = cache_estimate_error(c, w->pixels, &w->estimate, &err);
             w->estimate_at = now;
         }
+        if (r == LM_OK && w->fallback) calibrated_check(w, c, &sp);
         if (r == LM_OK)
             r = fill_snapshot(w->back, c, &w->estimate, debug, ++generation, tested, reached, &buf, &buf_cap, &err);
         w->back->snap.finished = idle && !tighten;
@@ -393,13 +478,22 @@ static void *worker_main(void *arg)
             idle = 0;
         }
         if (r == LM_OK) samp_get_stats(sp, &w->back->snap.sampler);
+        if (r == LM_OK && w->calibration_note[0]) { /* AUTO, deferred: what happened, not "asked for" */
+            samp_stats *ss = &w->back->snap.sampler;
+            snprintf(ss->choice, sizeof ss->choice, "%s", w->calibration_note);
+        }
         w->back->snap.quick_sampler = w->quick_stats;
         if (r == LM_OK) commit(w);
+        /* After the snapshot of the first convergence, when refinement goes on past
+         * it (tighten): AUTO's deferred calibration. A worker that stops there
+         * never calibrates: the Embree sampler did the whole job. */
+        if (r == LM_OK && w->calibrate_later && tighten) r = calibrate_now(w, c, &sp, &err);
     }
     if (r != LM_OK) publish_failure(w, ++generation, err.msg);
     free(buf);
     cache_destroy(c);
     samp_destroy(sp);
+    samp_destroy(w->fallback);
     pthread_mutex_lock(&w->lock);
     w->finished = 1;
     pthread_cond_broadcast(&w->cond);
