@@ -309,14 +309,19 @@ static double cost_per_point(double seconds, uint64_t points) { return points ? 
 /* The deferred calibration (AUTO, at the first convergence): a calibrated sampler
  * that picks what the running Embree sampler is (both back ends Embree, the same
  * gather rays) is dropped; another replaces it, the Embree one kept as fallback. */
-static lm_result calibrate_now(cache_worker *w, cache *c, samp_sampler **sp, lm_error *err)
+static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
 {
     w->calibrate_later = 0;
     samp_desc sd = w->desc.sampler;
     sd.scene = w->s;
     samp_sampler *cal = NULL;
-    lm_result r = samp_create(&sd, &cal, err);
-    if (r != LM_OK) return r;
+    lm_error why;
+    if (samp_create(&sd, &cal, &why) != LM_OK) { /* refinement goes on with what it has */
+        snprintf(w->calibration_note, sizeof w->calibration_note,
+                 "auto: Embree at its defaults; the calibration after the first convergence failed (%.300s): kept",
+                 why.msg);
+        return;
+    }
     samp_stats cs, run;
     samp_get_stats(cal, &cs);
     samp_get_stats(*sp, &run);
@@ -325,7 +330,7 @@ static lm_result calibrate_now(cache_worker *w, cache *c, samp_sampler **sp, lm_
         snprintf(w->calibration_note, sizeof w->calibration_note,
                  "auto: Embree at its defaults until the first convergence; then %.380s: the same, kept", cs.choice);
         samp_destroy(cal);
-        return LM_OK;
+        return;
     }
     w->fallback = *sp;
     w->fallback_cost[0] = cost_per_point(run.direct_seconds, run.direct_samples);
@@ -334,7 +339,6 @@ static lm_result calibrate_now(cache_worker *w, cache *c, samp_sampler **sp, lm_
     cache_set_sampler(c, cal);
     snprintf(w->calibration_note, sizeof w->calibration_note,
              "auto: Embree at its defaults until the first convergence; then %.380s: in use, on trial", cs.choice);
-    return LM_OK;
 }
 
 /* The calibrated sampler's cost on the cache's own samples against the Embree
@@ -487,7 +491,7 @@ static void *worker_main(void *arg)
         /* After the snapshot of the first convergence, when refinement goes on past
          * it (tighten): AUTO's deferred calibration. A worker that stops there
          * never calibrates: the Embree sampler did the whole job. */
-        if (r == LM_OK && w->calibrate_later && tighten) r = calibrate_now(w, c, &sp, &err);
+        if (r == LM_OK && w->calibrate_later && tighten) calibrate_now(w, c, &sp);
     }
     if (r != LM_OK) publish_failure(w, ++generation, err.msg);
     free(buf);
