@@ -144,12 +144,13 @@ int main(void)
                worst);
         CHECK_MSG(worst < 1e-3, "jitter %s: %.3g from the shifted image", dir ? "down" : "right", worst);
     }
-    /* Accumulated: k×k draws whose offsets stratify one sub-pixel cell make a
+    /* Accumulated: k×k draws at rend_frame_jitter_pattern's offsets make a
      * (k·SS)² grid per pixel (rend_session_draw_accumulated's pattern): within the
      * JND of the exact mean over that grid. */
     enum { K = 2 };
     for (int i = 0; measured && moved && i < K * K; ++i) {
-        float jx = (((float)(i % K) + 0.5f) / K - 0.5f) / SS, jy = (((float)(i / K) + 0.5f) / K - 0.5f) / SS;
+        float jx, jy;
+        rend_frame_jitter_pattern(i, K, SS, &jx, &jy);
         rend_frame_set_jitter(f, jx, jy);
         CHECK(rend_frame_draw(f, &s->cameras[0], snap, i ? moved : img, &err) == LM_OK);
         for (size_t j = 0; i && j < (size_t)W * H * 3; ++j) img[j] += moved[j];

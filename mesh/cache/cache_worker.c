@@ -65,6 +65,7 @@ struct cache_worker {
     samp_sampler *fallback;
     double fallback_cost[2];          /* seconds per direct / indirect point of the fallback; 0: none */
     char calibration_note[512];       /* AUTO: the snapshots' sampler choice (what was decided, and why) */
+    char calibrated_choice[512];      /* AUTO: the calibration's own choice, while on trial */
     double estimate_at;
 };
 
@@ -328,7 +329,7 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
     if (cs.backend == SAMP_BACKEND_EMBREE && cs.indirect_backend == SAMP_BACKEND_EMBREE &&
         samp_indirect_rays(cal) == samp_indirect_rays(*sp)) {
         snprintf(w->calibration_note, sizeof w->calibration_note,
-                 "auto: Embree at its defaults until the first convergence; then %.380s: the same, kept", cs.choice);
+                 "auto: Embree at its defaults until the first convergence; then %.300s: the same, kept", cs.choice);
         samp_destroy(cal);
         return;
     }
@@ -337,8 +338,9 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
     w->fallback_cost[1] = cost_per_point(run.indirect_seconds, run.indirect_samples);
     *sp = cal;
     cache_set_sampler(c, cal);
+    snprintf(w->calibrated_choice, sizeof w->calibrated_choice, "%s", cs.choice);
     snprintf(w->calibration_note, sizeof w->calibration_note,
-             "auto: Embree at its defaults until the first convergence; then %.380s: in use, on trial", cs.choice);
+             "auto: Embree at its defaults until the first convergence; then %.300s: in use, on trial", cs.choice);
 }
 
 /* The calibrated sampler's cost on the cache's own samples against the Embree
@@ -354,12 +356,10 @@ static void calibrated_check(cache_worker *w, cache *c, samp_sampler **sp)
     int slower = 0;
     for (int k = 0; k < 2; ++k)
         slower |= now[k] > 0.0 && w->fallback_cost[k] > 0.0 && now[k] > CHECK_SLOWER * w->fallback_cost[k];
-    size_t len = strlen(w->calibration_note);
-    const char *trial = strstr(w->calibration_note, ": in use, on trial");
-    if (trial) len = (size_t)(trial - w->calibration_note);
-    snprintf(w->calibration_note + len, sizeof w->calibration_note - len,
-             "; on the cache's samples %.1f / %.1f us a direct / indirect point against Embree's %.1f / %.1f: %s",
-             1e6 * now[0], 1e6 * now[1], 1e6 * w->fallback_cost[0], 1e6 * w->fallback_cost[1],
+    snprintf(w->calibration_note, sizeof w->calibration_note,
+             "auto: Embree at its defaults until the first convergence; then %.300s; on the cache's samples %.1f / "
+             "%.1f us a direct / indirect point against Embree's %.1f / %.1f: %s",
+             w->calibrated_choice, 1e6 * now[0], 1e6 * now[1], 1e6 * w->fallback_cost[0], 1e6 * w->fallback_cost[1],
              slower ? "slower, back to Embree" : "kept");
     if (slower) {
         cache_set_sampler(c, w->fallback);

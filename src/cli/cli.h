@@ -62,6 +62,11 @@ typedef struct app_opt {
 int app_parse_options(const app_command *cmd, int argc, char **argv, app_opt *opts, int nopts,
                       const char **pos, int max_pos, int *npos);
 
+/* The progress bars of render, reference and converge: `fraction` (clamped to
+ * 0..1) of APP_PROGRESS_WIDTH characters as '#', the rest '.', into bar (NUL-ended). */
+enum { APP_PROGRESS_WIDTH = 30 };
+void app_progress_bar(double fraction, char bar[APP_PROGRESS_WIDTH + 1]);
+
 /* --sampler NAME and --gl NAME (render, converge, view; NULL: not given) into
  * the session's sampler back end and GL platform (rend_session.h), its other
  * fields left alone: APP_EXIT_OK, or a usage error printed and APP_EXIT_USAGE. */

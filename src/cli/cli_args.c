@@ -120,3 +120,11 @@ int app_session_options(const app_command *cmd, const char *sampler, const char 
         return app_usage_error(cmd, "--gl must be egl or osmesa, not '%s'", gl);
     return APP_EXIT_OK;
 }
+
+void app_progress_bar(double fraction, char bar[APP_PROGRESS_WIDTH + 1])
+{
+    double f = fraction > 1.0 ? 1.0 : fraction > 0.0 ? fraction : 0.0;
+    int filled = (int)(f * APP_PROGRESS_WIDTH + 0.5);
+    for (int i = 0; i < APP_PROGRESS_WIDTH; ++i) bar[i] = i < filled ? '#' : '.';
+    bar[APP_PROGRESS_WIDTH] = '\0';
+}

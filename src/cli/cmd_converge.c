@@ -138,11 +138,8 @@ static int parse_times(const char *list, double limit, double *out, int *count)
 static void progress(const conv_ctx *c, const char *method, double t, const conv_row *last, int final)
 {
     if (!c->tty) return;
-    char bar[31];
-    double f = t / c->seconds;
-    int filled = (int)((f > 1 ? 1 : f) * 30.0 + 0.5);
-    for (int i = 0; i < 30; ++i) bar[i] = i < filled ? '#' : '.';
-    bar[30] = 0;
+    char bar[APP_PROGRESS_WIDTH + 1];
+    app_progress_bar(t / c->seconds, bar);
     fprintf(stderr, "\r%-12s [%s] %6.2f/%.2f s", method, bar, t, c->seconds);
     if (last) fprintf(stderr, "  dE %.3f  relMSE %.3g   ", last->m.delta_e_mean, last->m.relmse);
     if (final) fputc('\n', stderr);
@@ -538,7 +535,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     const char *ref_path = NULL, *dir = NULL, *sampler = NULL, *gl_name = NULL, *list = NULL, *camera = NULL,
                *stats_path = NULL;
     double seconds = 0;
-    long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = 3;
+    long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
     int vs_pt = 0, single = 0;
     app_opt opts[] = {

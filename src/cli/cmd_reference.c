@@ -29,10 +29,8 @@ static void progress(const ref_renderer *r, double fraction, int final)
 {
     ref_stats st;
     ref_get_stats(r, &st);
-    char bar[31];
-    int filled = (int)(fraction * 30.0 + 0.5);
-    for (int i = 0; i < 30; ++i) bar[i] = i < filled ? '#' : '.';
-    bar[30] = '\0';
+    char bar[APP_PROGRESS_WIDTH + 1];
+    app_progress_bar(fraction, bar);
     fprintf(stderr, "\rreference [%s] %u spp  %.1f s  %.2f Mrays/s  rel. std. error %.3f%%   ", bar,
             st.min_samples, st.seconds, st.seconds > 0 ? st.rays / st.seconds * 1e-6 : 0.0,
             100.0 * st.mean_rel_stderr);

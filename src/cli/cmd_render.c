@@ -22,12 +22,7 @@
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 
-enum {
-    DEFAULT_SECONDS_LIMIT = 600,  /* without --seconds or --samples: until converged, at most this */
-    /* The last snapshot drawn k×k times with the sample grid moved (rend_session_draw_accumulated):
-     * the default s = 3 becomes a 9×9 box filter; measured in docs/renderer.md */
-    RENDER_ACCUMULATE_DEFAULT = 3
-};
+enum { DEFAULT_SECONDS_LIMIT = 600 }; /* without --seconds or --samples: until converged, at most this */
 
 /* The progress line on a terminal (stderr), as `lumesh reference` shows its own:
  * time against the limit, leaves tested, samples, and the cache's estimate of its
@@ -44,11 +39,9 @@ static void show_progress(void *user, const cache_snapshot *snap)
     if (!p->tty || !snap || now - p->last < 0.1) return;
     p->last = now;
     p->shown = 1;
-    double t = now - p->t0, f = p->limit > 0 ? t / p->limit : 0;
-    char bar[31];
-    int filled = (int)((f > 1 ? 1 : f) * 30.0 + 0.5);
-    for (int i = 0; i < 30; ++i) bar[i] = i < filled ? '#' : '.';
-    bar[30] = '\0';
+    double t = now - p->t0;
+    char bar[APP_PROGRESS_WIDTH + 1];
+    app_progress_bar(p->limit > 0 ? t / p->limit : 0, bar);
     uint64_t light = 0;
     for (uint32_t l = 0; l < snap->stats.light_count; ++l) light += snap->stats.lights[l].samples;
     fprintf(stderr, "\rrender [%s] %.1f s  %llu leaves  %llu light + %llu indirect samples  est. dE %.2f (JND %.3g)%s   ",
@@ -126,7 +119,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
                *components = NULL;
     double seconds = 0;
     long samples = 0, width = 0, height = 0, supersample = REND_FRAME_SUPERSAMPLE_DEFAULT,
-         accumulate = RENDER_ACCUMULATE_DEFAULT;
+         accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     int deterministic = 0;
     app_opt opts[] = {
         {"--output", "-o", APP_OPT_STRING, &out},

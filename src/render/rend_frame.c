@@ -642,6 +642,13 @@ unsigned rend_frame_get_components(const rend_frame *f) { return f->components; 
 
 int rend_frame_get_supersample(const rend_frame *f) { return f->desc.supersample; }
 
+void rend_frame_jitter_pattern(int i, int k, int s, float *jx, float *jy)
+{
+    const float cell = 1.0f / (float)s;
+    *jx = (((float)(i % k) + 0.5f) / (float)k - 0.5f) * cell;
+    *jy = (((float)(i / k) + 0.5f) / (float)k - 0.5f) * cell;
+}
+
 void rend_frame_set_jitter(rend_frame *f, float jx, float jy)
 {
     f->jitter[0] = isfinite(jx) ? jx : 0.0f;

@@ -151,6 +151,10 @@ unsigned rend_frame_get_components(const rend_frame *f);
  * images follow it like a camera move (drawn again when it changes). 0, 0 by
  * default; values that are not finite are taken as 0. */
 void rend_frame_set_jitter(rend_frame *f, float jx, float jy);
+/* Jitter i of the k×k pattern that stratifies one cell of an s×s grid (output
+ * pixels, centred: k = 1 gives 0, 0): with the grid's own points, k×k draws at
+ * these jitters sample a regular (k·s)×(k·s) grid in every pixel. i < k². */
+void rend_frame_jitter_pattern(int i, int k, int s, float *jx, float *jy);
 /* s of this renderer (desc.supersample resolved). */
 int rend_frame_get_supersample(const rend_frame *f);
 /* The emitted radiance the composite shows for `material` from the next draw on

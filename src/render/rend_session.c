@@ -291,12 +291,11 @@ lm_result rend_session_draw_accumulated(rend_session *rs, rend_session_renderer_
     size_t n = (size_t)rs->info.width * (size_t)rs->info.height * 3;
     float *one = malloc(n * sizeof *one);
     if (!one) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", rs->info.width, rs->info.height);
-    /* The k×k offsets stratify one cell of the s×s grid: with the grid's own s×s
-     * points they make a regular (k·s)×(k·s) grid in every pixel. */
-    const float cell = 1.0f / (float)rend_frame_get_supersample(f);
+    const int s = rend_frame_get_supersample(f);
     double sum_seconds = 0.0;
     for (int i = 0; r == LM_OK && i < k * k; ++i) {
-        float jx = (((float)(i % k) + 0.5f) / (float)k - 0.5f) * cell, jy = (((float)(i / k) + 0.5f) / (float)k - 0.5f) * cell;
+        float jx, jy;
+        rend_frame_jitter_pattern(i, k, s, &jx, &jy);
         rend_frame_set_jitter(f, jx, jy);
         r = rend_session_draw(rs, kind, cam, i == 0 ? rgb : one, err);
         sum_seconds += rs->info.times[kind].total;

@@ -188,7 +188,10 @@ lm_result rend_session_draw(rend_session *rs, rend_session_renderer_kind kind, c
  * the memory of a larger s (docs/renderer.md). k ≤ 1 is rend_session_draw;
  * k is at most REND_SESSION_ACCUMULATE_MAX. Costs k² draws, each a full redraw;
  * info.times[kind].total is their sum. */
-enum { REND_SESSION_ACCUMULATE_MAX = 8 };
+enum {
+    REND_SESSION_ACCUMULATE_MAX = 8,
+    REND_SESSION_ACCUMULATE_DEFAULT = 3 /* render's and converge's k: with s = 3 a 9×9 box filter (docs/renderer.md) */
+};
 lm_result rend_session_draw_accumulated(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam,
                                         int k, float *rgb, lm_error *err);
 
