@@ -307,4 +307,20 @@ lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh
     return LM_OK;
 }
 
+lm_result samp_surface_hits_trace(samp_sampler *sp, const samp_point *pts, uint32_t n, const samp_surface_hits *out,
+                                  lm_error *err)
+{
+    if (!sp || !out || (n && (!pts || !out->count || !out->tri || !out->bary)))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_surface_hits_trace: missing arguments");
+    uint32_t k = (uint32_t)floor(sqrt((double)out->rays));
+    if (out->rays < 1 || out->rays > 4096 || k * k != out->rays)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_surface_hits_trace: %u rays a point (a square, 1..4096)", out->rays);
+    if (!points_valid(pts, n))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_surface_hits_trace: non-finite point or normal");
+    double t0 = lm_now_seconds();
+    samp_surface_hits_run(sp->s, sp->rt, sp->desc.seed, sp->desc.threads, pts, n, out);
+    sp->stats.indirect_seconds += lm_now_seconds() - t0;
+    return LM_OK;
+}
+
 void samp_get_stats(const samp_sampler *sp, samp_stats *out) { *out = sp->stats; }

@@ -181,6 +181,28 @@ typedef struct samp_source_hits {
 lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                                 const samp_source_hits *out, lm_error *err);
 
+/* Where a receiver's cosine-weighted hemisphere lands (the cache's further
+ * bounces, docs/cache.md "Bounces"): rays = k² stratified cosine-weighted rays
+ * per point (k×k strata), traced with Embree whichever back end serves
+ * samp_indirect. Each hit on the FRONT of a scene triangle that `keep` accepts
+ * (NULL: every triangle) is recorded as the triangle and its barycentric (w1, w2);
+ * a miss, a back or a triangle not kept records nothing. Point i's hits are
+ * tri[i·rays + j] and bary[2·(i·rays + j) ..] for j < count[i]; each stands for
+ * 1/rays of the point's cosine-weighted hemisphere, so for any radiance L leaving
+ * the kept fronts E(x) ≈ π/rays·Σ_j L(hit j). Deterministic per point (its own
+ * random stream, not samp_indirect's). */
+typedef struct samp_surface_hits {
+    uint32_t rays;      /* per point: a square, 1..4096 */
+    uint32_t *count;    /* n */
+    uint32_t *tri;      /* n × rays */
+    float *bary;        /* n × rays × 2 */
+    int (*keep)(const scene *s, uint32_t tri, void *user); /* or NULL */
+    void *keep_user;
+} samp_surface_hits;
+
+lm_result samp_surface_hits_trace(samp_sampler *sp, const samp_point *pts, uint32_t n, const samp_surface_hits *out,
+                                  lm_error *err);
+
 /* Which back ends serve a sampler. Decide by the enums (backend, gl_platform);
  * the names are for display and the statistics JSON only. A zeroed samp_stats
  * (backend AUTO, names NULL) stands for "no sampler". */

@@ -68,6 +68,10 @@ lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choic
 void samp_sources_trace(const scene *s, const rt_scene *rt, uint32_t seed, int threads, const samp_radiance_mesh *mesh,
                         const samp_point *pts, uint32_t n, const samp_source_hits *out);
 
+/* samp_sources.c: samp_surface_hits_trace (samp.h), its arguments checked. */
+void samp_surface_hits_run(const scene *s, const rt_scene *rt, uint32_t seed, int threads, const samp_point *pts,
+                           uint32_t n, const samp_surface_hits *out);
+
 /* samp_geom.c: index i with cdf[i-1] <= u < cdf[i] (cdf non-decreasing, cdf[n-1] = 1). */
 uint32_t samp_cdf_pick(const double *cdf, uint32_t n, double u);
 

@@ -8,6 +8,8 @@
  * cosine-weighted, a hit on a back or nothing counting nothing, so that the
  * fractions w_t satisfy E_i ≈ π·Σ_t w_t·L̄_t with the same rays. Random streams
  * are keyed by the point (samp_point_hash) and a stream of their own.
+ * samp_surface_hits_trace records the same rays' hits themselves (triangle and
+ * barycentric) for the cache's further bounces, on a stream of its own.
  * Threads: the points are spread over the sampler's threads; each writes its own
  * slots of the output only. */
 #include <math.h>
@@ -100,4 +102,55 @@ void samp_sources_trace(const scene *s, const rt_scene *rt, uint32_t seed, int t
                        .eps = rt_scene_epsilon(rt), .k = k < 1 ? 1 : k};
     samp_parallel_for(samp_thread_count(threads), n, sources_one, &job);
     samp_radiance_index_free(&ix);
+}
+
+typedef struct hits_job {
+    const scene *s;
+    const rt_scene *rt;
+    const samp_point *pts;
+    const samp_surface_hits *out;
+    uint32_t seed;
+    float eps;
+    int k;
+} hits_job;
+
+static void hits_one(void *user, uint32_t i)
+{
+    const hits_job *job = user;
+    const samp_point *x = &job->pts[i];
+    uint32_t *tri = job->out->tri + (size_t)i * job->out->rays;
+    float *bary = job->out->bary + 2 * (size_t)i * job->out->rays;
+    float origin[3];
+    samp_point_origin(job->s, x, job->eps, origin);
+    samp_frame f = samp_frame_make(x->n);
+    lm_rng g;
+    lm_rng_seed(&g, job->seed, samp_point_hash(x), 0xb0u);
+    const int k = job->k;
+    uint32_t hits = 0;
+    for (int b = 0; b < k; ++b)
+        for (int a = 0; a < k; ++a) {
+            float u = (a + lm_rng_float(&g)) / k, v = (b + lm_rng_float(&g)) / k;
+            lm_vec3 d = samp_frame_cosine(&f, u, v);
+            float dir[3];
+            v3_store(dir, d);
+            rt_hit h;
+            if (!rt_intersect(job->rt, origin, dir, 0.0f, INFINITY, &h) ||
+                !(v3_dot(v3_load(job->s->tri_normals + 3 * (size_t)h.tri), d) < 0.0f))
+                continue;
+            if (job->out->keep && !job->out->keep(job->s, h.tri, job->out->keep_user)) continue;
+            tri[hits] = h.tri;
+            bary[2 * hits] = h.u;
+            bary[2 * hits + 1] = h.v;
+            hits++;
+        }
+    job->out->count[i] = hits;
+}
+
+void samp_surface_hits_run(const scene *s, const rt_scene *rt, uint32_t seed, int threads, const samp_point *pts,
+                           uint32_t n, const samp_surface_hits *out)
+{
+    int k = (int)floor(sqrt((double)out->rays));
+    hits_job job = {.s = s, .rt = rt, .pts = pts, .out = out, .seed = seed, .eps = rt_scene_epsilon(rt),
+                    .k = k < 1 ? 1 : k};
+    samp_parallel_for(samp_thread_count(threads), n, hits_one, &job);
 }

@@ -7,6 +7,7 @@
 #include "mesh/cache/cache_internal.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -96,6 +97,7 @@ void cache_destroy(cache *c)
     mesh_qmesh_destroy(c->indirect);
     mesh_qmesh_destroy(c->specular);
     mesh_qmesh_destroy(c->indirect1);
+    cache_bounces_free(&c->bnc);
     mesh_vtable_destroy(c->vt);
     free(c->light);
     free(c->light_le);
@@ -110,14 +112,21 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
 {
     *out = NULL;
     if (!desc || !desc->scene || !desc->sampler) return lm_fail(err, LM_ERR_INVALID_ARG, "cache: needs a scene and a sampler");
-    if (desc->bounces < 0 || desc->bounces > 2 || !(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f) ||
-        (unsigned)desc->scheduler >= CACHE_SCHED_COUNT)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounces must be 1 or 2, the JND and leaf size non-negative");
+    if (desc->bounces < CACHE_BOUNCES_AUTO || desc->bounces > CACHE_BOUNCES_MAX)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounces must be 1..%d or auto, not %d", CACHE_BOUNCES_MAX,
+                       desc->bounces);
+    uint32_t rays = desc->bounce_rays ? desc->bounce_rays : CACHE_BOUNCE_RAYS_DEFAULT;
+    uint32_t side = (uint32_t)floor(sqrt((double)rays));
+    if (rays > 4096 || side * side != rays)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounce_rays must be a square up to 4096, not %u", rays);
+    if (!(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f) || (unsigned)desc->scheduler >= CACHE_SCHED_COUNT)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache: the JND and leaf size must be non-negative");
     cache *c = calloc(1, sizeof *c);
     if (!c) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
     c->desc = *desc;
     if (c->desc.jnd == 0.0f) c->desc.jnd = 2.0f;
     if (c->desc.bounces == 0) c->desc.bounces = 1;
+    c->desc.bounce_rays = rays;
     if (c->desc.min_leaf_pixels == 0.0f) c->desc.min_leaf_pixels = 16.0f;
     c->s = desc->scene;
     c->sp = desc->sampler;
@@ -148,7 +157,7 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     if (r == LM_OK)
         r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
                               &c->indirect, err);
-    if (r == LM_OK && c->desc.bounces >= 2)
+    if (r == LM_OK && c->desc.bounces != 1)
         r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
                               &c->indirect1, err);
     uint32_t glossy = 0;
@@ -254,21 +263,11 @@ lm_result cache_init(cache *c, lm_error *err)
     }
     if (r == LM_OK) r = sample_roots(c, CACHE_KIND_DIRECT, err);
     if (r == LM_OK && c->specular) r = sample_roots(c, CACHE_KIND_SPECULAR, err);
-    /* Indirect: gathered from the coarse direct mesh just made (§5); with two
-     * bounces the first bounce at the coarse vertices first, then the second
-     * from kd·(L_dd + E_1/π). */
-    if (r == LM_OK && c->indirect1) {
-        r = root_vertices(c, c->indirect1, &v, &n, err);
-        float *E1 = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E1) : NULL;
-        if (r == LM_OK && !E1) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
-        if (r == LM_OK) r = cache_gather(c, 1, v, n, E1, err);
-        for (uint32_t i = 0; r == LM_OK && i < n; ++i)
-            r = mesh_qmesh_set_value(c->indirect1, v[i], E1 + 3 * (size_t)i, err);
-        free(E1);
-        free(v);
-        v = NULL;
-    }
-    if (r == LM_OK) r = cache_update_radiance_source(c, 1, 1, err);
+    /* Indirect: gathered from the coarse direct mesh just made (§5); further
+     * bounces through E_m in the source, from a transport traced here once
+     * (cache_bounces.c). */
+    if (r == LM_OK) r = cache_bounces_init(c, err);
+    if (r == LM_OK) r = cache_update_radiance_source(c, 1, err);
     if (r == LM_OK) r = root_vertices(c, c->indirect, &v, &n, err);
     float *E = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E) : NULL;
     if (r == LM_OK && !E) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
@@ -344,6 +343,15 @@ void cache_get_stats(cache *c, cache_stats *out)
     out->falsified = c->vis.falsified_total;
     out->revised = c->vis.revised;
     out->regathered = c->src.regathered;
+    if (c->indirect1) {
+        out->bounces = c->bnc.stats;
+        mesh_qmesh_stats ms;
+        mesh_qmesh_get_stats(c->indirect1, &ms);
+        out->bytes += c->bnc.bytes + ms.bytes;
+    } else {
+        out->bounces.bounces = 1;
+        snprintf(out->bounces.why, sizeof out->bounces.why, "1 bounce, as asked");
+    }
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
     out->bytes += vs.bytes + cache_light_state_bytes(&c->vis, c->light_count) + c->outl.bytes +
@@ -397,6 +405,7 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
     if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
     /* The coarse cache first, here: the scheduler is below this file and cannot ask for it. */
     lm_result r = c->initialised ? LM_OK : cache_init(c, err);
+    if (r == LM_OK) r = cache_bounces_see(c, desc->pixels, err);
     if (r == LM_OK) return cache_sched_refine(c, desc, out, err);
     if (out) *out = (cache_refine_result){0};
     return r;

@@ -13,7 +13,8 @@
  *              can see the light at all (not behind it, light not below them).
  *   direct     direct diffuse radiance per unit albedo, RGB: L_dd = (1/π)·Σ L_ℓ·G_ℓ
  *              (eq. 4). View-independent: kept across camera moves.
- *   indirect   indirect irradiance E_i, RGB (eq. 7), gathered from kd·L_dd over a
+ *   indirect   indirect irradiance E_i, RGB (eq. 7), gathered from kd·L_dd (one bounce;
+ *              more: kd·(L_dd + E_m/π), cache_bounce_stats) over a
  *              cut of the direct mesh (the roots and at most 8,192 more triangles,
  *              opened where its linear interpolation error × importance is worst);
  *              the back of a surface sends nothing. Each value carries its
@@ -71,7 +72,10 @@ extern "C" {
 #endif
 
 enum {
-    CACHE_LIGHT_LAG = 2 /* a light leaf may be this many levels coarser than the radiance leaf and still interpolate */
+    CACHE_LIGHT_LAG = 2, /* a light leaf may be this many levels coarser than the radiance leaf and still interpolate */
+    CACHE_BOUNCES_AUTO = -1, /* cache_desc.bounces: as many as change what is seen by more than the JND */
+    CACHE_BOUNCES_MAX = 32,  /* most diffuse bounces, asked or chosen */
+    CACHE_BOUNCE_RAYS_DEFAULT = 64 /* rays per coarse vertex of the further bounces' transport */
 };
 
 typedef enum cache_scheduler {
@@ -85,7 +89,10 @@ typedef struct cache_desc {
     samp_sampler *sampler;    /* samples G and E_i; owned by the caller, same thread */
     float jnd;                /* CIELAB ΔE (CIE76) a viewer notices; 0 = 2.0 */
     float exposure_offset;    /* stops added to the scene's exposure for the JND test; 0 = none */
-    int bounces;              /* indirect gathers kd·L_dd (1, default) or kd·(L_dd + L_id) (2) */
+    int bounces;              /* diffuse bounces shown: 1 (0: the default), 2..CACHE_BOUNCES_MAX, or
+                                 CACHE_BOUNCES_AUTO (cache_bounces.c; docs/cache.md "Bounces") */
+    uint32_t bounce_rays;     /* bounces beyond the first: rays per coarse vertex of their transport,
+                                 a square; 0 = CACHE_BOUNCE_RAYS_DEFAULT */
     float min_leaf_pixels;    /* size criterion: leaves above this many pixels split anyway; 0 = 16 */
     uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
     cache_scheduler scheduler;
@@ -205,6 +212,24 @@ typedef struct cache_mesh_stats {
     uint64_t interpolated;      /* values served by interpolation instead of a sample */
 } cache_mesh_stats;
 
+/* Bounces beyond the first (docs/cache.md "Bounces"): they enter the displayed
+ * gathers through the source, kd·(L_dd + E_m/π), E_m the irradiance of bounces
+ * 1..K−1 at the coarse vertices, from a transport recorded once (rays, no
+ * samples after that). */
+typedef struct cache_bounce_stats {
+    int bounces;              /* shown now (1 with no further-bounce transport) */
+    int automatic;            /* chosen by auto */
+    float rest_de;            /* the largest ΔE all further bounces would add where seen (auto's test) */
+    float de[CACHE_BOUNCES_MAX + 2]; /* de[k], k ≥ 2: the largest ΔE bounce k adds (or would add) where it is seen */
+    char why[192];            /* why this many (auto: why it stopped) */
+    uint32_t vertices;        /* coarse vertices of the transport */
+    uint32_t rays;            /* rays per vertex */
+    uint64_t hits;            /* hits kept */
+    double trace_seconds;     /* tracing the transport (once) */
+    double update_seconds;    /* re-evaluating it, in all */
+    uint64_t updates;         /* times re-evaluated (source rebuilds, light edits) */
+} cache_bounce_stats;
+
 typedef struct cache_stats {
     uint32_t light_count;
     cache_mesh_stats direct, indirect, specular; /* specular: all zero when there is no specular mesh */
@@ -214,6 +239,7 @@ typedef struct cache_stats {
     uint64_t revised;           /* radiance values recomputed inside those (cache_refine) */
     uint64_t regathered;        /* indirect values gathered again: the source had moved them (counted in
                                    indirect.samples too) */
+    cache_bounce_stats bounces;
     size_t bytes;               /* everything: meshes, vertex table, bookkeeping */
 } cache_stats;
 
@@ -235,7 +261,7 @@ void cache_get_stats(cache *c, cache_stats *out);
  * It does NOT see what no test looked at: a shadow between the midpoints of a
  * leaf that was never split, light the sampler's rays miss altogether, the Embree
  * direct estimate's penumbra noise (SAMP_EMBREE_PENUMBRA_RMS), or transport the
- * cache does not model (bounces beyond desc.bounces). bench/indirect.sh compares
+ * cache does not model (bounces beyond those shown). bench/indirect.sh compares
  * it with the measured error against the reference. */
 /* (cache_mesh_estimate and cache_estimate are declared above cache_refine_result.) */
 

@@ -118,7 +118,7 @@ typedef struct cache_source_state {
     uint32_t *rp_first;
     float *rp_bary, *rp_rad;
     size_t rp_cap, rp_count;
-    int rp_valid, rp_with_e1;
+    int rp_valid;
     /* Per vertex id of the indirect mesh: how far (RGB, a bound) the source has
      * moved its E_i since it was gathered, and whether it waits to be gathered again. */
     float *drift;
@@ -134,7 +134,6 @@ typedef struct cache_source_state {
     int64_t built_at;          /* direct mesh changes (net splits + revised values) when last built */
     uint32_t built_nodes;      /* direct mesh nodes when last built */
     int settle;                /* rebuild on any change (cache_settle_source) */
-    int with_e1;               /* the source holds kd·(L_dd + E_1/π) (bounces = 2), not kd·L_dd */
     mesh_qmesh_tri *leaf_buf;  /* the cut's triangles */
     size_t leaf_cap;
     /* Choosing the cut (per direct node): error bound, opened flag, heap. */
@@ -164,6 +163,25 @@ typedef struct cache_source_state {
     uint32_t pilot_n;
     cache_mesh_stats indirect_stats; /* samples (.mesh filled by cache_get_stats) */
 } cache_source_state;
+
+/* Bounces beyond the first (written by cache_bounces.c). The coarse vertices are
+ * the corners of the indirect roots (c->indirect1 holds E_m there); vertex i's
+ * transport is its hits hit_first[i] .. hit_first[i + 1] (scene triangle and
+ * barycentric), each 1/rays of its cosine-weighted hemisphere. */
+typedef struct cache_bounce_state {
+    uint32_t nv;               /* coarse vertices */
+    uint32_t *vid;             /* nv: their vertex ids */
+    uint32_t *corner;          /* 3 per scene triangle: the coarse index of its corners (scene order);
+                                  UINT32_MAX: no indirect root */
+    uint32_t *hit_first;       /* nv + 1 */
+    uint32_t *hit_tri;
+    float *hit_bary;           /* 2 per hit */
+    float *b, *next, *sum, *shown; /* nv × RGB each: B_k, B_k+1, E_m, Σ B shown */
+    float *whole, *rest;       /* nv × RGB each: every bounce's sum; whole − shown */
+    uint8_t *seen;             /* nv: a corner of a triangle a pixel sees (all, before any pixels) */
+    cache_bounce_stats stats;
+    size_t bytes;
+} cache_bounce_state;
 
 /* The scheduler (written by cache_refine.c), per radiance mesh (cache_kind).
  * Heap: a max-heap of leaves, lazily invalidated, and per-node "done" flags.
@@ -212,8 +230,9 @@ struct cache {
     mesh_qmesh **light;        /* per light, NULL when no triangle can see it */
     mesh_qmesh *direct, *indirect;
     mesh_qmesh *specular;      /* NULL when no material has ks > 0 */
-    mesh_qmesh *indirect1;     /* bounces = 2: the first bounce E_1 at the coarse vertices (roots only),
-                                  the source of the second; NULL otherwise */
+    mesh_qmesh *indirect1;     /* bounces ≠ 1: E_m, the irradiance of bounces 1..K−1 at the coarse
+                                  vertices (roots only; cache_bounces.c), in the source of the
+                                  displayed gathers; NULL with one bounce */
     float eye[3];              /* the viewpoint (scene units): the specular mesh's, and the side of
                                   an emitter the viewer sees (cache_sees_front) */
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
@@ -225,6 +244,7 @@ struct cache {
     cache_outlines outl;
     cache_source_state src;
     cache_sched sched;
+    cache_bounce_state bnc;
 };
 
 /* ---- cache_site.c: points, leaves, regions, what the viewer sees ----------------- */
@@ -325,9 +345,6 @@ size_t cache_source_bytes(const cache_source_state *st);
 /* Net splits of the direct mesh plus the values revised in it and the specular
  * mesh: a running count of how much the source's mesh has changed (O(1)). */
 int64_t cache_direct_changes(const cache *c);
-/* E at the given vertices (batched) from the source of the kind asked (first
- * bounce: kd·L_dd; else the displayed indirect's, cache_sample_indirect). */
-lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
 /* The standard error (RGB) of the displayed indirect value at vertex vid (0 0 0
  * when unknown or exact), as the edge test takes it: from the plain variance of
  * the pilot's rays, which errs high. cache_indirect_likely_sigma: the same with
@@ -336,16 +353,15 @@ lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_
 void cache_indirect_sigma(const cache *c, uint32_t vid, float out[3]);
 void cache_indirect_likely_sigma(const cache *c, uint32_t vid, float out[3]);
 /* Samples E_i at the given vertices (batched): gathered from kd·L_dd, and with
- * bounces = 2 from kd·(L_dd + E_1/π), E_1 the first bounce (c->indirect1). */
+ * further bounces from kd·(L_dd + E_m/π) (c->indirect1, cache_bounces.c). */
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
 /* Could vertex vid's displayed value be gathered with more rays (cache_regather_finer)? */
 int cache_gather_can_refine(const cache *c, uint32_t vid);
 /* Displayed values gathered again with GATHER_SCALE times the rays they last had
  * (their noise halved): E as cache_sample_indirect. */
 lm_result cache_regather_finer(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
-/* Rebuilds the radiance source from the direct mesh when it is stale or holds the
- * other kind (with_e1: kd·(L_dd + E_1/π), else kd·L_dd). */
-lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err);
+/* Rebuilds the radiance source from the direct mesh (and E_m) when it is stale. */
+lm_result cache_update_radiance_source(cache *c, int force, lm_error *err);
 /* Rebuilds the displayed indirect's source if the direct mesh changed at all since
  * it was built (refinement has nothing left to test); the values it moves are
  * flagged for cache_regather_outdated. */
@@ -376,6 +392,18 @@ lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n,
  * area (hits spread by area), max and sum as in cache_source_state; 0 0 when
  * nothing above it was recorded. */
 void cache_node_importance(const cache *c, uint32_t node, float *imp_max, float *imp_sum);
+
+/* ---- cache_bounces.c: bounces beyond the first ------------------------------------- */
+
+/* Traces the transport (once; cache_init, after the coarse direct mesh). */
+lm_result cache_bounces_init(cache *c, lm_error *err);
+/* E_m from the direct mesh as it is now, and with auto the bounce count, by the
+ * pixel counts given (NULL: those of the last call that had some, or all); writes
+ * c->indirect1. No ray. */
+lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err);
+/* The seen coarse vertices from now on: the corners of triangles with pixels. */
+lm_result cache_bounces_see(cache *c, const uint32_t *pixels, lm_error *err);
+void cache_bounces_free(cache_bounce_state *b);
 
 /* ---- cache_estimate.c: the error estimate, values worth more rays ------------------ */
 

@@ -505,7 +505,6 @@ static lm_result keep_previous(cache *c, lm_error *err)
     memcpy(c->src.rp_rad, c->src.rm_rad, n * 9 * sizeof *c->src.rp_rad);
     c->src.rp_count = n;
     c->src.rp_valid = 1;
-    c->src.rp_with_e1 = c->src.with_e1;
     return LM_OK;
 }
 
@@ -518,13 +517,15 @@ int64_t cache_direct_changes(const cache *c)
     return mesh_qmesh_net_splits(c->direct) + (int64_t)c->vis.revised;
 }
 
-/* Builds the source of the kind asked; track: compare it with the previous
- * displayed source and flag the values it moved. */
-static lm_result build_source(cache *c, int with_e1, int track, lm_error *err)
+/* Builds the source: kd·L_dd, and with further bounces kd·(L_dd + E_m/π), E_m
+ * first brought up to date with the direct mesh (cache_bounces_update, no ray);
+ * track: compare it with the previous source and flag the values it moved. */
+static lm_result build_source(cache *c, int track, lm_error *err)
 {
     const scene *s = c->s;
-    with_e1 = with_e1 && c->indirect1;
-    lm_result r = choose_cut(c, err);
+    const int with_em = c->indirect1 != NULL;
+    lm_result r = with_em ? cache_bounces_update(c, NULL, err) : LM_OK;
+    if (r == LM_OK) r = choose_cut(c, err);
     size_t count = 0;
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(c->direct, t);
@@ -549,7 +550,7 @@ static lm_result build_source(cache *c, int with_e1, int track, lm_error *err)
             float L[3] = {0, 0, 0}, Ei[3] = {0, 0, 0};
             mesh_qmesh_get_value(c->direct, lt->v[k], L);
             lm_error ignore;
-            if (with_e1 && mesh_qmesh_root(c->indirect1, lt->tri) != MESH_QMESH_NONE &&
+            if (with_em && mesh_qmesh_root(c->indirect1, lt->tri) != MESH_QMESH_NONE &&
                 mesh_qmesh_interpolate(c->indirect1, lt->tri, w1, w2, Ei, &ignore) != LM_OK)
                 Ei[0] = Ei[1] = Ei[2] = 0;
             for (int ch = 0; ch < 3; ++ch)
@@ -560,34 +561,26 @@ static lm_result build_source(cache *c, int with_e1, int track, lm_error *err)
                                     .radiance = c->src.rm_rad};
     c->src.built_at = cache_direct_changes(c);
     c->src.built_nodes = mesh_qmesh_node_count(c->direct);
-    c->src.with_e1 = with_e1;
-    /* The displayed indirect gathers from kd·(L_dd + E_1/π) with two bounces, from
-     * kd·L_dd with one; the first bounce's source is not tracked (E_1 lives at the
-     * coarse vertices only). The single-mesh ablation keeps what it gathered. */
-    int displayed = with_e1 == (c->indirect1 != NULL);
-    if (!displayed) return LM_OK;
-    if (track && !c->desc.single_mesh && c->initialised && c->src.rp_valid && c->src.rp_with_e1 == with_e1)
-        r = mark_outdated(c, err);
+    /* The single-mesh ablation keeps what it gathered. */
+    if (track && !c->desc.single_mesh && c->initialised && c->src.rp_valid) r = mark_outdated(c, err);
     return r == LM_OK ? keep_previous(c, err) : r;
 }
 
-lm_result cache_update_radiance_source(cache *c, int force, int with_e1, lm_error *err)
+lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
 {
-    with_e1 = with_e1 && c->indirect1;
     int64_t changed = cache_direct_changes(c) - c->src.built_at;
     if (changed < 0) changed = -changed;
     uint32_t stale = c->src.built_nodes / 4;
     stale = stale < 16 ? 16 : stale > CACHE_RMESH_STALE ? CACHE_RMESH_STALE : stale;
-    int fresh = c->src.rmesh.first && c->src.with_e1 == with_e1 &&
-                (c->src.settle ? changed == 0 : changed < (int64_t)stale);
+    int fresh = c->src.rmesh.first && (c->src.settle ? changed == 0 : changed < (int64_t)stale);
     if (!force && fresh) return LM_OK;
-    return build_source(c, with_e1, 1, err);
+    return build_source(c, 1, err);
 }
 
 lm_result cache_settle_source(cache *c, lm_error *err)
 {
     c->src.settle = 1;
-    lm_result r = cache_update_radiance_source(c, 0, c->indirect1 != NULL, err);
+    lm_result r = cache_update_radiance_source(c, 0, err);
     c->src.settle = 0;
     return r;
 }
@@ -807,24 +800,23 @@ static int on_open_edge(const cache *c, uint32_t vid)
     return 0;
 }
 
-static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, const uint8_t *min_level,
-                        float *E, lm_error *err)
+static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_t *min_level, float *E, lm_error *err)
 {
     if (n == 0) return LM_OK;
-    lm_result r = cache_update_radiance_source(c, 0, !first_bounce, err);
+    lm_result r = cache_update_radiance_source(c, 0, err);
     if (r != LM_OK) return r;
     samp_point *pts = malloc(n * sizeof *pts);
     if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     for (uint32_t i = 0; i < n; ++i) {
         pts[i] = cache_vertex_point(c, vids[i]);
-        if (!first_bounce && on_open_edge(c, vids[i])) samp_point_pull_inside(c->sp, &pts[i]);
+        if (on_open_edge(c, vids[i])) samp_point_pull_inside(c->sp, &pts[i]);
     }
-    r = first_bounce || c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
-                                            : gather_displayed(c, vids, pts, n, min_level, E, err);
+    r = c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
+                            : gather_displayed(c, vids, pts, n, min_level, E, err);
     free(pts);
     if (r == LM_OK) c->src.indirect_stats.samples += n;
     /* A value gathered from the current source has not drifted. */
-    if (r == LM_OK && !first_bounce && c->src.drift)
+    if (r == LM_OK && c->src.drift)
         for (uint32_t i = 0; i < n; ++i)
             if (vids[i] < c->src.drift_cap) {
                 memset(c->src.drift + 3 * (size_t)vids[i], 0, 3 * sizeof *c->src.drift);
@@ -833,14 +825,9 @@ static lm_result gather(cache *c, int first_bounce, const uint32_t *vids, uint32
     return r;
 }
 
-lm_result cache_gather(cache *c, int first_bounce, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
-{
-    return gather(c, first_bounce, vids, n, NULL, E, err);
-}
-
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
 {
-    return gather(c, 0, vids, n, NULL, E, err);
+    return gather(c, vids, n, NULL, E, err);
 }
 
 int cache_gather_can_refine(const cache *c, uint32_t vid)
@@ -858,7 +845,7 @@ lm_result cache_regather_finer(cache *c, const uint32_t *vids, uint32_t n, float
         uint8_t now = vids[i] < c->src.drift_cap ? c->src.gather_level[vids[i]] : 0;
         lv[i] = (uint8_t)(now + 1 < GATHER_FINER_LEVELS ? now + 1 : GATHER_FINER_LEVELS - 1);
     }
-    lm_result r = gather(c, 0, vids, n, lv, E, err);
+    lm_result r = gather(c, vids, n, lv, E, err);
     free(lv);
     return r;
 }
@@ -896,7 +883,7 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
             if (mesh_qmesh_get_value(c->indirect, vid, tmp) == 1) ids[n++] = vid;
         }
         if (n == 0) continue;
-        r = cache_gather(c, 0, ids, n, E, err);
+        r = cache_sample_indirect(c, ids, n, E, err);
         uint32_t nm = 0;
         for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
             float old[3];
@@ -925,11 +912,11 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
  * mesh would multiply memory and samples by the number of lights for every
  * refinement, for the rare edit; docs/cache.md has the numbers). */
 
-static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_error *err)
+static lm_result regather_mesh(cache *c, mesh_qmesh *m, lm_error *err)
 {
     enum { BATCH = 4096 };
     const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
-    lm_result r = build_source(c, !first_bounce, 0, err);
+    lm_result r = build_source(c, 0, err);
     uint32_t *ids = malloc(BATCH * sizeof *ids);
     float *E = malloc(3 * BATCH * sizeof *E), tmp[3];
     if (r == LM_OK && (!ids || !E)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory re-gathering indirect light");
@@ -937,7 +924,7 @@ static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_err
     for (uint32_t id = 0; r == LM_OK && id <= id_limit; ++id) {
         if (id < id_limit && mesh_qmesh_get_value(m, id, tmp) == 1) ids[n++] = id;
         if (n == BATCH || (id == id_limit && n)) {
-            r = cache_gather(c, first_bounce, ids, n, E, err);
+            r = cache_sample_indirect(c, ids, n, E, err);
             for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(m, ids[i], E + 3 * (size_t)i, err);
             n = 0;
         }
@@ -947,12 +934,11 @@ static lm_result regather_mesh(cache *c, mesh_qmesh *m, int first_bounce, lm_err
     return r;
 }
 
-/* The first bounce (two bounces) first: the second gathers from it. Nothing is
- * outdated afterwards. */
+/* From a source rebuilt (with E_m re-evaluated: no ray). Nothing is outdated
+ * afterwards. */
 lm_result cache_regather_all(cache *c, lm_error *err)
 {
-    lm_result r = c->indirect1 ? regather_mesh(c, c->indirect1, 1, err) : LM_OK;
-    if (r == LM_OK) r = regather_mesh(c, c->indirect, 0, err);
+    lm_result r = regather_mesh(c, c->indirect, err);
     if (r == LM_OK) {
         if (c->src.drift) {
             memset(c->src.drift, 0, 3 * c->src.drift_cap * sizeof *c->src.drift);
@@ -1018,7 +1004,7 @@ lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n,
     cache_source_state *st = &c->src;
     *grown_n = 0;
     *grown = st->grown;
-    if (!pixels || n == 0 || !st->rmesh.first || st->with_e1 != (c->indirect1 != NULL)) return LM_OK;
+    if (!pixels || n == 0 || !st->rmesh.first) return LM_OK;
     /* The hits are the pilot of the gather just made at these sites (gather_displayed). */
     if (st->pilot_n != n) return LM_OK;
     for (uint32_t i = 0; i < n; ++i)
