@@ -379,11 +379,11 @@ static uint32_t used_at(const mesh_qmesh *m, uint32_t tri, mesh_bary p)
     return id != MESH_VTABLE_NONE && id < m->vcap && m->use[id] > 0 ? id : MESH_VTABLE_NONE;
 }
 
-lm_result mesh_qmesh_interpolate(const mesh_qmesh *m, uint32_t tri, double w1, double w2,
-                                 float *out, lm_error *err)
+lm_result mesh_qmesh_locate(const mesh_qmesh *m, uint32_t tri, double w1, double w2, uint32_t *leaf_out,
+                            double l_out[3], lm_error *err)
 {
     const uint32_t root = mesh_qmesh_root(m, tri);
-    if (root == MESH_QMESH_NONE || !out)
+    if (root == MESH_QMESH_NONE || !leaf_out || !l_out)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: no tree at triangle %u", tri);
     double l[3] = {1.0 - w1 - w2, w1, w2};
     double sum = 0.0;
@@ -411,6 +411,19 @@ lm_result mesh_qmesh_interpolate(const mesh_qmesh *m, uint32_t tri, double w1, d
             l[0] = a, l[1] = b, l[2] = c, n = f + 3;
         }
     }
+    *leaf_out = n;
+    memcpy(l_out, l, sizeof l);
+    return LM_OK;
+}
+
+lm_result mesh_qmesh_interpolate(const mesh_qmesh *m, uint32_t tri, double w1, double w2,
+                                 float *out, lm_error *err)
+{
+    uint32_t n;
+    double l[3];
+    if (!out) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: no output");
+    lm_result r = mesh_qmesh_locate(m, tri, w1, w2, &n, l, err);
+    if (r != LM_OK) return r;
     const mesh_qnode *leaf = &m->nodes[n];
     const uint32_t ch = m->channels;
     int zero = -1, zeros = 0;

@@ -152,6 +152,13 @@ uint32_t mesh_qmesh_channels(const mesh_qmesh *m);
 lm_result mesh_qmesh_interpolate(const mesh_qmesh *m, uint32_t tri, double w1, double w2,
                                  float *out, lm_error *err);
 
+/* The leaf of scene triangle `tri` holding barycentric point (1-w1-w2, w1, w2),
+ * and the point's barycentrics l[3] in that leaf (weights of its corners v[0..2]):
+ * the descent of mesh_qmesh_interpolate, without its walk along a leaf edge.
+ * Errors as mesh_qmesh_interpolate's. */
+lm_result mesh_qmesh_locate(const mesh_qmesh *m, uint32_t tri, double w1, double w2, uint32_t *leaf,
+                            double l[3], lm_error *err);
+
 /* Triangles tiling every leaf without T-vertices (see the file comment), appended to
  * *buf (realloc'd as needed; the caller frees it; *buf may start NULL with *cap 0).
  * *count is set to the number written. Worker thread only. */

@@ -954,6 +954,102 @@ static void test_sphere_indirect(int bounces)
     scene_destroy(s);
 }
 
+/* A closed cube room (side 2, walls facing in) of albedo kd, a point light
+ * inside: `auto` shows one bounce with black walls and several with white ones
+ * (issue 13), and a light edit changes every bounce with no light sample: the
+ * indirect light of the room with the light halved is half the room's (it is
+ * linear in the light, and the gathers are deterministic).
+ */
+static void test_room_bounces(float kd, int min_bounces, int max_bounces)
+{
+    static const int quad[6][4][3] = {{{-1, -1, -1}, {1, -1, -1}, {1, -1, 1}, {-1, -1, 1}}, /* floor */
+                                      {{-1, 1, -1}, {1, 1, -1}, {1, 1, 1}, {-1, 1, 1}},     /* ceiling */
+                                      {{-1, -1, -1}, {-1, 1, -1}, {-1, 1, 1}, {-1, -1, 1}}, /* x = -1 */
+                                      {{1, -1, -1}, {1, 1, -1}, {1, 1, 1}, {1, -1, 1}},
+                                      {{-1, -1, -1}, {1, -1, -1}, {1, 1, -1}, {-1, 1, -1}}, /* z = -1 */
+                                      {{-1, -1, 1}, {1, -1, 1}, {1, 1, 1}, {-1, 1, 1}}};
+    char obj[4096] = "", line[128], path[1024], text[1024];
+    for (int f = 0; f < 6; ++f)
+        for (int k = 0; k < 4; ++k) {
+            snprintf(line, sizeof line, "v %d %d %d\n", quad[f][k][0], quad[f][k][1], quad[f][k][2]);
+            strcat(obj, line);
+        }
+    for (int f = 0; f < 6; ++f) {
+        /* Wind each face so that its normal points into the room (towards the origin). */
+        const int *a = quad[f][0], *b = quad[f][1], *c = quad[f][2];
+        double e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        double n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        int in = n[0] * -a[0] + n[1] * -a[1] + n[2] * -a[2] > 0, v = 4 * f + 1;
+        if (in)
+            snprintf(line, sizeof line, "f %d %d %d\nf %d %d %d\n", v, v + 1, v + 2, v, v + 2, v + 3);
+        else
+            snprintf(line, sizeof line, "f %d %d %d\nf %d %d %d\n", v, v + 2, v + 1, v, v + 3, v + 2);
+        strcat(obj, line);
+    }
+    test_write_file("cache_room.obj", obj, path, sizeof path);
+    snprintf(text, sizeof text,
+             "{\"meshes\": [{\"file\": \"cache_room.obj\", \"material\": \"wall\"}],"
+             " \"materials\": {\"wall\": {\"kd\": [%g, %g, %g]}},"
+             " \"lights\": [{\"type\": \"point\", \"position\": [0.2, 0.5, -0.1], \"intensity\": [2, 2, 2]}],"
+             " \"cameras\": [{\"position\": [0, 0, 0.9], \"target\": [0, 0, -1]}]}",
+             kd, kd, kd);
+    scene *s = test_load_json("cache_room.json", text);
+    if (!s) return;
+    lm_error err;
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .seed = 3}, &sp, &err) == LM_OK);
+    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp, .bounces = CACHE_BOUNCES_AUTO}, &c, &err) == LM_OK);
+    uint32_t *pixels = malloc(s->tri_count * sizeof *pixels);
+    for (uint32_t t = 0; t < s->tri_count; ++t) pixels[t] = 4000;
+    cache_refine_result res = {0};
+    for (int i = 0; i < 40 && c; ++i) {
+        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 4096}, &res, &err) == LM_OK);
+        if (res.remaining == 0) break;
+    }
+    cache_stats st;
+    if (c) cache_get_stats(c, &st);
+    printf("closed room, walls of albedo %.2f: auto shows %d bounce%s (%s; %u coarse vertices, %llu hits, traced in "
+           "%.1f ms, %llu updates in %.1f ms)\n",
+           (double)kd, st.bounces.bounces, st.bounces.bounces == 1 ? "" : "s", st.bounces.why, st.bounces.vertices,
+           (unsigned long long)st.bounces.hits, st.bounces.trace_seconds * 1e3,
+           (unsigned long long)st.bounces.updates, st.bounces.update_seconds * 1e3);
+    CHECK_MSG(st.bounces.bounces >= min_bounces && st.bounces.bounces <= max_bounces, "auto chose %d bounces",
+              st.bounces.bounces);
+    if (max_bounces > 1 && c) {
+        enum { N = 500 };
+        float before[N][3];
+        lm_rng g;
+        lm_rng_seed(&g, 4, 0, 0);
+        uint32_t tri[N];
+        double w[N][2];
+        for (int i = 0; i < N; ++i) {
+            tri[i] = (uint32_t)(lm_rng_float(&g) * s->tri_count) % s->tri_count;
+            w[i][0] = lm_rng_float(&g);
+            w[i][1] = lm_rng_float(&g) * (1.0 - w[i][0]);
+            CHECK(cache_eval_indirect(c, tri[i], w[i][0], w[i][1], before[i], &err) == LM_OK);
+        }
+        uint64_t light_samples = st.lights[0].samples;
+        const float half[3] = {1, 1, 1};
+        CHECK(cache_set_light(c, 0, half, &err) == LM_OK);
+        cache_get_stats(c, &st);
+        double worst = 0.0;
+        for (int i = 0; i < N; ++i) {
+            float now[3];
+            CHECK(cache_eval_indirect(c, tri[i], w[i][0], w[i][1], now, &err) == LM_OK);
+            for (int k = 0; k < 3; ++k) worst = fmax(worst, fabs(now[k] / (0.5 * before[i][k]) - 1.0));
+        }
+        printf("  light halved: indirect within %.2e of half, light samples %llu -> %llu, %d bounces\n", worst,
+               (unsigned long long)light_samples, (unsigned long long)st.lights[0].samples, st.bounces.bounces);
+        CHECK(st.lights[0].samples == light_samples);
+        CHECK_MSG(worst <= 0.01, "indirect not halved: %.3e", worst);
+    }
+    free(pixels);
+    cache_destroy(c);
+    samp_destroy(sp);
+    scene_destroy(s);
+}
+
 /* The built-in Cornell box at 256×256 (pixels per triangle from a ray-cast ID pass,
  * the renderer's camera): two defects of the converged cache measured against
  * independent Embree estimates.
@@ -1253,6 +1349,8 @@ int main(void)
     test_sphere_indirect(3);
     test_sphere_indirect(4);
     test_sphere_indirect(CACHE_BOUNCES_AUTO);
+    test_room_bounces(0.05f, 1, 1);
+    test_room_bounces(0.8f, 3, CACHE_BOUNCES_MAX);
     test_emitter_side();
     test_cornell_box();
     return test_finish("cache_test");

@@ -5,8 +5,9 @@
  * source cut (cache_source.c). Bounces 2..K reach it through the same source,
  * which then holds kd·(L_dd + E_m/π) with
  *     E_m = B_1 + … + B_(K−1),
- * B_k the irradiance of bounce k at the coarse vertices (the corners of the
- * indirect roots), linear over each scene triangle (c->indirect1). The displayed
+ * B_k the irradiance of bounce k at the coarse vertices, linear over the leaves
+ * of a coarse mesh (c->indirect1: the roots split to about equal area,
+ * CACHE_BOUNCE_LEAVES triangles). The displayed
  * gather of that source is bounces 1..K at the displayed vertices: the final
  * gather hides the coarse solution's size and noise, as in photon-map final
  * gathering; only bounce 1 needs the refined source (a shadow edge, a lamp's
@@ -17,7 +18,7 @@
  * hit on the front of a surface with albedo kept as its triangle and
  * barycentric. With no ray after that,
  *     B_1(v)     = π/R · Σ_h kd(h)·L_dd(h)     L_dd from the direct mesh as it is now
- *     B_(k+1)(v) = 1/R · Σ_h kd(h)·B_k(h)      B_k linear over h's scene triangle
+ *     B_(k+1)(v) = 1/R · Σ_h kd(h)·B_k(h)      B_k linear over h's coarse leaf
  * (the Jacobi iteration of the radiosity system on the coarse vertices, with
  * the same hits for every bounce). cache_bounces_update re-evaluates it whenever
  * the source is rebuilt: refinement of the direct mesh, a light edit, a sampler
@@ -26,14 +27,14 @@
  * auto (CACHE_BOUNCES_AUTO): the smallest K whose picture is within the JND of
  * all bounces' at every seen coarse vertex: the tone-mapped colour (CIELAB ΔE,
  * the cache's own figures: L_dd from the direct mesh) with E ≈ B_1 + … + B_K
- * against E ≈ B_1 + B_2 + … (iterated until a bounce adds under 1e-4 of the
+ * against E ≈ B_1 + B_2 + … (iterated until a bounce adds under 1e-3 of the
  * sum, at most CACHE_BOUNCES_MAX). Not "the next bounce is below the JND": in a
  * sphere of albedo 0.5 at JND 1 that stops at 3 bounces, ΔE 1.6 from the whole
  * series (tests/cache_test.c). cache_bounce_stats.why says why it stopped. The
  * specular term is left out of that colour: it only masks, so the count errs high.
  *
  * Does NOT do: the transport's own noise and bias (R rays per vertex, fixed; the
- * barycentric interpolation of B_k over a whole scene triangle), or glossy
+ * linear interpolation of B_k over a coarse leaf), or glossy
  * interreflection (the model transport is diffuse after the first bounce).
  * Threads: the cache's (one thread); the tracing uses the sampler's threads.
  */
@@ -50,16 +51,22 @@
 void cache_bounces_free(cache_bounce_state *b)
 {
     free(b->vid);
-    free(b->corner);
+    free(b->tv_first);
+    free(b->tv_index);
+    free(b->tv_bary);
     free(b->hit_first);
     free(b->hit_tri);
     free(b->hit_bary);
+    free(b->hit_corner);
+    free(b->hit_weight);
     free(b->b);
     free(b->next);
     free(b->sum);
     free(b->shown);
     free(b->whole);
-    free(b->rest);
+    free(b->lab_whole);
+    free(b->lab_shown);
+    free(b->lab_prev);
     free(b->seen);
     memset(b, 0, sizeof *b);
 }
@@ -71,42 +78,113 @@ static int keeps_light(const scene *s, uint32_t t, void *user)
     return kd[0] > 0.0f || kd[1] > 0.0f || kd[2] > 0.0f;
 }
 
-/* The coarse vertices: the root corners of c->indirect1, and per scene
- * triangle the coarse index of each of its corners in the triangle's own order. */
-static lm_result index_vertices(cache *c, lm_error *err)
+static double tri_area(const scene *s, uint32_t t)
+{
+    const uint32_t *v = s->tris[t].v;
+    lm_dvec3 a = dv3_load(s->positions + 3 * (size_t)v[0]), b = dv3_load(s->positions + 3 * (size_t)v[1]),
+             cc = dv3_load(s->positions + 3 * (size_t)v[2]);
+    return 0.5 * dv3_length(dv3_cross(dv3_sub(b, a), dv3_sub(cc, a)));
+}
+
+static lm_result split_to(mesh_qmesh *m, uint32_t node, int depth, lm_error *err)
+{
+    if (depth <= 0) return LM_OK;
+    lm_result r = mesh_qmesh_split(m, node, err);
+    uint32_t child = r == LM_OK ? mesh_qmesh_node(m, node)->child : MESH_QMESH_NONE;
+    for (uint32_t k = 0; r == LM_OK && k < 4; ++k) r = split_to(m, child + k, depth - 1, err);
+    return r;
+}
+
+typedef struct index_ctx {
+    cache *c;
+    uint32_t *at;  /* per vertex id: coarse index, or UINT32_MAX */
+    uint32_t tri;
+    uint32_t *list; /* this triangle's coarse indices so far */
+    uint32_t listed;
+} index_ctx;
+
+/* Every leaf corner of triangle ctx->tri's tree: a coarse index, and an entry of
+ * the triangle's list (once per triangle). */
+static lm_result index_leaf(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user, lm_error *err)
+{
+    (void)node;
+    index_ctx *x = user;
+    cache_bounce_state *b = &x->c->bnc;
+    if (n->child != MESH_QMESH_NONE) return LM_OK;
+    for (int k = 0; k < 3; ++k) {
+        uint32_t v = n->v[k];
+        if (x->at[v] == UINT32_MAX) {
+            x->at[v] = b->nv;
+            b->vid[b->nv++] = v;
+        }
+        uint32_t i = x->at[v];
+        int dup = 0;
+        for (uint32_t j = 0; j < x->listed && !dup; ++j) dup = x->list[j] == i;
+        if (dup) continue;
+        if (b->tv_n == b->tv_cap) {
+            size_t cap = lm_grow_capacity(b->tv_cap, (size_t)b->tv_n + 1, 1024, UINT32_MAX);
+            if (!cap || !lm_realloc_array(&b->tv_index, b->tv_cap, cap, sizeof *b->tv_index) ||
+                !lm_realloc_array(&b->tv_bary, b->tv_cap, cap, 2 * sizeof *b->tv_bary))
+                return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
+            b->tv_cap = (uint32_t)cap;
+        }
+        double w1, w2;
+        cache_node_corner_bary(n, k, &w1, &w2);
+        b->tv_index[b->tv_n] = i;
+        b->tv_bary[2 * (size_t)b->tv_n] = (float)w1;
+        b->tv_bary[2 * (size_t)b->tv_n + 1] = (float)w2;
+        b->tv_n++;
+        if (x->listed < 64) x->list[x->listed++] = i; /* (a duplicate past 64 costs a repeated entry only) */
+    }
+    (void)m;
+    return LM_OK;
+}
+
+/* The coarse mesh: c->indirect1's roots split until its triangles have about
+ * equal area, CACHE_BOUNCE_LEAVES of them over the scene (a wall of two triangles
+ * gets enough vertices for the light its corners lose or gain), at most
+ * CACHE_BOUNCE_DEPTH levels; its leaf corners are the coarse vertices. Per scene
+ * triangle, the coarse vertices on it and where (tv_first, tv_index, tv_bary).
+ * *at_out: per vertex id, its coarse index or UINT32_MAX (the caller frees it). */
+static lm_result index_vertices(cache *c, uint32_t **at_out, lm_error *err)
 {
     cache_bounce_state *b = &c->bnc;
     const scene *s = c->s;
-    const uint32_t limit = mesh_vtable_id_limit(c->vt);
-    uint32_t *at = malloc((limit ? limit : 1) * sizeof *at);
-    b->corner = malloc(3 * (size_t)(s->tri_count ? s->tri_count : 1) * sizeof *b->corner);
-    b->vid = malloc(3 * (size_t)(s->tri_count ? s->tri_count : 1) * sizeof *b->vid);
-    if (!at || !b->corner || !b->vid) {
-        free(at);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
-    }
-    for (uint32_t i = 0; i < limit; ++i) at[i] = UINT32_MAX;
-    b->nv = 0;
-    for (uint32_t t = 0; t < s->tri_count; ++t) {
+    double total = 0.0;
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        if (mesh_qmesh_root(c->indirect1, t) != MESH_QMESH_NONE) total += tri_area(s, t);
+    const double target = total / CACHE_BOUNCE_LEAVES;
+    lm_result r = LM_OK;
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(c->indirect1, t);
-        for (int k = 0; k < 3; ++k) b->corner[3 * (size_t)t + (size_t)k] = UINT32_MAX;
-        if (root == MESH_QMESH_NONE) continue;
-        const mesh_qnode *nd = mesh_qmesh_node(c->indirect1, root);
-        for (int k = 0; k < 3; ++k) {
-            double w1, w2;
-            cache_node_corner_bary(nd, k, &w1, &w2);
-            int scene_corner = w1 > 0.5 ? 1 : w2 > 0.5 ? 2 : 0;
-            uint32_t v = nd->v[k];
-            if (v >= limit) continue;
-            if (at[v] == UINT32_MAX) {
-                at[v] = b->nv;
-                b->vid[b->nv++] = v;
-            }
-            b->corner[3 * (size_t)t + (size_t)scene_corner] = at[v];
-        }
+        if (root == MESH_QMESH_NONE || !(target > 0.0)) continue;
+        double ratio = tri_area(s, t) / target;
+        int depth = ratio > 1.0 ? (int)ceil(0.5 * log2(ratio)) : 0;
+        r = split_to(c->indirect1, root, depth < CACHE_BOUNCE_DEPTH ? depth : CACHE_BOUNCE_DEPTH, err);
     }
-    free(at);
-    return LM_OK;
+    if (r != LM_OK) return r;
+    const uint32_t limit = mesh_vtable_id_limit(c->vt);
+    index_ctx x = {.c = c};
+    x.at = malloc((limit ? limit : 1) * sizeof *x.at);
+    x.list = malloc(64 * sizeof *x.list);
+    b->vid = malloc((limit ? limit : 1) * sizeof *b->vid);
+    b->tv_first = malloc(((size_t)s->tri_count + 1) * sizeof *b->tv_first);
+    if (!x.at || !x.list || !b->vid || !b->tv_first) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
+    for (uint32_t i = 0; r == LM_OK && i < limit; ++i) x.at[i] = UINT32_MAX;
+    b->nv = 0;
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
+        b->tv_first[t] = b->tv_n;
+        uint32_t root = mesh_qmesh_root(c->indirect1, t);
+        if (root == MESH_QMESH_NONE) continue;
+        x.tri = t;
+        x.listed = 0;
+        const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
+        r = cache_region_walk(c->indirect1, &whole, index_leaf, &x, err);
+    }
+    if (r == LM_OK) b->tv_first[s->tri_count] = b->tv_n;
+    free(x.list);
+    *at_out = x.at;
+    return r;
 }
 
 lm_result cache_bounces_init(cache *c, lm_error *err)
@@ -115,7 +193,8 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
     if (!c->indirect1 || b->hit_first) return LM_OK;
     double t0 = lm_now_seconds();
     const uint32_t R = c->desc.bounce_rays;
-    lm_result r = index_vertices(c, err);
+    uint32_t *at = NULL;
+    lm_result r = index_vertices(c, &at, err);
     const uint32_t nv = b->nv;
     samp_point *pts = NULL;
     uint32_t *count = NULL, *tri = NULL;
@@ -132,10 +211,13 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
         b->sum = calloc(3 * n, sizeof *b->sum);
         b->shown = calloc(3 * n, sizeof *b->shown);
         b->whole = calloc(3 * n, sizeof *b->whole);
-        b->rest = calloc(3 * n, sizeof *b->rest);
+        size_t ne = b->tv_n ? b->tv_n : 1;
+        b->lab_whole = calloc(3 * ne, sizeof *b->lab_whole);
+        b->lab_shown = calloc(3 * ne, sizeof *b->lab_shown);
+        b->lab_prev = calloc(3 * ne, sizeof *b->lab_prev);
         b->seen = malloc(n);
         if (!pts || !count || !tri || !bary || !b->hit_first || !b->b || !b->next || !b->sum || !b->shown ||
-            !b->whole || !b->rest || !b->seen)
+            !b->whole || !b->lab_whole || !b->lab_shown || !b->lab_prev || !b->seen)
             r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing the bounces' transport (%u vertices)", nv);
     }
     if (r == LM_OK) {
@@ -146,31 +228,53 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
                                                          .keep = keeps_light},
                                     err);
     }
-    /* Kept compact: each vertex's hits one after the other. */
+    /* Kept compact: each vertex's hits one after the other, each with the coarse
+     * leaf holding it (its corners' indices and weights). */
     uint64_t total = 0;
     for (uint32_t i = 0; r == LM_OK && i < nv; ++i) total += count[i];
     if (r == LM_OK && total >= UINT32_MAX)
         r = lm_fail(err, LM_ERR_NO_MEMORY, "the bounces' transport has too many hits (%llu)", (unsigned long long)total);
     if (r == LM_OK) {
-        b->hit_tri = malloc((total ? total : 1) * sizeof *b->hit_tri);
-        b->hit_bary = malloc(2 * (total ? total : 1) * sizeof *b->hit_bary);
-        if (!b->hit_tri || !b->hit_bary) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
+        size_t h = total ? total : 1;
+        b->hit_tri = malloc(h * sizeof *b->hit_tri);
+        b->hit_bary = malloc(2 * h * sizeof *b->hit_bary);
+        b->hit_corner = malloc(3 * h * sizeof *b->hit_corner);
+        b->hit_weight = malloc(2 * h * sizeof *b->hit_weight);
+        if (!b->hit_tri || !b->hit_bary || !b->hit_corner || !b->hit_weight)
+            r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
+    }
+    uint32_t h = 0;
+    for (uint32_t i = 0; r == LM_OK && i < nv; ++i) {
+        b->hit_first[i] = h;
+        for (uint32_t j = 0; j < count[i]; ++j) {
+            size_t from = (size_t)i * R + j;
+            uint32_t leaf, *cn = b->hit_corner + 3 * (size_t)h;
+            double l[3];
+            lm_error ignore;
+            if (mesh_qmesh_locate(c->indirect1, tri[from], bary[2 * from], bary[2 * from + 1], &leaf, l, &ignore) !=
+                LM_OK)
+                continue;
+            const mesh_qnode *nd = mesh_qmesh_node(c->indirect1, leaf);
+            /* Every leaf corner is a coarse vertex (index_vertices). */
+            for (int k = 0; k < 3; ++k) cn[k] = at[nd->v[k]];
+            if (cn[0] == UINT32_MAX || cn[1] == UINT32_MAX || cn[2] == UINT32_MAX) continue;
+            b->hit_tri[h] = tri[from];
+            b->hit_bary[2 * (size_t)h] = bary[2 * from];
+            b->hit_bary[2 * (size_t)h + 1] = bary[2 * from + 1];
+            b->hit_weight[2 * (size_t)h] = (float)l[1];
+            b->hit_weight[2 * (size_t)h + 1] = (float)l[2];
+            h++;
+        }
     }
     if (r == LM_OK) {
-        uint32_t h = 0;
-        for (uint32_t i = 0; i < nv; ++i) {
-            b->hit_first[i] = h;
-            memcpy(b->hit_tri + h, tri + (size_t)i * R, count[i] * sizeof *tri);
-            memcpy(b->hit_bary + 2 * (size_t)h, bary + 2 * (size_t)i * R, 2 * count[i] * sizeof *bary);
-            h += count[i];
-        }
         b->hit_first[nv] = h;
         b->stats.vertices = nv;
         b->stats.rays = R;
-        b->stats.hits = total;
-        b->bytes = (size_t)total * 3 * sizeof(float) + (size_t)nv * (6 * 3 * sizeof(float) + 2 * sizeof(uint32_t) + 1) +
-                   3 * (size_t)c->s->tri_count * sizeof(uint32_t);
+        b->stats.hits = h;
+        b->bytes = (size_t)h * (8 * sizeof(float)) + (size_t)nv * (5 * 3 * sizeof(float) + 2 * sizeof(uint32_t) + 1) +
+                   (size_t)b->tv_n * 12 * sizeof(float) + ((size_t)c->s->tri_count + 1) * sizeof(uint32_t);
     }
+    free(at);
     free(pts);
     free(count);
     free(tri);
@@ -179,17 +283,14 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
     return r;
 }
 
-/* Which coarse vertices are seen: the corners of triangles with pixels. */
+/* Which coarse vertices are seen: those on triangles with pixels. */
 static void mark_seen(cache *c, const uint32_t *pixels)
 {
     cache_bounce_state *b = &c->bnc;
     memset(b->seen, 0, b->nv ? b->nv : 1);
     for (uint32_t t = 0; t < c->s->tri_count; ++t)
         if (pixels[t])
-            for (int k = 0; k < 3; ++k) {
-                uint32_t i = b->corner[3 * (size_t)t + (size_t)k];
-                if (i != UINT32_MAX) b->seen[i] = 1;
-            }
+            for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) b->seen[b->tv_index[e]] = 1;
 }
 
 /* out = what vertex i's hits see of the per-vertex field `from` (RGB), each hit
@@ -202,11 +303,9 @@ static void propagate(const cache *c, const float *from, float *out)
     for (uint32_t i = 0; i < b->nv; ++i) {
         double acc[3] = {0, 0, 0};
         for (uint32_t h = b->hit_first[i]; h < b->hit_first[i + 1]; ++h) {
-            uint32_t t = b->hit_tri[h];
-            const uint32_t *cn = b->corner + 3 * (size_t)t;
-            if (cn[0] == UINT32_MAX || cn[1] == UINT32_MAX || cn[2] == UINT32_MAX) continue;
-            float w1 = b->hit_bary[2 * (size_t)h], w2 = b->hit_bary[2 * (size_t)h + 1], w0 = 1.0f - w1 - w2;
-            const float *kd = s->materials[s->tris[t].material].kd;
+            const uint32_t *cn = b->hit_corner + 3 * (size_t)h;
+            float w1 = b->hit_weight[2 * (size_t)h], w2 = b->hit_weight[2 * (size_t)h + 1], w0 = 1.0f - w1 - w2;
+            const float *kd = s->materials[s->tris[b->hit_tri[h]].material].kd;
             for (int ch = 0; ch < 3; ++ch)
                 acc[ch] += kd[ch] * (w0 * from[3 * (size_t)cn[0] + (size_t)ch] + w1 * from[3 * (size_t)cn[1] + (size_t)ch] +
                                      w2 * from[3 * (size_t)cn[2] + (size_t)ch]);
@@ -238,42 +337,46 @@ static void first_bounce(const cache *c, float *out)
     }
 }
 
-/* The largest ΔE, over the seen corners of every triangle, between the colour
- * with indirect irradiance `shown` and with `shown + more`. */
-static float largest_change(const cache *c, const float *shown, const float *more)
+/* The colour at every seen coarse vertex of every triangle (its material, L_dd
+ * from the direct mesh there) with indirect irradiance E, into lab (3 per
+ * tv entry; unseen entries left alone). */
+static void seen_colours(const cache *c, const float *E, float *lab)
 {
     const cache_bounce_state *b = &c->bnc;
     const scene *s = c->s;
-    float worst = 0.0f;
     for (uint32_t t = 0; t < s->tri_count; ++t)
-        for (int k = 0; k < 3; ++k) {
-            uint32_t i = b->corner[3 * (size_t)t + (size_t)k];
-            if (i == UINT32_MAX || !b->seen[i]) continue;
-            float ldd[3] = {0, 0, 0}, e0[3], e1[3], lab0[3], lab1[3];
+        for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
+            uint32_t i = b->tv_index[e];
+            if (!b->seen[i]) continue;
+            float ldd[3] = {0, 0, 0};
             lm_error ignore;
             if (mesh_qmesh_root(c->direct, t) != MESH_QMESH_NONE &&
-                mesh_qmesh_interpolate(c->direct, t, k == 1, k == 2, ldd, &ignore) != LM_OK)
+                mesh_qmesh_interpolate(c->direct, t, b->tv_bary[2 * (size_t)e], b->tv_bary[2 * (size_t)e + 1], ldd,
+                                       &ignore) != LM_OK)
                 ldd[0] = ldd[1] = ldd[2] = 0.0f;
-            for (int ch = 0; ch < 3; ++ch) {
-                e0[ch] = shown[3 * (size_t)i + (size_t)ch];
-                e1[ch] = e0[ch] + more[3 * (size_t)i + (size_t)ch];
-            }
-            cache_seen_lab(c, t, ldd, e0, NULL, lab0);
-            cache_seen_lab(c, t, ldd, e1, NULL, lab1);
-            worst = fmaxf(worst, tm_delta_e(lab0, lab1));
+            cache_seen_lab(c, t, ldd, E + 3 * (size_t)i, NULL, lab + 3 * (size_t)e);
         }
+}
+
+/* The largest ΔE between two sets of seen colours. */
+static float largest_change(const cache_bounce_state *b, const float *lab0, const float *lab1)
+{
+    float worst = 0.0f;
+    for (uint32_t e = 0; e < b->tv_n; ++e)
+        if (b->seen[b->tv_index[e]]) worst = fmaxf(worst, tm_delta_e(lab0 + 3 * (size_t)e, lab1 + 3 * (size_t)e));
     return worst;
 }
 
-/* The whole series at the coarse vertices, B_1 + B_2 + … into `whole`, until a
- * bounce adds less than a ten-thousandth anywhere or CACHE_BOUNCES_MAX are in;
+/* The whole series at the coarse vertices, B_1 + B_2 + … into `whole` from
+ * B_1 = first, until a bounce adds less than a thousandth of the sum anywhere
+ * (a thousandth of a colour is far below any JND) or CACHE_BOUNCES_MAX are in;
  * returns how many are in. Uses b->b and b->next. */
-static int whole_series(cache *c, float *whole)
+static int whole_series(cache *c, const float *first, float *whole)
 {
     cache_bounce_state *b = &c->bnc;
     const size_t n3 = 3 * (size_t)b->nv;
-    first_bounce(c, b->b);
-    memcpy(whole, b->b, n3 * sizeof *whole);
+    memcpy(b->b, first, n3 * sizeof *b->b);
+    memcpy(whole, first, n3 * sizeof *whole);
     int k = 1;
     while (k < CACHE_BOUNCES_MAX) {
         propagate(c, b->b, b->next);
@@ -286,7 +389,7 @@ static int whole_series(cache *c, float *whole)
         float *tmp = b->b;
         b->b = b->next;
         b->next = tmp;
-        if (!(rel > 1e-4f)) break;
+        if (!(rel > 1e-3f)) break;
     }
     return k;
 }
@@ -303,18 +406,18 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
     const int automatic = c->desc.bounces == CACHE_BOUNCES_AUTO;
     cache_bounce_stats *st = &b->stats;
     memset(st->de, 0, sizeof st->de);
-    /* The whole series first (no colour needed), then K = 1, 2, … until what is
-     * shown, B_1 + … + B_K, is within the JND of it where it is seen (auto), or
-     * K is the count asked. E_m = B_1 + … + B_(K−1) goes into the source. */
-    int in_whole = whole_series(c, b->whole);
-    for (size_t j = 0; j < n3; ++j) b->rest[j] = b->whole[j];
-    first_bounce(c, b->b);
-    memcpy(b->shown, b->b, n3 * sizeof *b->shown);
+    /* The whole series first, then K = 1, 2, … until what is shown, B_1 + … +
+     * B_K, is within the JND of it where it is seen (auto), or K is the count
+     * asked. E_m = B_1 + … + B_(K−1) goes into the source. */
+    first_bounce(c, b->shown);
+    int in_whole = whole_series(c, b->shown, b->whole);
+    memcpy(b->b, b->shown, n3 * sizeof *b->b);
     memset(b->sum, 0, n3 * sizeof *b->sum);
+    seen_colours(c, b->whole, b->lab_whole);
+    seen_colours(c, b->shown, b->lab_shown);
     int K = 1;
     for (;;) {
-        for (size_t j = 0; j < n3; ++j) b->rest[j] = b->whole[j] - b->shown[j];
-        st->rest_de = largest_change(c, b->shown, b->rest);
+        st->rest_de = largest_change(b, b->lab_shown, b->lab_whole);
         if (automatic && !(st->rest_de > c->desc.jnd)) {
             snprintf(st->why, sizeof st->why,
                      "auto: the bounces after %d would add at most ΔE %.2f where they are seen, below the JND %.2f", K,
@@ -327,16 +430,16 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
             break;
         }
         if (K >= in_whole) {
-            snprintf(st->why, sizeof st->why,
-                     "%s%d bounces, all that change anything (the rest would add ΔE %.2f where seen)",
-                     automatic ? "auto: " : "", K, (double)st->rest_de);
             if (K >= CACHE_BOUNCES_MAX)
                 snprintf(st->why, sizeof st->why, "%s%d bounces, the most there can be (the rest would add ΔE %.2f)",
+                         automatic ? "auto: " : "", K, (double)st->rest_de);
+            else
+                snprintf(st->why, sizeof st->why,
+                         "%s%d bounces, all that change anything (the rest would add ΔE %.2f where seen)",
                          automatic ? "auto: " : "", K, (double)st->rest_de);
             break;
         }
         propagate(c, b->b, b->next);
-        st->de[K + 1] = largest_change(c, b->shown, b->next);
         for (size_t j = 0; j < n3; ++j) {
             b->sum[j] += b->b[j];
             b->shown[j] += b->next[j];
@@ -344,6 +447,11 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
         float *tmp = b->b;
         b->b = b->next;
         b->next = tmp;
+        tmp = b->lab_prev;
+        b->lab_prev = b->lab_shown;
+        b->lab_shown = tmp;
+        seen_colours(c, b->shown, b->lab_shown);
+        st->de[K + 1] = largest_change(b, b->lab_prev, b->lab_shown);
         K++;
     }
     st->bounces = K;

@@ -165,19 +165,30 @@ typedef struct cache_source_state {
 } cache_source_state;
 
 /* Bounces beyond the first (written by cache_bounces.c). The coarse vertices are
- * the corners of the indirect roots (c->indirect1 holds E_m there); vertex i's
+ * the leaf corners of a coarse mesh (c->indirect1 holds E_m there); vertex i's
  * transport is its hits hit_first[i] .. hit_first[i + 1] (scene triangle and
  * barycentric), each 1/rays of its cosine-weighted hemisphere. */
+enum {
+    CACHE_BOUNCE_LEAVES = 2048, /* the further bounces' coarse mesh: about this many triangles of equal area */
+    CACHE_BOUNCE_DEPTH = 6      /* ... split at most this deep */
+};
+
 typedef struct cache_bounce_state {
-    uint32_t nv;               /* coarse vertices */
+    uint32_t nv;               /* coarse vertices: the leaf corners of c->indirect1 */
     uint32_t *vid;             /* nv: their vertex ids */
-    uint32_t *corner;          /* 3 per scene triangle: the coarse index of its corners (scene order);
-                                  UINT32_MAX: no indirect root */
+    uint32_t *tv_first;        /* scene triangle t's coarse vertices: tv_index[tv_first[t] .. tv_first[t + 1]), */
+    uint32_t *tv_index;        /* at barycentric (tv_bary[2e], tv_bary[2e + 1]) in t */
+    float *tv_bary;
+    uint32_t tv_n, tv_cap;
     uint32_t *hit_first;       /* nv + 1 */
-    uint32_t *hit_tri;
-    float *hit_bary;           /* 2 per hit */
+    uint32_t *hit_tri;         /* per hit: scene triangle, */
+    float *hit_bary;           /* its barycentric (2), */
+    uint32_t *hit_corner;      /* the coarse indices of the corners of the coarse leaf holding it (3) */
+    float *hit_weight;         /* and its weights w1, w2 there (2; w0 = 1 − w1 − w2) */
     float *b, *next, *sum, *shown; /* nv × RGB each: B_k, B_k+1, E_m, Σ B shown */
-    float *whole, *rest;       /* nv × RGB each: every bounce's sum; whole − shown */
+    float *whole;              /* nv × RGB: every bounce's sum */
+    float *lab_whole, *lab_shown, *lab_prev; /* 3 per tv entry: seen colours (CIELAB) with whole, shown,
+                                  and shown one bounce before */
     uint8_t *seen;             /* nv: a corner of a triangle a pixel sees (all, before any pixels) */
     cache_bounce_stats stats;
     size_t bytes;

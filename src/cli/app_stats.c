@@ -129,6 +129,23 @@ cJSON *app_stats_json(const app_stats_desc *d)
     cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);
     cJSON_AddNumberToObject(j, "bytes", (double)st->bytes);
     cJSON_AddItemToObject(j, "sampler", sampler_json(&snap->sampler, &snap->quick_sampler));
+    cJSON *bn = cJSON_AddObjectToObject(j, "bounces");
+    if (bn) {
+        const cache_bounce_stats *b = &st->bounces;
+        cJSON_AddNumberToObject(bn, "shown", b->bounces);
+        cJSON_AddBoolToObject(bn, "auto", b->automatic);
+        cJSON_AddStringToObject(bn, "why", b->why);
+        cJSON_AddNumberToObject(bn, "rest_delta_e", b->rest_de);
+        cJSON *de = cJSON_AddArrayToObject(bn, "delta_e");
+        for (int k = 2; de && k <= b->bounces + 1 && k <= CACHE_BOUNCES_MAX; ++k)
+            cJSON_AddItemToArray(de, cJSON_CreateNumber(b->de[k]));
+        cJSON_AddNumberToObject(bn, "vertices", b->vertices);
+        cJSON_AddNumberToObject(bn, "rays_per_vertex", b->rays);
+        cJSON_AddNumberToObject(bn, "hits", (double)b->hits);
+        cJSON_AddNumberToObject(bn, "trace_seconds", b->trace_seconds);
+        cJSON_AddNumberToObject(bn, "update_seconds", b->update_seconds);
+        cJSON_AddNumberToObject(bn, "updates", (double)b->updates);
+    }
 
     cJSON *fr = cJSON_AddObjectToObject(j, "frame");
     if (fr) {

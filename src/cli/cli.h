@@ -67,11 +67,14 @@ int app_parse_options(const app_command *cmd, int argc, char **argv, app_opt *op
 enum { APP_PROGRESS_WIDTH = 30 };
 void app_progress_bar(double fraction, char bar[APP_PROGRESS_WIDTH + 1]);
 
-/* --sampler NAME and --gl NAME (render, converge, view; NULL: not given) into
- * the session's sampler back end and GL platform (rend_session.h), its other
- * fields left alone: APP_EXIT_OK, or a usage error printed and APP_EXIT_USAGE. */
+/* --sampler NAME, --gl NAME and --bounces K|auto (render, converge, view; NULL:
+ * not given) into the session's sampler back end, GL platform and bounces
+ * (rend_session.h), its other fields left alone: APP_EXIT_OK, or a usage error printed and APP_EXIT_USAGE. */
 struct rend_session_desc;
-int app_session_options(const app_command *cmd, const char *sampler, const char *gl, struct rend_session_desc *d);
+int app_session_options(const app_command *cmd, const char *sampler, const char *gl, const char *bounces,
+                        struct rend_session_desc *d);
+/* "auto" → CACHE_BOUNCES_AUTO, "K" → K (1..CACHE_BOUNCES_MAX); else a usage error. */
+int app_bounces_option(const app_command *cmd, const char *text, int *out);
 
 int cmd_info(const app_command *cmd, int argc, char **argv);
 int cmd_render(const app_command *cmd, int argc, char **argv);

@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mesh/cache/cache.h"
 #include "src/cli/cli.h"
 #include "src/render/rend_session.h"
 
@@ -112,8 +113,27 @@ int app_parse_options(const app_command *cmd, int argc, char **argv, app_opt *op
     return APP_EXIT_OK;
 }
 
-int app_session_options(const app_command *cmd, const char *sampler, const char *gl, rend_session_desc *d)
+int app_bounces_option(const app_command *cmd, const char *text, int *out)
 {
+    if (strcmp(text, "auto") == 0) {
+        *out = CACHE_BOUNCES_AUTO;
+        return APP_EXIT_OK;
+    }
+    char *end = NULL;
+    long k = strtol(text, &end, 10);
+    if (end == text || *end || k < 1 || k > CACHE_BOUNCES_MAX)
+        return app_usage_error(cmd, "--bounces is 1..%d or auto, not '%s'", CACHE_BOUNCES_MAX, text);
+    *out = (int)k;
+    return APP_EXIT_OK;
+}
+
+int app_session_options(const app_command *cmd, const char *sampler, const char *gl, const char *bounces,
+                        rend_session_desc *d)
+{
+    if (bounces) {
+        int rc = app_bounces_option(cmd, bounces, &d->bounces);
+        if (rc != APP_EXIT_OK) return rc;
+    }
     if (sampler && !samp_backend_from_name(sampler, &d->sampler.backend))
         return app_usage_error(cmd, "--sampler must be gl, embree or auto, not '%s'", sampler);
     if (gl && !glctx_platform_from_name(gl, &d->gl_platform))

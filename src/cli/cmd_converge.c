@@ -31,6 +31,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "mesh/cache/cache.h"
 #include "sampling/reference.h"
 #include "src/base/tonemap.h"
 #include "src/cli/app_stats.h"
@@ -108,6 +109,10 @@ typedef struct conv_ctx {
     double id_seconds;
     uint64_t frames;
     int have_final;
+    ref_transport transport;  /* the reference's (its lumesh:transport; model when it does not say) */
+    int ref_bounces;          /* model transport: its bounce count (REF_BOUNCES_NONE: direct only) */
+    int bounces;              /* the previewer's (cache_desc.bounces) */
+    char transport_note[256]; /* where these came from */
 } conv_ctx;
 
 /* "0.1,0.2,1" into increasing positive times ≤ limit (limit itself added last). */
@@ -317,7 +322,7 @@ static lm_result run_path_tracer(conv_ctx *c, uint32_t seed, conv_run *run, lm_e
     lm_result r = rgb ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
     if (r == LM_OK)
         r = ref_create(&(ref_desc){.scene = c->s, .camera = c->cam, .width = c->w, .height = c->h,
-                                   .transport = REF_TRANSPORT_MODEL, .seed = seed},
+                                   .transport = c->transport, .bounces = c->ref_bounces, .seed = seed},
                        &pt, err);
     double setup = lm_now_seconds() - t0;
     ref_stats st = {0};
@@ -455,6 +460,12 @@ static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_
     if (!j) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory writing convergence.json");
     cJSON_AddStringToObject(j, "scene", c->s->source);
     cJSON_AddStringToObject(j, "reference", ref_path);
+    cJSON_AddStringToObject(j, "transport", c->transport == REF_TRANSPORT_FULL ? "full" : "model");
+    if (c->bounces == CACHE_BOUNCES_AUTO)
+        cJSON_AddStringToObject(j, "bounces", "auto");
+    else
+        cJSON_AddNumberToObject(j, "bounces", c->bounces);
+    cJSON_AddStringToObject(j, "transport_note", c->transport_note);
     cJSON_AddNumberToObject(j, "width", c->w);
     cJSON_AddNumberToObject(j, "height", c->h);
     cJSON_AddNumberToObject(j, "exposure", c->exposure);
@@ -530,10 +541,56 @@ static lm_result write_plot(const conv_ctx *c, const conv_run *runs, int nrun, l
 
 /* ---- the command ------------------------------------------------------------------- */
 
+/* The transport to measure against, from the reference's header (lumesh
+ * reference writes lumesh:transport and lumesh:bounces): the path tracer
+ * follows it, and unless --bounces was given the previewer shows as many
+ * bounces (model K), or chooses them (full: auto). A reference that does not
+ * say is taken as the model transport's default, one bounce. */
+static int reference_transport(conv_ctx *c, const char *ref_path, int bounces_given, rend_session_desc *sd)
+{
+    const char *tr = img_attribute(&c->ref, "lumesh:transport"), *nb = img_attribute(&c->ref, "lumesh:bounces");
+    c->transport = REF_TRANSPORT_MODEL;
+    c->ref_bounces = 1;
+    if (tr && strcmp(tr, "full") == 0) {
+        c->transport = REF_TRANSPORT_FULL;
+        c->ref_bounces = 0;
+    } else if (tr && strcmp(tr, "model") == 0 && nb) {
+        char *end = NULL;
+        long k = strtol(nb, &end, 10);
+        if (end == nb || *end || k < 0 || k > 64) {
+            fprintf(stderr, "lumesh: %s: lumesh:bounces is '%s', not a bounce count 0..64\n", ref_path, nb);
+            return APP_EXIT_BAD_INPUT;
+        }
+        c->ref_bounces = k == 0 ? REF_BOUNCES_NONE : (int)k;
+    } else if (tr) {
+        fprintf(stderr, "lumesh: %s: lumesh:transport is '%s', not 'model' or 'full'\n", ref_path, tr);
+        return APP_EXIT_BAD_INPUT;
+    }
+    int model_k = c->ref_bounces == REF_BOUNCES_NONE ? 0 : c->ref_bounces;
+    if (!bounces_given)
+        sd->bounces = c->transport == REF_TRANSPORT_FULL ? CACHE_BOUNCES_AUTO : model_k < 1 ? 1 : model_k;
+    c->bounces = sd->bounces ? sd->bounces : CACHE_BOUNCES_AUTO;
+    char mine[32];
+    if (c->bounces == CACHE_BOUNCES_AUTO)
+        snprintf(mine, sizeof mine, "auto");
+    else
+        snprintf(mine, sizeof mine, "%d", c->bounces);
+    if (c->transport == REF_TRANSPORT_FULL)
+        snprintf(c->transport_note, sizeof c->transport_note,
+                 "reference: full transport; path tracer: full transport; previewer: %s bounces%s", mine,
+                 bounces_given ? " (--bounces)" : "");
+    else
+        snprintf(c->transport_note, sizeof c->transport_note,
+                 "reference: model transport, %d bounce%s%s; path tracer: the same; previewer: %s bounces%s", model_k,
+                 model_k == 1 ? "" : "s", tr ? "" : " (the file does not say: the default)", mine,
+                 bounces_given ? " (--bounces)" : "");
+    return APP_EXIT_OK;
+}
+
 int cmd_converge(const app_command *cmd, int argc, char **argv)
 {
     const char *ref_path = NULL, *dir = NULL, *sampler = NULL, *gl_name = NULL, *list = NULL, *camera = NULL,
-               *stats_path = NULL;
+               *stats_path = NULL, *bounces = NULL;
     double seconds = 0;
     long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
@@ -552,6 +609,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         {"--accumulate", NULL, APP_OPT_INT, &accumulate, 1, REND_SESSION_ACCUMULATE_MAX},
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
         {"--gl", NULL, APP_OPT_STRING, &gl_name},
+        {"--bounces", NULL, APP_OPT_STRING, &bounces},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -561,7 +619,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         return app_usage_error(cmd, "--reference, --seconds and --out are required");
     rend_session_desc sd = {.order = REND_SESSION_WORKER_FIRST, .single_mesh = single,
                             .supersample = (int)supersample, .first_budget = REND_SESSION_FIRST_BUDGET_VIEWER};
-    if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
+    if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;
     static conv_ctx c; /* large (rows, statistics): not on the stack */
     static conv_run runs[2];
     memset(&c, 0, sizeof c);
@@ -579,6 +637,10 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     lm_error err = {{0}};
     lm_result r = img_read(ref_path, &c.ref, &err);
     if (r != LM_OK) return app_report(r, &err);
+    if ((rc = reference_transport(&c, ref_path, bounces != NULL, &sd)) != APP_EXIT_OK) {
+        img_free(&c.ref);
+        return rc;
+    }
     r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &c.s, &err);
     double t0 = lm_now_seconds(); /* the clock starts with the scene loaded */
     if (r != LM_OK) {
@@ -633,6 +695,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     cJSON_Delete(stats);
     sigaction(SIGINT, &old, NULL);
     if (r == LM_OK) {
+        printf("%s\n", c.transport_note);
         printf("%s: first image %.3f s; ", c.s->source, c.first_image);
         if (c.converged_at >= 0)
             printf("converged at %.2f s\n", c.converged_at);

@@ -38,7 +38,10 @@ static void progress(const ref_renderer *r, double fraction, int final)
     fflush(stderr);
 }
 
-static lm_result write_result(const ref_renderer *r, const char *path, lm_error *err)
+/* The transport goes into the file's header (lumesh:transport, lumesh:bounces):
+ * `converge` takes the same transport for its path tracer and the same bounce
+ * count for the previewer from it. */
+static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const char *path, lm_error *err)
 {
     int w, h;
     ref_get_size(r, &w, &h);
@@ -58,8 +61,13 @@ static lm_result write_result(const ref_renderer *r, const char *path, lm_error 
             px[7 * i + 6] = spp[i];
         }
         static const char *const names[7] = {"R", "G", "B", "stderr.R", "stderr.G", "stderr.B", "samples"};
+        char bounces[16];
+        snprintf(bounces, sizeof bounces, "%d",
+                 rd->bounces == REF_BOUNCES_NONE ? 0 : rd->bounces == 0 ? 1 : rd->bounces);
+        const char *attrs[] = {"lumesh:transport", rd->transport == REF_TRANSPORT_FULL ? "full" : "model",
+                               "lumesh:bounces", rd->transport == REF_TRANSPORT_FULL ? "all" : bounces, NULL};
         img_write_desc d = {.path = path, .width = w, .height = h, .channels = 7, .pixels = px,
-                            .channel_names = names};
+                            .channel_names = names, .attributes = attrs};
         res = img_write(&d, err);
     }
     free(rgb);
@@ -147,7 +155,7 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
         }
         if (done) break;
     }
-    res = write_result(r, out, &err);
+    res = write_result(r, &rd, out, &err);
     sigaction(SIGINT, &old, NULL);
     ref_stats st;
     ref_get_stats(r, &st);

@@ -115,7 +115,7 @@ static lm_result write_debug_meshes(const char *dir, const scene *s, const scene
 
 int cmd_render(const app_command *cmd, int argc, char **argv)
 {
-    const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *debug_dir = NULL,
+    const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *bounces = NULL, *debug_dir = NULL,
                *components = NULL;
     double seconds = 0;
     long samples = 0, width = 0, height = 0, supersample = REND_FRAME_SUPERSAMPLE_DEFAULT,
@@ -130,6 +130,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         {"--camera", NULL, APP_OPT_STRING, &camera},
         {"--stats", NULL, APP_OPT_STRING, &stats},
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
+        {"--bounces", NULL, APP_OPT_STRING, &bounces},
         {"--gl", NULL, APP_OPT_STRING, &gl_name},
         {"--debug-meshes", NULL, APP_OPT_STRING, &debug_dir},
         {"--deterministic", NULL, APP_OPT_FLAG, &deterministic},
@@ -153,7 +154,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
      * (rend_session_desc.jnd_floor); otherwise it stops there, as --samples does. */
     rend_session_desc sd = {.supersample = (int)supersample, .max_tested = (uint64_t)samples,
                             .publish_debug = debug_dir != NULL, .jnd_floor = opts[1].seen ? 0.0f : -1.0f};
-    if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
+    if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;
     /* Reproducible runs: a stop counted in leaf tests, not seconds, and no timing-based
      * calibration (auto picks its back ends by measured speed). */
     if (deterministic && !opts[2].seen) return app_usage_error(cmd, "--deterministic needs --samples N");

@@ -88,11 +88,12 @@ static void release(void *user, const scene *old)
 
 int cmd_view(const app_command *cmd, int argc, char **argv)
 {
-    const char *sampler = NULL, *gl_name = NULL, *script = NULL, *stats = NULL, *camera = NULL;
+    const char *sampler = NULL, *gl_name = NULL, *bounces = NULL, *script = NULL, *stats = NULL, *camera = NULL;
     long width = 0, height = 0;
     double max_fps = VIEW_APP_DEFAULT_FPS;
     app_opt opts[] = {
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
+        {"--bounces", NULL, APP_OPT_STRING, &bounces},
         {"--gl", NULL, APP_OPT_STRING, &gl_name},
         {"--script", NULL, APP_OPT_STRING, &script},
         {"--stats", NULL, APP_OPT_STRING, &stats},
@@ -109,7 +110,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     /* As render: the 2% tolerance (rend_session_desc_defaults), the sampler chosen by
      * --sampler (auto by default). */
     rend_session_desc sd = {0};
-    if ((rc = app_session_options(cmd, sampler, gl_name, &sd)) != APP_EXIT_OK) return rc;
+    if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;
 
     lm_error err = {{0}};
     view_cmd *cmds = NULL;

@@ -50,15 +50,25 @@ typedef struct img_write_desc {
     const float *pixels;               /* width*height*channels floats; or NULL and pixels8 */
     const uint8_t *pixels8;            /* 8-bit input, PNG only */
     const char *const *channel_names;  /* NULL: R,G,B,A for 1..4 channels, else C0..Cn */
+    const char *const *attributes;     /* NULL, or name, value, name, value, ..., NULL: string
+                                          attributes of the EXR header (names "lumesh:...", values
+                                          up to IMG_ATTRIBUTE_CAP − 1 bytes); PNG ignores them */
 } img_write_desc;
 
 lm_result img_write(const img_write_desc *desc, lm_error *err);
+
+enum { IMG_ATTRIBUTE_CAP = 128, IMG_ATTRIBUTES_MAX = 8 };
 
 typedef struct img_image {
     int width, height, channels;
     float *pixels;             /* width*height*channels, owned; free with img_free */
     char (*channel_names)[32]; /* channels entries, owned */
+    int attribute_count;       /* the file's "lumesh:..." string attributes (img_write_desc.attributes), */
+    char attributes[IMG_ATTRIBUTES_MAX][2][IMG_ATTRIBUTE_CAP]; /* name and value, cut to fit */
 } img_image;
+
+/* The value of attribute `name` of img, or NULL. */
+const char *img_attribute(const img_image *img, const char *name);
 
 /* Reads any format OpenImageIO knows, converted to float. */
 lm_result img_read(const char *path, img_image *out, lm_error *err);

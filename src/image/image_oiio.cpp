@@ -317,6 +317,7 @@ lm_result write_impl(const img_write_desc *d, lm_error *err)
         }
         spec.attribute(kChannelOrderAttr, order);
         spec.attribute("compression", "zip");
+        for (const char *const *a = d->attributes; a && a[0] && a[1]; a += 2) spec.attribute(a[0], a[1]);
     }
 
     /* The file is encoded into memory and written out here, not by the
@@ -457,6 +458,17 @@ lm_result read_impl(const char *path, img_image *out, lm_error *err)
     in->geterror(); /* nothing may stay pending */
 
     restore_channel_order(spec, px.get(), names.get(), w * h);
+    out->attribute_count = 0;
+    for (const OIIO::ParamValue &p : spec.extra_attribs) {
+        std::string name = p.name().string();
+        if (name.rfind("lumesh:", 0) != 0 || name == kChannelOrderAttr || p.type() != OIIO::TypeDesc::STRING ||
+            out->attribute_count >= IMG_ATTRIBUTES_MAX)
+            continue;
+        std::string value = p.get_string();
+        std::snprintf(out->attributes[out->attribute_count][0], IMG_ATTRIBUTE_CAP, "%s", name.c_str());
+        std::snprintf(out->attributes[out->attribute_count][1], IMG_ATTRIBUTE_CAP, "%s", value.c_str());
+        out->attribute_count++;
+    }
 
     out->width = spec.width;
     out->height = spec.height;
@@ -496,6 +508,13 @@ extern "C" lm_result img_read(const char *path, img_image *out, lm_error *err)
     } catch (...) {
         return lm_fail(err, LM_ERR_RUNTIME, "%s: unknown error reading the image", path);
     }
+}
+
+extern "C" const char *img_attribute(const img_image *img, const char *name)
+{
+    for (int i = 0; img && name && i < img->attribute_count; ++i)
+        if (std::strcmp(img->attributes[i][0], name) == 0) return img->attributes[i][1];
+    return nullptr;
 }
 
 extern "C" void img_free(img_image *img)
