@@ -39,6 +39,10 @@ next-snapshot 120
 screenshot ${DIR}/red.png
 light-color 0 1 1 1
 next-snapshot 120
+screenshot ${DIR}/white.png
+key b
+next-snapshot 120
+screenshot ${DIR}/onebounce.png
 key 3
 frames 1
 screenshot ${DIR}/noindirect.png
@@ -136,6 +140,35 @@ if(NOT mean_dim LESS mean_lit)
 endif()
 if(NOT mean_noindirect LESS mean_dim)
   message(FATAL_ERROR "hiding the indirect term did not darken the image: ${mean_dim} -> ${mean_noindirect}")
+endif()
+
+# Key b while paused (auto -> 1 bounce): one more snapshot, no light sample, one
+# bounce where auto showed several, and a darker picture.
+foreach(f white onebounce)
+  if(NOT out MATCHES "screenshot [^\n]*/${f}\\.png: [^\n]*light samples ([0-9]+)[^\n]*bounces ([0-9]+)")
+    message(FATAL_ERROR "no screenshot line for ${f}.png")
+  endif()
+  set(light_${f} ${CMAKE_MATCH_1})
+  set(bounces_${f} ${CMAKE_MATCH_2})
+endforeach()
+execute_process(COMMAND ${CHECK} ${DIR}/white.png ${DIR}/onebounce.png RESULT_VARIABLE brc OUTPUT_VARIABLE bout
+                ERROR_VARIABLE berr)
+foreach(f white onebounce)
+  if(NOT bout MATCHES "/${f}\\.png: [0-9]+x[0-9]+, mean ([0-9.]+)")
+    message(FATAL_ERROR "no mean for ${f}.png: ${bout}${berr}")
+  endif()
+  set(mean_${f} ${CMAKE_MATCH_1})
+endforeach()
+message("key b: bounces ${bounces_white} -> ${bounces_onebounce}, light samples ${light_white} -> ${light_onebounce}, "
+        "mean ${mean_white} -> ${mean_onebounce}")
+if(NOT bounces_onebounce EQUAL 1 OR NOT bounces_white GREATER 1)
+  message(FATAL_ERROR "key b: bounces ${bounces_white} -> ${bounces_onebounce}, expected auto (> 1) -> 1")
+endif()
+if(NOT light_onebounce EQUAL light_white)
+  message(FATAL_ERROR "key b took light samples: ${light_white} -> ${light_onebounce}")
+endif()
+if(NOT mean_onebounce LESS mean_white)
+  message(FATAL_ERROR "one bounce is not darker than auto's: ${mean_white} -> ${mean_onebounce}")
 endif()
 
 # The overlay and the HUD: the window differs from the picture of the same frame.

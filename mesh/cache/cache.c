@@ -379,6 +379,28 @@ lm_result cache_regather_indirect(cache *c, lm_error *err)
     return r;
 }
 
+lm_result cache_set_bounces(cache *c, int bounces, lm_error *err)
+{
+    if (!c || bounces < CACHE_BOUNCES_AUTO || bounces > CACHE_BOUNCES_MAX || bounces == 0)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_bounces: 1..%d or auto, not %d", CACHE_BOUNCES_MAX, bounces);
+    if (bounces == c->desc.bounces) return LM_OK;
+    c->desc.bounces = bounces;
+    lm_result r = LM_OK;
+    if (bounces == 1) {
+        mesh_qmesh_destroy(c->indirect1);
+        c->indirect1 = NULL;
+        cache_bounces_free(&c->bnc);
+    } else if (!c->indirect1) {
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3,
+                                                 .node_cap = c->desc.node_cap},
+                              &c->indirect1, err);
+        if (r == LM_OK && c->initialised) r = cache_bounces_init(c, err);
+    }
+    if (r == LM_OK && c->initialised) r = cache_regather_all(c, err);
+    cache_sched_requeue(&c->sched, CACHE_KINDS);
+    return r;
+}
+
 lm_result cache_requeue(cache *c, lm_error *err)
 {
     (void)err;

@@ -196,6 +196,12 @@ lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2
  * where they are sure). */
 lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_error *err);
 
+/* The diffuse bounces shown from now on (cache_desc.bounces: 1..CACHE_BOUNCES_MAX
+ * or CACHE_BOUNCES_AUTO): the further bounces' transport is traced if it was not
+ * (bounce rays, no light sample) or dropped (1), and every indirect value is
+ * gathered again from the new source, as after a light edit. */
+lm_result cache_set_bounces(cache *c, int bounces, lm_error *err);
+
 /* Priority of a node of the direct (0), indirect (1) or specular (2) mesh under the random
  * scheduler: a leaf's own, an inner node's the maximum of its children's. */
 float cache_node_priority(const cache *c, int mesh, uint32_t node);

@@ -67,6 +67,7 @@ void cache_bounces_free(cache_bounce_state *b)
     free(b->lab_whole);
     free(b->lab_shown);
     free(b->lab_prev);
+    free(b->ldd);
     free(b->seen);
     memset(b, 0, sizeof *b);
 }
@@ -215,9 +216,10 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
         b->lab_whole = calloc(3 * ne, sizeof *b->lab_whole);
         b->lab_shown = calloc(3 * ne, sizeof *b->lab_shown);
         b->lab_prev = calloc(3 * ne, sizeof *b->lab_prev);
+        b->ldd = calloc(3 * ne, sizeof *b->ldd);
         b->seen = malloc(n);
         if (!pts || !count || !tri || !bary || !b->hit_first || !b->b || !b->next || !b->sum || !b->shown ||
-            !b->whole || !b->lab_whole || !b->lab_shown || !b->lab_prev || !b->seen)
+            !b->whole || !b->lab_whole || !b->lab_shown || !b->lab_prev || !b->ldd || !b->seen)
             r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing the bounces' transport (%u vertices)", nv);
     }
     if (r == LM_OK) {
@@ -272,7 +274,7 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
         b->stats.rays = R;
         b->stats.hits = h;
         b->bytes = (size_t)h * (8 * sizeof(float)) + (size_t)nv * (5 * 3 * sizeof(float) + 2 * sizeof(uint32_t) + 1) +
-                   (size_t)b->tv_n * 12 * sizeof(float) + ((size_t)c->s->tri_count + 1) * sizeof(uint32_t);
+                   (size_t)b->tv_n * 15 * sizeof(float) + ((size_t)c->s->tri_count + 1) * sizeof(uint32_t);
     }
     free(at);
     free(pts);
@@ -337,24 +339,35 @@ static void first_bounce(const cache *c, float *out)
     }
 }
 
-/* The colour at every seen coarse vertex of every triangle (its material, L_dd
- * from the direct mesh there) with indirect irradiance E, into lab (3 per
+/* L_dd from the direct mesh at every seen coarse vertex of every triangle (3 per
  * tv entry; unseen entries left alone). */
-static void seen_colours(const cache *c, const float *E, float *lab)
+static void seen_direct(const cache *c, float *ldd)
+{
+    const cache_bounce_state *b = &c->bnc;
+    const scene *s = c->s;
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
+            float *l = ldd + 3 * (size_t)e;
+            lm_error ignore;
+            if (!b->seen[b->tv_index[e]]) continue;
+            if (mesh_qmesh_root(c->direct, t) == MESH_QMESH_NONE ||
+                mesh_qmesh_interpolate(c->direct, t, b->tv_bary[2 * (size_t)e], b->tv_bary[2 * (size_t)e + 1], l,
+                                       &ignore) != LM_OK)
+                l[0] = l[1] = l[2] = 0.0f;
+        }
+}
+
+/* The colour at every seen coarse vertex of every triangle (its material, L_dd
+ * from seen_direct) with indirect irradiance E, into lab (3 per tv entry; unseen
+ * entries left alone). */
+static void seen_colours(const cache *c, const float *ldd, const float *E, float *lab)
 {
     const cache_bounce_state *b = &c->bnc;
     const scene *s = c->s;
     for (uint32_t t = 0; t < s->tri_count; ++t)
         for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
             uint32_t i = b->tv_index[e];
-            if (!b->seen[i]) continue;
-            float ldd[3] = {0, 0, 0};
-            lm_error ignore;
-            if (mesh_qmesh_root(c->direct, t) != MESH_QMESH_NONE &&
-                mesh_qmesh_interpolate(c->direct, t, b->tv_bary[2 * (size_t)e], b->tv_bary[2 * (size_t)e + 1], ldd,
-                                       &ignore) != LM_OK)
-                ldd[0] = ldd[1] = ldd[2] = 0.0f;
-            cache_seen_lab(c, t, ldd, E + 3 * (size_t)i, NULL, lab + 3 * (size_t)e);
+            if (b->seen[i]) cache_seen_lab(c, t, ldd + 3 * (size_t)e, E + 3 * (size_t)i, NULL, lab + 3 * (size_t)e);
         }
 }
 
@@ -413,8 +426,10 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
     int in_whole = whole_series(c, b->shown, b->whole);
     memcpy(b->b, b->shown, n3 * sizeof *b->b);
     memset(b->sum, 0, n3 * sizeof *b->sum);
-    seen_colours(c, b->whole, b->lab_whole);
-    seen_colours(c, b->shown, b->lab_shown);
+    seen_direct(c, b->lab_prev); /* (lab_prev is free until the first step) */
+    memcpy(b->ldd, b->lab_prev, 3 * (size_t)b->tv_n * sizeof *b->ldd);
+    seen_colours(c, b->ldd, b->whole, b->lab_whole);
+    seen_colours(c, b->ldd, b->shown, b->lab_shown);
     int K = 1;
     for (;;) {
         st->rest_de = largest_change(b, b->lab_shown, b->lab_whole);
@@ -450,7 +465,7 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
         tmp = b->lab_prev;
         b->lab_prev = b->lab_shown;
         b->lab_shown = tmp;
-        seen_colours(c, b->shown, b->lab_shown);
+        seen_colours(c, b->ldd, b->shown, b->lab_shown);
         st->de[K + 1] = largest_change(b, b->lab_prev, b->lab_shown);
         K++;
     }

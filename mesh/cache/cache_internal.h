@@ -189,6 +189,7 @@ typedef struct cache_bounce_state {
     float *whole;              /* nv × RGB: every bounce's sum */
     float *lab_whole, *lab_shown, *lab_prev; /* 3 per tv entry: seen colours (CIELAB) with whole, shown,
                                   and shown one bounce before */
+    float *ldd;                /* 3 per tv entry: L_dd there (the update's) */
     uint8_t *seen;             /* nv: a corner of a triangle a pixel sees (all, before any pixels) */
     cache_bounce_stats stats;
     size_t bytes;

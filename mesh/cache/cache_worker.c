@@ -49,6 +49,7 @@ struct cache_worker {
     int ready_new;
     light_edit edits[MAX_EDITS];
     uint32_t edit_count;
+    int new_bounces;                  /* set_bounces: the count waiting (cache_desc.bounces); 0: none */
     uint32_t *new_pixels;             /* set_pixels: a copy waiting for the worker to take it */
     int debug_wanted;                 /* snapshots carry the debug data (desc.publish_debug, then
                                          cache_worker_set_publish_debug) */
@@ -400,7 +401,8 @@ static void *worker_main(void *arg)
             /* Paused or idle, an edit, a new view or a change of the debug data still
              * wakes the worker: it is applied and published without a refinement
              * step (a paused viewer shows it); idle, refinement then goes on for it. */
-            if (((w->paused || idle) && nedit == 0 && !w->new_pixels && !w->republish) || no_pixels) {
+            if (((w->paused || idle) && nedit == 0 && !w->new_bounces && !w->new_pixels && !w->republish) ||
+                no_pixels) {
                 w->parked = 1;
                 pthread_cond_broadcast(&w->cond);
                 if (w->paused) {
@@ -420,8 +422,9 @@ static void *worker_main(void *arg)
             }
             break;
         }
-        int cancel = w->cancel, paused = w->paused, debug = w->debug_wanted;
+        int cancel = w->cancel, paused = w->paused, debug = w->debug_wanted, bounces = w->new_bounces;
         w->republish = 0;
+        w->new_bounces = 0;
         if (!cancel && nedit) {
             memcpy(edits, w->edits, nedit * sizeof *edits);
             w->edit_count = 0;
@@ -435,6 +438,8 @@ static void *worker_main(void *arg)
             for (uint32_t j = i + 1; j < nedit && !later; ++j) later = edits[j].light == edits[i].light;
             if (!later) r = cache_set_light(c, edits[i].light, edits[i].value, &err);
         }
+        if (r == LM_OK && bounces) r = cache_set_bounces(c, bounces, &err);
+        if (bounces) nedit++; /* an edit like a light's */
         int new_view = 0;
         if (r == LM_OK) r = take_pixels(w, c, &new_view, &err);
         if (r != LM_OK) break;
@@ -649,6 +654,18 @@ lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float va
     }
     pthread_mutex_unlock(&w->lock);
     return r;
+}
+
+lm_result cache_worker_set_bounces(cache_worker *w, int bounces, lm_error *err)
+{
+    if (bounces != CACHE_BOUNCES_AUTO && (bounces < 1 || bounces > CACHE_BOUNCES_MAX))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker_set_bounces: 1..%d or auto, not %d", CACHE_BOUNCES_MAX,
+                       bounces);
+    pthread_mutex_lock(&w->lock);
+    w->new_bounces = bounces;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+    return LM_OK;
 }
 
 lm_result cache_worker_set_pixels(cache_worker *w, const uint32_t *pixels, lm_error *err)

@@ -95,6 +95,9 @@ void cache_worker_request_pause(cache_worker *w);
 void cache_worker_resume(cache_worker *w);
 /* Queued; the worker applies it before its next step (cache_set_light: no resampling). */
 lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float value[3], lm_error *err);
+/* Queued like a light edit: the diffuse bounces shown from now on (cache_set_bounces:
+ * every indirect value gathered again, no light sample). */
+lm_result cache_worker_set_bounces(cache_worker *w, int bounces, lm_error *err);
 /* New pixel counts per scene triangle (a new ID pass: the view changed); copied.
  * The worker takes them before its next step and reorders its queues by them. */
 lm_result cache_worker_set_pixels(cache_worker *w, const uint32_t *pixels, lm_error *err);

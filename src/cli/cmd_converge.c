@@ -545,10 +545,22 @@ static lm_result write_plot(const conv_ctx *c, const conv_run *runs, int nrun, l
  * reference writes lumesh:transport and lumesh:bounces): the path tracer
  * follows it, and unless --bounces was given the previewer shows as many
  * bounces (model K), or chooses them (full: auto). A reference that does not
- * say is taken as the model transport's default, one bounce. */
-static int reference_transport(conv_ctx *c, const char *ref_path, int bounces_given, rend_session_desc *sd)
+ * say is taken as the model transport's default, one bounce; --transport
+ * (`given`, NULL: not given) says otherwise (model: one bounce unless the file
+ * says how many). */
+static int reference_transport(conv_ctx *c, const char *ref_path, const char *given, int bounces_given,
+                               rend_session_desc *sd)
 {
     const char *tr = img_attribute(&c->ref, "lumesh:transport"), *nb = img_attribute(&c->ref, "lumesh:bounces");
+    if (given) { /* --transport: the file does not say, or says wrong */
+        if (strcmp(given, "model") != 0 && strcmp(given, "full") != 0)
+            return app_usage_error(c->cmd, "--transport is 'model' or 'full', not '%s'", given);
+        if (tr && strcmp(tr, given) != 0)
+            fprintf(stderr, "lumesh: %s says it is of the %s transport; measuring against it as --transport %s\n",
+                    ref_path, tr, given);
+        tr = given;
+        if (strcmp(given, "model") == 0 && !nb) nb = "1";
+    }
     c->transport = REF_TRANSPORT_MODEL;
     c->ref_bounces = 1;
     if (tr && strcmp(tr, "full") == 0) {
@@ -590,7 +602,7 @@ static int reference_transport(conv_ctx *c, const char *ref_path, int bounces_gi
 int cmd_converge(const app_command *cmd, int argc, char **argv)
 {
     const char *ref_path = NULL, *dir = NULL, *sampler = NULL, *gl_name = NULL, *list = NULL, *camera = NULL,
-               *stats_path = NULL, *bounces = NULL;
+               *stats_path = NULL, *bounces = NULL, *transport = NULL;
     double seconds = 0;
     long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
@@ -610,6 +622,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
         {"--gl", NULL, APP_OPT_STRING, &gl_name},
         {"--bounces", NULL, APP_OPT_STRING, &bounces},
+        {"--transport", NULL, APP_OPT_STRING, &transport},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -637,7 +650,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     lm_error err = {{0}};
     lm_result r = img_read(ref_path, &c.ref, &err);
     if (r != LM_OK) return app_report(r, &err);
-    if ((rc = reference_transport(&c, ref_path, bounces != NULL, &sd)) != APP_EXIT_OK) {
+    if ((rc = reference_transport(&c, ref_path, transport, bounces != NULL, &sd)) != APP_EXIT_OK) {
         img_free(&c.ref);
         return rc;
     }

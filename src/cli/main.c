@@ -8,7 +8,9 @@
 #define SAMPLER_HELP                                                                          \
     "  --sampler NAME      irradiance sampler: gl, embree, or auto (default: the cheaper at\n" \
     "                      equal error on this machine, measured at start)\n"                \
-    "  --gl NAME           GL platform of the gl sampler: egl (default) or osmesa\n"
+    "  --gl NAME           GL platform of the gl sampler: egl (default) or osmesa\n"       \
+    "  --bounces K|auto    diffuse bounces shown, 1..32, or auto (default): as many as change\n" \
+    "                      the picture by more than the JND where it is seen\n"
 
 static const app_command commands[] = {
     {"info", "print what a scene holds: triangles, materials, lights, cameras, what was dropped",
@@ -25,7 +27,7 @@ static const app_command commands[] = {
      "usage: lumesh render [SCENE] -o OUT.png|OUT.exr [--seconds T | --samples N [--deterministic]]\n"
      "                     [--width W --height H] [--supersample S] [--accumulate K] [--camera NAME]\n"
      "                     [--stats STATS.json] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
-     "                     [--debug-meshes DIR] [--components LIST]\n"
+     "                     [--bounces K|auto] [--debug-meshes DIR] [--components LIST]\n"
      "\n"
      "Refines the multi-mesh cache of SCENE (headless: EGL, or --gl osmesa) until it\n"
      "has converged at its JND (nothing left to test), T seconds have passed (it\n"
@@ -108,6 +110,7 @@ static const app_command commands[] = {
      "                       [--snapshots 0.1,0.2,0.5,1,...] [--vs-path-tracer] [--single-mesh]\n"
      "                       [--camera NAME] [--stats STATS.json] [--supersample S] [--accumulate K]\n"
      "                       [--seed S] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
+     "                       [--bounces K|auto] [--transport model|full]\n"
      "\n"
      "Renders SCENE progressively at REF's size for T seconds, counted from the scene\n"
      "loaded. At each snapshot time it draws what the previewer shows, writes it to\n"
@@ -116,7 +119,11 @@ static const app_command commands[] = {
      "(relMSE and mean dE against time, log-log). Ctrl-C stops and still writes what\n"
      "was measured.\n"
      "\n"
-     "  --reference REF     linear reference image (lumesh reference --transport model)\n"
+     "  --reference REF     linear reference image (lumesh reference); the path tracer follows\n"
+     "                      its transport, and without --bounces the previewer shows its\n"
+     "                      bounce count (model K) or chooses (full: auto)\n"
+     "  --transport T       model or full: the reference's transport where its file does not\n"
+     "                      say (default: what it says; else model with one bounce)\n"
      "  --seconds T         length of the run; the last snapshot is at T\n"
      "  --out DIR           output directory (created if missing)\n"
      "  --snapshots LIST    snapshot times in seconds (default 0.1,0.2,0.5,1,2,5,10,... below T)\n"
@@ -138,6 +145,7 @@ static const app_command commands[] = {
     {"view", "interactive window that sharpens while the camera is idle",
      "usage: lumesh view [SCENE] [--camera NAME] [--width W --height H] [--script FILE]\n"
      "                   [--stats STATS.json] [--max-fps F] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
+     "                   [--bounces K|auto]\n"
      "\n"
      "Opens a window on SCENE (default 1280x720); lighting refines in the background\n"
      "and the image sharpens while you look.\n"
@@ -148,6 +156,7 @@ static const app_command commands[] = {
      "  L: select the next light   ] / [: its power x2 / x0.5   K: its colour (no new light samples)\n"
      "  1/2/3/4: show/hide direct diffuse, direct specular, indirect, emission\n"
      "  O: overlay the next mesh (direct, indirect, specular, each light, off)   V: wireframe/samples\n"
+     "  B: bounces (auto, 1, 2, 3, 4, 8; no new light samples)\n"
      "  R: reload the scene from its file   H: help in the HUD\n"
      "  Esc/Q: quit\n"
      "\n"
@@ -158,7 +167,7 @@ static const app_command commands[] = {
      "                      light INDEX SCALE, light-color INDEX R G B, resize W H,\n"
      "                      minimise, restore,\n"
      "                      next-snapshot SECONDS,\n"
-     "                      key escape|q|p|plus|minus|f12|f|c|l|bracketright|bracketleft|1|2|3|4|h|o|v|r|k,\n"
+     "                      key escape|q|p|plus|minus|f12|f|c|l|bracketright|bracketleft|1|2|3|4|h|o|v|r|k|b,\n"
      "                      quit; prints a line per screenshot\n"
      "  --stats FILE        write the last snapshot's statistics as JSON at exit (docs/stats.md)\n"
      "  --max-fps F         frame rate cap (default 60; 0: unpaced)\n"

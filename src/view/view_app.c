@@ -106,6 +106,8 @@ static lm_result start_session(view_state *v, lm_error *err)
      * one is shown (it costs the worker about a tenth of its pace on Water). */
     rend_session_desc d = v->d->session;
     d.scene = v->s;
+    if (!v->bounces) v->bounces = d.bounces ? d.bounces : CACHE_BOUNCES_AUTO;
+    d.bounces = v->bounces;
     d.camera = NULL;
     d.width = d.height = 0;
     d.order = REND_SESSION_WORKER_FIRST;
@@ -248,6 +250,14 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
     case VIEW_ACTION_TOGGLE_EMISSION: v->components ^= REND_FRAME_COMPONENT_EMISSION; break;
     case VIEW_ACTION_HELP: v->help = !v->help; break;
     case VIEW_ACTION_RELOAD: return reload_scene(v, err);
+    case VIEW_ACTION_BOUNCES: {
+        /* Like a light edit: every indirect value gathered again, no light sample. */
+        static const int cycle[] = {CACHE_BOUNCES_AUTO, 1, 2, 3, 4, 8};
+        size_t i = 0, n = sizeof cycle / sizeof cycle[0];
+        while (i < n && cycle[i] != v->bounces) ++i;
+        v->bounces = cycle[(i + 1) % n];
+        return cache_worker_set_bounces(worker(v), v->bounces, err);
+    }
     case VIEW_ACTION_OVERLAY_NEXT:
         v->overlay = (v->overlay + 1) % (int)(4 + v->light_count);
         v->ov_stale = 1;

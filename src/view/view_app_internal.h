@@ -44,6 +44,7 @@ typedef struct view_state {
     int emission_dirty;             /* the renderer's emitters differ from light_scale */
     unsigned components;            /* REND_FRAME_COMPONENT_* shown */
     int help;                       /* the help overlay is on */
+    int bounces;                    /* B: the bounces asked (cache_desc.bounces; kept over reloads) */
     /* Mesh overlay (paper Fig. 4b/4c, rend_debug.h): 0 off, else 1 + the mesh
      * (0 direct, 1 indirect, 2 specular, 3 + l light l); the image made on the CPU
      * is kept until the snapshot, the camera, the size or the choice changes. */

@@ -119,7 +119,7 @@ static const char k_help[] =
     "L: next light    ] [: its power x2 / x0.5    K: its colour (no new light samples)\n"
     "+ -: exposure    P: pause refinement    F12: screenshot (PNG + EXR)\n"
     "O: overlay the next mesh    V: wireframe / sample points\n"
-    "R: reload the scene from its file    H: this help    Esc / Q: quit";
+    "B: bounces (auto, 1, 2, 3, 4, 8)    R: reload the scene from its file    H: this help    Esc / Q: quit";
 
 static uint64_t all_samples(const cache_snapshot *s)
 {
@@ -171,7 +171,16 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
         if (v->light_count)
             snprintf(light, sizeof light, "  light %u/%u x%.3g%s", v->light + 1, v->light_count,
                      v->light_scale[v->light], view_light_preset_names[v->light_preset[v->light]]);
-        k += (size_t)snprintf(out + k, size - k, "exposure %+.1f%s  terms %c%c%c%c  camera %u/%u%s", v->exposure, light,
+        char bounces[64];
+        int shown = s ? s->stats.bounces.bounces : 0;
+        if (v->bounces == CACHE_BOUNCES_AUTO && shown)
+            snprintf(bounces, sizeof bounces, "bounces auto (%d)", shown);
+        else if (v->bounces == CACHE_BOUNCES_AUTO)
+            snprintf(bounces, sizeof bounces, "bounces auto");
+        else
+            snprintf(bounces, sizeof bounces, "bounces %d", v->bounces);
+        k += (size_t)snprintf(out + k, size - k, "exposure %+.1f%s  %s  terms %c%c%c%c  camera %u/%u%s", v->exposure, light,
+                              bounces,
                               v->components & REND_FRAME_COMPONENT_DIRECT_DIFFUSE ? 'D' : '-',
                               v->components & REND_FRAME_COMPONENT_DIRECT_SPECULAR ? 'S' : '-',
                               v->components & REND_FRAME_COMPONENT_INDIRECT ? 'I' : '-',

@@ -18,7 +18,7 @@ view_action view_action_from_key_name(const char *name)
         {"f", VIEW_ACTION_FRAME_ALL},         {"l", VIEW_ACTION_LIGHT_NEXT},
         {"c", VIEW_ACTION_CAMERA_NEXT},       {"o", VIEW_ACTION_OVERLAY_NEXT},
         {"v", VIEW_ACTION_OVERLAY_KIND},      {"r", VIEW_ACTION_RELOAD},
-        {"k", VIEW_ACTION_LIGHT_COLOR},
+        {"k", VIEW_ACTION_LIGHT_COLOR},       {"b", VIEW_ACTION_BOUNCES},
         {"bracketright", VIEW_ACTION_LIGHT_UP}, {"bracketleft", VIEW_ACTION_LIGHT_DOWN},
         {"1", VIEW_ACTION_TOGGLE_DIRECT},     {"2", VIEW_ACTION_TOGGLE_SPECULAR},
         {"3", VIEW_ACTION_TOGGLE_INDIRECT},   {"4", VIEW_ACTION_TOGGLE_EMISSION},
