@@ -788,9 +788,9 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
  * in (docs/cache.md, cause 4). Nowhere else: a floor point under a box standing
  * on it is hidden, not in another room, and pulled out past the box it made
  * CornellBox-Original worse (mean ΔE 0.53 -> 0.94, and 0.57 for points on the
- * floor's inner diagonal alone). The source (the first bounce of two) stays at
- * the vertex. */
-static int on_open_edge(const cache *c, uint32_t vid)
+ * floor's inner diagonal alone). The further bounces' coarse vertices are
+ * pulled in the same way (cache_bounces.c). */
+int cache_vertex_on_open_edge(const cache *c, uint32_t vid)
 {
     const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
     if (!c->s->topology) return 0;
@@ -809,7 +809,7 @@ static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_
     if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     for (uint32_t i = 0; i < n; ++i) {
         pts[i] = cache_vertex_point(c, vids[i]);
-        if (on_open_edge(c, vids[i])) samp_point_pull_inside(c->sp, &pts[i]);
+        if (cache_vertex_on_open_edge(c, vids[i])) samp_point_pull_inside(c->sp, &pts[i]);
     }
     r = c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
                             : gather_displayed(c, vids, pts, n, min_level, E, err);

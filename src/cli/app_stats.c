@@ -137,7 +137,7 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddStringToObject(bn, "why", b->why);
         cJSON_AddNumberToObject(bn, "rest_delta_e", b->rest_de);
         cJSON *de = cJSON_AddArrayToObject(bn, "delta_e");
-        for (int k = 2; de && k <= b->bounces + 1 && k <= CACHE_BOUNCES_MAX; ++k)
+        for (int k = 2; de && k <= b->bounces && k <= CACHE_BOUNCES_MAX; ++k)
             cJSON_AddItemToArray(de, cJSON_CreateNumber(b->de[k]));
         cJSON_AddNumberToObject(bn, "vertices", b->vertices);
         cJSON_AddNumberToObject(bn, "rays_per_vertex", b->rays);
