@@ -15,7 +15,8 @@
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
 file(WRITE ${DIR}/script.txt "# view_cli.cmake
-wait 1.5
+next-snapshot 120
+wait 0.5
 screenshot ${DIR}/before.png
 orbit 25 10
 frames 3
@@ -109,7 +110,7 @@ if(direct_after LESS direct_before OR direct_moved LESS direct_after)
   message(FATAL_ERROR "direct samples dropped across camera moves: ${direct_before} -> ${direct_after} -> ${direct_moved}")
 endif()
 if(direct_before EQUAL 0)
-  message(FATAL_ERROR "no direct samples after 1.5 s")
+  message(FATAL_ERROR "no direct samples in the first snapshot")
 endif()
 
 # The light edit, paused: one new snapshot, no light sample, a darker image.

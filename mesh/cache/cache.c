@@ -74,6 +74,7 @@ lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_err
             return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_light: radiance must be finite and non-negative");
     memcpy(c->light_le + 3 * (size_t)light, value, 3 * sizeof *value);
     lm_result r = cache_relight_direct(c, err);
+    cache_bounces_touch(c); /* L_dd changed everywhere, the direct mesh's shape did not */
     if (r == LM_OK && c->initialised) r = cache_regather_all(c, err);
     if (r != LM_OK) return r;
     /* What was below the JND may not be now (a shadow no longer masked by another
@@ -396,6 +397,7 @@ lm_result cache_set_bounces(cache *c, int bounces, lm_error *err)
                               &c->indirect1, err);
         if (r == LM_OK && c->initialised) r = cache_bounces_init(c, err);
     }
+    cache_bounces_touch(c);
     if (r == LM_OK && c->initialised) r = cache_regather_all(c, err);
     cache_sched_requeue(&c->sched, CACHE_KINDS);
     return r;

@@ -98,10 +98,9 @@ static lm_result split_to(mesh_qmesh *m, uint32_t node, int depth, lm_error *err
 
 typedef struct index_ctx {
     cache *c;
-    uint32_t *at;  /* per vertex id: coarse index, or UINT32_MAX */
+    uint32_t *at;    /* per vertex id: coarse index, or UINT32_MAX */
+    uint32_t *stamp; /* per vertex id: 1 + the last triangle that listed it, or 0 */
     uint32_t tri;
-    uint32_t *list; /* this triangle's coarse indices so far */
-    uint32_t listed;
 } index_ctx;
 
 /* Every leaf corner of triangle ctx->tri's tree: a coarse index, and an entry of
@@ -119,9 +118,8 @@ static lm_result index_leaf(const mesh_qmesh *m, uint32_t node, const mesh_qnode
             b->vid[b->nv++] = v;
         }
         uint32_t i = x->at[v];
-        int dup = 0;
-        for (uint32_t j = 0; j < x->listed && !dup; ++j) dup = x->list[j] == i;
-        if (dup) continue;
+        if (x->stamp[v] == x->tri + 1) continue; /* listed for this triangle already */
+        x->stamp[v] = x->tri + 1;
         if (b->tv_n == b->tv_cap) {
             size_t cap = lm_grow_capacity(b->tv_cap, (size_t)b->tv_n + 1, 1024, UINT32_MAX);
             if (!cap || !lm_realloc_array(&b->tv_index, b->tv_cap, cap, sizeof *b->tv_index) ||
@@ -135,7 +133,6 @@ static lm_result index_leaf(const mesh_qmesh *m, uint32_t node, const mesh_qnode
         b->tv_bary[2 * (size_t)b->tv_n] = (float)w1;
         b->tv_bary[2 * (size_t)b->tv_n + 1] = (float)w2;
         b->tv_n++;
-        if (x->listed < 64) x->list[x->listed++] = i; /* (a duplicate past 64 costs a repeated entry only) */
     }
     (void)m;
     return LM_OK;
@@ -167,10 +164,10 @@ static lm_result index_vertices(cache *c, uint32_t **at_out, lm_error *err)
     const uint32_t limit = mesh_vtable_id_limit(c->vt);
     index_ctx x = {.c = c};
     x.at = malloc((limit ? limit : 1) * sizeof *x.at);
-    x.list = malloc(64 * sizeof *x.list);
+    x.stamp = calloc(limit ? limit : 1, sizeof *x.stamp);
     b->vid = malloc((limit ? limit : 1) * sizeof *b->vid);
     b->tv_first = malloc(((size_t)s->tri_count + 1) * sizeof *b->tv_first);
-    if (!x.at || !x.list || !b->vid || !b->tv_first) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
+    if (!x.at || !x.stamp || !b->vid || !b->tv_first) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
     for (uint32_t i = 0; r == LM_OK && i < limit; ++i) x.at[i] = UINT32_MAX;
     b->nv = 0;
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
@@ -178,12 +175,11 @@ static lm_result index_vertices(cache *c, uint32_t **at_out, lm_error *err)
         uint32_t root = mesh_qmesh_root(c->indirect1, t);
         if (root == MESH_QMESH_NONE) continue;
         x.tri = t;
-        x.listed = 0;
         const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
         r = cache_region_walk(c->indirect1, &whole, index_leaf, &x, err);
     }
     if (r == LM_OK) b->tv_first[s->tri_count] = b->tv_n;
-    free(x.list);
+    free(x.stamp);
     *at_out = x.at;
     return r;
 }
@@ -292,10 +288,15 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
 static void mark_seen(cache *c, const uint32_t *pixels)
 {
     cache_bounce_state *b = &c->bnc;
-    memset(b->seen, 0, b->nv ? b->nv : 1);
+    for (uint32_t i = 0; i < b->nv; ++i) b->seen[i] &= 1; /* bit 1: seen by these pixels */
     for (uint32_t t = 0; t < c->s->tri_count; ++t)
         if (pixels[t])
-            for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) b->seen[b->tv_index[e]] = 1;
+            for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) b->seen[b->tv_index[e]] |= 2;
+    for (uint32_t i = 0; i < b->nv; ++i) {
+        uint8_t now = b->seen[i] >> 1;
+        b->dirty |= now != (b->seen[i] & 1);
+        b->seen[i] = now;
+    }
 }
 
 /* out = what vertex i's hits see of the per-vertex field `from` (RGB), each hit
@@ -416,8 +417,15 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
     if (!c->indirect1) return LM_OK;
     lm_result r = b->hit_first ? LM_OK : cache_bounces_init(c, err);
     if (r != LM_OK) return r;
-    double t0 = lm_now_seconds();
     if (pixels) mark_seen(c, pixels);
+    /* Nothing it reads has changed (the source rebuilt after a sampler change,
+     * say): the last evaluation stands. */
+    if (!b->dirty && b->stats.updates && b->direct_at == cache_direct_changes(c) && b->jnd_at == c->desc.jnd)
+        return LM_OK;
+    double t0 = lm_now_seconds();
+    b->dirty = 0;
+    b->direct_at = cache_direct_changes(c);
+    b->jnd_at = c->desc.jnd;
     const size_t n3 = 3 * (size_t)b->nv;
     const int automatic = c->desc.bounces == CACHE_BOUNCES_AUTO;
     cache_bounce_stats *st = &b->stats;
@@ -479,6 +487,11 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
     st->update_seconds += lm_now_seconds() - t0;
     st->updates++;
     return r;
+}
+
+void cache_bounces_touch(cache *c)
+{
+    c->bnc.dirty = 1;
 }
 
 lm_result cache_bounces_see(cache *c, const uint32_t *pixels, lm_error *err)

@@ -190,6 +190,9 @@ typedef struct cache_bounce_state {
     float *lab_whole, *lab_shown, *lab_prev; /* 3 per tv entry: seen colours (CIELAB) with whole, shown,
                                   and shown one bounce before */
     float *ldd;                /* 3 per tv entry: L_dd there (the update's) */
+    int dirty;                 /* something the evaluation reads changed (lights, what is seen) */
+    int64_t direct_at;         /* cache_direct_changes and the JND at the last evaluation */
+    float jnd_at;
     uint8_t *seen;             /* nv: a corner of a triangle a pixel sees (all, before any pixels) */
     cache_bounce_stats stats;
     size_t bytes;
@@ -417,6 +420,9 @@ lm_result cache_bounces_init(cache *c, lm_error *err);
  * pixel counts given (NULL: those of the last call that had some, or all); writes
  * c->indirect1. No ray. */
 lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err);
+/* The lights changed (L_dd without a change of the direct mesh's shape): the
+ * next cache_bounces_update evaluates again. */
+void cache_bounces_touch(cache *c);
 /* The seen coarse vertices from now on: the corners of triangles with pixels. */
 lm_result cache_bounces_see(cache *c, const uint32_t *pixels, lm_error *err);
 void cache_bounces_free(cache_bounce_state *b);
