@@ -229,6 +229,7 @@ typedef struct cache_bounce_stats {
     float de[CACHE_BOUNCES_MAX + 2]; /* de[k], k ≥ 2: the largest ΔE bounce k adds (or would add) where it is seen */
     char why[192];            /* why this many (auto: why it stopped) */
     uint32_t vertices;        /* coarse vertices of the transport */
+    uint32_t direct_vertices; /* direct-mesh vertices added to make it as fine as the coarse mesh */
     uint32_t rays;            /* rays per vertex */
     uint64_t hits;            /* hits kept */
     double trace_seconds;     /* tracing the transport (once) */

@@ -51,6 +51,7 @@
 void cache_bounces_free(cache_bounce_state *b)
 {
     free(b->vid);
+    free(b->depth);
     free(b->tv_first);
     free(b->tv_index);
     free(b->tv_bary);
@@ -152,13 +153,16 @@ static lm_result index_vertices(cache *c, uint32_t **at_out, lm_error *err)
     for (uint32_t t = 0; t < s->tri_count; ++t)
         if (mesh_qmesh_root(c->indirect1, t) != MESH_QMESH_NONE) total += tri_area(s, t);
     const double target = total / CACHE_BOUNCE_LEAVES;
-    lm_result r = LM_OK;
+    b->depth = calloc(s->tri_count ? s->tri_count : 1, 1);
+    lm_result r = b->depth ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(c->indirect1, t);
         if (root == MESH_QMESH_NONE || !(target > 0.0)) continue;
         double ratio = tri_area(s, t) / target;
         int depth = ratio > 1.0 ? (int)ceil(0.5 * log2(ratio)) : 0;
-        r = split_to(c->indirect1, root, depth < CACHE_BOUNCE_DEPTH ? depth : CACHE_BOUNCE_DEPTH, err);
+        depth = depth < CACHE_BOUNCE_DEPTH ? depth : CACHE_BOUNCE_DEPTH;
+        b->depth[t] = (uint8_t)depth;
+        r = split_to(c->indirect1, root, depth, err);
     }
     if (r != LM_OK) return r;
     const uint32_t limit = mesh_vtable_id_limit(c->vt);
@@ -184,6 +188,73 @@ static lm_result index_vertices(cache *c, uint32_t **at_out, lm_error *err)
     return r;
 }
 
+typedef struct direct_split_ctx {
+    cache *c;
+    int depth;
+    uint32_t *leaves;
+    size_t n, cap;
+} direct_split_ctx;
+
+static lm_result shallow_leaf(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user, lm_error *err)
+{
+    (void)m;
+    direct_split_ctx *x = user;
+    if (n->child != MESH_QMESH_NONE || (int)n->depth >= x->depth) return LM_OK;
+    if (x->n == x->cap && !LM_GROW(x->leaves, x->cap, x->n + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining the direct mesh for the bounces");
+    x->leaves[x->n++] = node;
+    return LM_OK;
+}
+
+/* The direct mesh made at least as fine as the coarse mesh everywhere: B_1 reads
+ * L_dd at the transport's hits, many on surfaces no pixel sees and no visible
+ * gather draws from, where the direct mesh stays at its roots. In the closed
+ * cube of tests/cache_test.c seen from inside, L_dd read from such a mesh at
+ * the hits summed to 0.857 of its exact value, and every bounce beyond the
+ * first came out a fifth low (docs/cache.md, "Bounces"). The new vertices' values
+ * come from the light meshes, as any split's. */
+static lm_result refine_direct_to_coarse(cache *c, lm_error *err)
+{
+    cache_bounce_state *b = &c->bnc;
+    const scene *s = c->s;
+    direct_split_ctx x = {.c = c};
+    lm_result r = LM_OK;
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
+        if (!b->depth[t] || mesh_qmesh_root(c->direct, t) == MESH_QMESH_NONE) continue;
+        x.n = 0;
+        x.depth = b->depth[t];
+        const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
+        r = cache_region_walk(c->direct, &whole, shallow_leaf, &x, err);
+        for (size_t i = 0; r == LM_OK && i < x.n; ++i)
+            r = split_to(c->direct, x.leaves[i], x.depth - (int)mesh_qmesh_node(c->direct, x.leaves[i])->depth, err);
+    }
+    free(x.leaves);
+    /* The vertices without a value: the new midpoints. */
+    const uint32_t limit = mesh_vtable_id_limit(c->vt);
+    cache_site *sites = NULL;
+    size_t ns = 0, cap = 0;
+    for (uint32_t id = 0; r == LM_OK && id < limit; ++id) {
+        float v[3];
+        if (mesh_qmesh_get_value(c->direct, id, v) != 0) continue; /* sampled, or not in the mesh */
+        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, id);
+        if (ns == cap && !LM_GROW(sites, cap, ns + 1)) {
+            r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining the direct mesh for the bounces");
+            break;
+        }
+        double scale = ldexp(1.0, -(int)mv->bary.depth);
+        sites[ns++] = (cache_site){.vid = id, .tri = mv->tri, .w1 = mv->bary.w[1] * scale, .w2 = mv->bary.w[2] * scale,
+                                   .depth = mv->bary.depth};
+    }
+    float *rgb = r == LM_OK && ns ? malloc(3 * ns * sizeof *rgb) : NULL;
+    if (r == LM_OK && ns && !rgb) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining the direct mesh for the bounces");
+    if (r == LM_OK && ns) r = cache_light_values(c, CACHE_KIND_DIRECT, sites, (uint32_t)ns, rgb, err);
+    for (size_t i = 0; r == LM_OK && i < ns; ++i) r = mesh_qmesh_set_value(c->direct, sites[i].vid, rgb + 3 * i, err);
+    b->stats.direct_vertices = (uint32_t)ns;
+    free(rgb);
+    free(sites);
+    return r;
+}
+
 lm_result cache_bounces_init(cache *c, lm_error *err)
 {
     cache_bounce_state *b = &c->bnc;
@@ -192,6 +263,7 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
     const uint32_t R = c->desc.bounce_rays;
     uint32_t *at = NULL;
     lm_result r = index_vertices(c, &at, err);
+    if (r == LM_OK && !c->desc.single_mesh) r = refine_direct_to_coarse(c, err);
     const uint32_t nv = b->nv;
     samp_point *pts = NULL;
     uint32_t *count = NULL, *tri = NULL;
@@ -487,6 +559,11 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
     st->update_seconds += lm_now_seconds() - t0;
     st->updates++;
     return r;
+}
+
+int cache_bounces_depth(const cache *c, uint32_t tri)
+{
+    return c->bnc.depth && tri < c->s->tri_count ? c->bnc.depth[tri] : 0;
 }
 
 void cache_bounces_touch(cache *c)

@@ -176,6 +176,7 @@ enum {
 typedef struct cache_bounce_state {
     uint32_t nv;               /* coarse vertices: the leaf corners of c->indirect1 */
     uint32_t *vid;             /* nv: their vertex ids */
+    uint8_t *depth;            /* per scene triangle: the depth of its coarse leaves */
     uint32_t *tv_first;        /* scene triangle t's coarse vertices: tv_index[tv_first[t] .. tv_first[t + 1]), */
     uint32_t *tv_index;        /* at barycentric (tv_bary[2e], tv_bary[2e + 1]) in t */
     float *tv_bary;
@@ -420,6 +421,8 @@ lm_result cache_bounces_init(cache *c, lm_error *err);
  * pixel counts given (NULL: those of the last call that had some, or all); writes
  * c->indirect1. No ray. */
 lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err);
+/* The depth of the coarse mesh's leaves on scene triangle tri (0: a root, or none). */
+int cache_bounces_depth(const cache *c, uint32_t tri);
 /* The lights changed (L_dd without a change of the direct mesh's shape): the
  * next cache_bounces_update evaluates again. */
 void cache_bounces_touch(cache *c);

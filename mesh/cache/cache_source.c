@@ -196,6 +196,40 @@ static lm_result choose_cut(cache *c, lm_error *err)
     return LM_OK;
 }
 
+/* Appends a triangle of the source (corners b, vertex ids v: MESH_VTABLE_NONE
+ * where it is not a vertex of the direct mesh) lying in cut node `leaf`, split
+ * `levels` more times: where the further bounces' coarse mesh is finer than the
+ * cut, the source follows it, so that E_m keeps its shape in the source (a wall
+ * lit only indirectly has no direct light to open the cut; its E_m over the
+ * root's corners alone lost a sixth of the door's wall light: docs/cache.md,
+ * "Bounces"). Midpoints keep the corners' orientation: (c0, m01, m20),
+ * (m01, c1, m12), (m20, m12, c2), (m01, m12, m20). */
+static lm_result emit_source(cache *c, uint32_t tri, uint32_t leaf, const mesh_bary b[3], const uint32_t v[3], int levels,
+                             size_t *count, lm_error *err)
+{
+    mesh_bary m[3];
+    for (int k = 0; levels > 0 && k < 3; ++k)
+        if (mesh_bary_midpoint(b[k], b[(k + 1) % 3], &m[k]) != LM_OK) levels = 0; /* m[0] = m01, m[1] = m12, m[2] = m20 */
+    if (levels > 0) {
+        const uint32_t N = MESH_VTABLE_NONE;
+        const mesh_bary cb[4][3] = {{b[0], m[0], m[2]}, {m[0], b[1], m[1]}, {m[2], m[1], b[2]}, {m[0], m[1], m[2]}};
+        const uint32_t cv[4][3] = {{v[0], N, N}, {N, v[1], N}, {N, N, v[2]}, {N, N, N}};
+        lm_result r = LM_OK;
+        for (int k = 0; r == LM_OK && k < 4; ++k) r = emit_source(c, tri, leaf, cb[k], cv[k], levels - 1, count, err);
+        return r;
+    }
+    if (*count == c->src.leaf_cap && !LM_GROW(c->src.leaf_buf, c->src.leaf_cap, *count + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
+    mesh_qmesh_tri *t = &c->src.leaf_buf[(*count)++];
+    t->tri = tri;
+    t->leaf = leaf;
+    for (int k = 0; k < 3; ++k) {
+        t->v[k] = v[k];
+        t->bary[k] = b[k];
+    }
+    return LM_OK;
+}
+
 /* Appends the cut's triangles under `node` to c->src.leaf_buf. */
 static lm_result collect_source(cache *c, uint32_t node, size_t *count, lm_error *err)
 {
@@ -208,16 +242,10 @@ static lm_result collect_source(cache *c, uint32_t node, size_t *count, lm_error
         }
         return LM_OK;
     }
-    if (*count == c->src.leaf_cap && !LM_GROW(c->src.leaf_buf, c->src.leaf_cap, *count + 1))
-        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-    mesh_qmesh_tri *t = &c->src.leaf_buf[(*count)++];
-    t->tri = n->tri;
-    t->leaf = node;
-    for (int k = 0; k < 3; ++k) {
-        t->v[k] = n->v[k];
-        t->bary[k] = mesh_qmesh_node_corner(n, k);
-    }
-    return LM_OK;
+    mesh_bary b[3];
+    for (int k = 0; k < 3; ++k) b[k] = mesh_qmesh_node_corner(n, k);
+    int finer = c->indirect1 ? cache_bounces_depth(c, n->tri) - (int)n->depth : 0;
+    return emit_source(c, n->tri, node, b, n->v, finer > 0 ? finer : 0, count, err);
 }
 
 /* ---- outdated indirect values -------------------------------------------------
@@ -548,8 +576,11 @@ static lm_result build_source(cache *c, int track, lm_error *err)
             c->src.rm_bary[6 * i + 2 * (size_t)k] = (float)w1;
             c->src.rm_bary[6 * i + 2 * (size_t)k + 1] = (float)w2;
             float L[3] = {0, 0, 0}, Ei[3] = {0, 0, 0};
-            mesh_qmesh_get_value(c->direct, lt->v[k], L);
             lm_error ignore;
+            if (lt->v[k] != MESH_VTABLE_NONE)
+                mesh_qmesh_get_value(c->direct, lt->v[k], L);
+            else if (mesh_qmesh_interpolate(c->direct, lt->tri, w1, w2, L, &ignore) != LM_OK)
+                L[0] = L[1] = L[2] = 0.0f; /* a point inside a cut leaf: the direct mesh there */
             if (with_em && mesh_qmesh_root(c->indirect1, lt->tri) != MESH_QMESH_NONE &&
                 mesh_qmesh_interpolate(c->indirect1, lt->tri, w1, w2, Ei, &ignore) != LM_OK)
                 Ei[0] = Ei[1] = Ei[2] = 0;
