@@ -237,10 +237,15 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     /* The sampler (and a GL context, if any) is made here: it belongs to this thread. */
     samp_sampler *first = NULL;
     lm_result r = samp_create(w->desc.no_quick_start ? &sd : &quick, &first, err);
+    /* Bounces beyond the first come after the first image (with the sampler that
+     * refines): their transport and the direct mesh they need cost CornellBox-
+     * Original's first image 50 ms (0.075 -> 0.125 s; docs/cache.md "Bounces"). */
+    const int later_bounces = !w->desc.no_quick_start && w->desc.cache.bounces != 0 && w->desc.cache.bounces != 1;
     if (r == LM_OK) {
         cache_desc cd = w->desc.cache;
         cd.scene = w->s;
         cd.sampler = first;
+        if (later_bounces) cd.bounces = 1;
         r = cache_create(&cd, c, err);
     }
     if (r == LM_OK) r = cache_init(*c, err);
@@ -277,7 +282,9 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     }
     if (r == LM_OK) r = samp_create(&start, sp, err);
     if (r == LM_OK) cache_set_sampler(*c, *sp);
-    if (r == LM_OK) r = cache_regather_indirect(*c, err);
+    /* Every indirect value gathered again with it (the further bounces' source
+     * with them, if they were put off). */
+    if (r == LM_OK) r = later_bounces ? cache_set_bounces(*c, w->desc.cache.bounces, err) : cache_regather_indirect(*c, err);
     if (*c && r != LM_OK) cache_set_sampler(*c, NULL);
     samp_destroy(first);
     return r;
