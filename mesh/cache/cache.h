@@ -226,7 +226,11 @@ typedef struct cache_bounce_stats {
     int bounces;              /* shown now (1 with no further-bounce transport) */
     int automatic;            /* chosen by auto */
     float rest_de;            /* the largest ΔE all further bounces would add where seen (auto's test) */
-    float de[CACHE_BOUNCES_MAX + 2]; /* de[k], k ≥ 2: the largest ΔE bounce k adds (or would add) where it is seen */
+    float de[CACHE_BOUNCES_MAX + 2]; /* de[k], k ≥ 2: the largest ΔE bounce k adds where it is seen */
+    double seconds[CACHE_BOUNCES_MAX + 2]; /* seconds[k]: evaluating B_k on the coarse mesh, in all (k = 1:
+                                              from the direct mesh; the displayed first bounce's gathers
+                                              are the indirect mesh's samples) */
+    double series_seconds;    /* evaluating the whole series, in all (auto's test and rest_de) */
     char why[192];            /* why this many (auto: why it stopped) */
     uint32_t vertices;        /* coarse vertices of the transport */
     uint32_t direct_vertices; /* direct-mesh vertices added to make it as fine as the coarse mesh */

@@ -505,8 +505,12 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
     /* The whole series first, then K = 1, 2, … until what is shown, B_1 + … +
      * B_K, is within the JND of it where it is seen (auto), or K is the count
      * asked. E_m = B_1 + … + B_(K−1) goes into the source. */
+    double t1 = lm_now_seconds();
     first_bounce(c, b->shown);
+    double t2 = lm_now_seconds();
     int in_whole = whole_series(c, b->shown, b->whole);
+    st->seconds[1] += t2 - t1;
+    st->series_seconds += lm_now_seconds() - t2;
     memcpy(b->b, b->shown, n3 * sizeof *b->b);
     memset(b->sum, 0, n3 * sizeof *b->sum);
     seen_direct(c, b->lab_prev); /* (lab_prev is free until the first step) */
@@ -537,6 +541,7 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
                          automatic ? "auto: " : "", K, (double)st->rest_de);
             break;
         }
+        double tk = lm_now_seconds();
         propagate(c, b->b, b->next);
         for (size_t j = 0; j < n3; ++j) {
             b->sum[j] += b->b[j];
@@ -550,6 +555,7 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
         b->lab_shown = tmp;
         seen_colours(c, b->ldd, b->shown, b->lab_shown);
         st->de[K + 1] = largest_change(b, b->lab_prev, b->lab_shown);
+        st->seconds[K + 1] += lm_now_seconds() - tk;
         K++;
     }
     st->bounces = K;

@@ -144,6 +144,10 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNumberToObject(bn, "hits", (double)b->hits);
         cJSON_AddNumberToObject(bn, "trace_seconds", b->trace_seconds);
         cJSON_AddNumberToObject(bn, "update_seconds", b->update_seconds);
+        cJSON *sec = cJSON_AddArrayToObject(bn, "seconds_per_bounce");
+        for (int k = 1; sec && b->vertices && k <= b->bounces && k <= CACHE_BOUNCES_MAX; ++k)
+            cJSON_AddItemToArray(sec, cJSON_CreateNumber(b->seconds[k]));
+        cJSON_AddNumberToObject(bn, "series_seconds", b->series_seconds);
         cJSON_AddNumberToObject(bn, "updates", (double)b->updates);
     }
 
