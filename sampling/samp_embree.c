@@ -142,14 +142,9 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
     for (int j = 0; j < k; ++j)
         for (int i = 0; i < k; ++i) {
-            float u = (i + lm_rng_float(&g)) / k, v = (j + lm_rng_float(&g)) / k;
-            lm_vec3 d = samp_frame_cosine(&f, u, v);
-            float dir[3];
-            v3_store(dir, d);
             rt_hit h;
-            if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
             /* The back of a surface sends nothing: the mesh holds what leaves its front. */
-            if (v3_dot(v3_load(e->s->tri_normals + 3 * (size_t)h.tri), d) >= 0.0f) continue;
+            if (!samp_stratum_front_hit(e->s, e->rt, &f, origin, &g, i, j, k, &h)) continue;
             float L[3];
             samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
             for (int c = 0; c < 3; ++c) {

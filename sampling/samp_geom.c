@@ -120,6 +120,17 @@ lm_vec3 samp_frame_cosine(const samp_frame *f, float u, float v)
     return v3_add(v3_add(v3_scale(f->t1, lx), v3_scale(f->t2, ly)), v3_scale(f->n, lz));
 }
 
+int samp_stratum_front_hit(const scene *s, const rt_scene *rt, const samp_frame *f, const float origin[3], lm_rng *g,
+                           int a, int b, int k, rt_hit *h)
+{
+    float u = (a + lm_rng_float(g)) / k, v = (b + lm_rng_float(g)) / k;
+    lm_vec3 d = samp_frame_cosine(f, u, v);
+    float dir[3];
+    v3_store(dir, d);
+    return rt_intersect(rt, origin, dir, 0.0f, INFINITY, h) &&
+           v3_dot(v3_load(s->tri_normals + 3 * (size_t)h->tri), d) < 0.0f;
+}
+
 int samp_thread_count(int threads)
 {
     long cores = sysconf(_SC_NPROCESSORS_ONLN);

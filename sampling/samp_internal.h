@@ -87,6 +87,12 @@ typedef struct samp_frame {
 } samp_frame;
 samp_frame samp_frame_make(const float n[3]);
 lm_vec3 samp_frame_cosine(const samp_frame *f, float u, float v);
+/* The hemisphere gathers' ray: stratum (a, b) of k × k of the cosine-weighted
+ * hemisphere of f, jittered by two draws of g (u, then v). Returns 1 with h
+ * filled when its first hit from origin is on the front of a triangle; 0 on a
+ * miss or a back (the back of a surface sends nothing: samp.h). */
+int samp_stratum_front_hit(const scene *s, const rt_scene *rt, const samp_frame *f, const float origin[3], lm_rng *g,
+                           int a, int b, int k, rt_hit *h);
 
 /* Worker threads for `threads` asked (0: every core; at most SAMP_MAX_THREADS). */
 enum { SAMP_MAX_THREADS = 64 };

@@ -51,13 +51,9 @@ static void sources_one(void *user, uint32_t i)
     double pair[3] = {0, 0, 0}, even[3] = {0, 0, 0}; /* collapsed strata: (L_a − L_(a+1))² summed */
     for (int b = 0; b < k; ++b)
         for (int a = 0; a < k; ++a) {
-            float u = (a + lm_rng_float(&g)) / k, v = (b + lm_rng_float(&g)) / k;
-            lm_vec3 d = samp_frame_cosine(&f, u, v);
-            float dir[3], L[3] = {0, 0, 0};
-            v3_store(dir, d);
+            float L[3] = {0, 0, 0};
             rt_hit h;
-            if (rt_intersect(job->rt, origin, dir, 0.0f, INFINITY, &h) &&
-                v3_dot(v3_load(job->s->tri_normals + 3 * (size_t)h.tri), d) < 0.0f) {
+            if (samp_stratum_front_hit(job->s, job->rt, &f, origin, &g, a, b, k, &h)) {
                 uint32_t at = samp_radiance_at(job->mesh, job->index, h.tri, h.u, h.v, L);
                 if (at != UINT32_MAX) tri[hits++] = at;
                 else L[0] = L[1] = L[2] = 0.0f;
@@ -129,14 +125,8 @@ static void hits_one(void *user, uint32_t i)
     uint32_t hits = 0;
     for (int b = 0; b < k; ++b)
         for (int a = 0; a < k; ++a) {
-            float u = (a + lm_rng_float(&g)) / k, v = (b + lm_rng_float(&g)) / k;
-            lm_vec3 d = samp_frame_cosine(&f, u, v);
-            float dir[3];
-            v3_store(dir, d);
             rt_hit h;
-            if (!rt_intersect(job->rt, origin, dir, 0.0f, INFINITY, &h) ||
-                !(v3_dot(v3_load(job->s->tri_normals + 3 * (size_t)h.tri), d) < 0.0f))
-                continue;
+            if (!samp_stratum_front_hit(job->s, job->rt, &f, origin, &g, a, b, k, &h)) continue;
             if (job->out->keep && !job->out->keep(job->s, h.tri, job->out->keep_user)) continue;
             tri[hits] = h.tri;
             bary[2 * hits] = h.u;
