@@ -20,9 +20,13 @@
  *     B_1(v)     = π/R · Σ_h kd(h)·L_dd(h)     L_dd from the direct mesh as it is now
  *     B_(k+1)(v) = 1/R · Σ_h kd(h)·B_k(h)      B_k linear over h's coarse leaf
  * (the Jacobi iteration of the radiosity system on the coarse vertices, with
- * the same hits for every bounce). cache_bounces_update re-evaluates it whenever
- * the source is rebuilt: refinement of the direct mesh, a light edit, a sampler
- * change. A light edit therefore takes no sample here either.
+ * the same hits for every bounce). cache_bounces_update re-evaluates it when the
+ * source is rebuilt and something it reads changed (the direct mesh, the lights,
+ * the JND, what is seen). A light edit therefore takes no sample here either.
+ * Two things keep B_1 right (docs/cache.md, "Bounces"): the direct mesh is split
+ * to at least the coarse mesh's depth everywhere (the hits lie on surfaces no
+ * pixel sees, where it would stay at its roots), and coarse vertices on an open
+ * edge start their rays inside their triangle (a floor ending under a wall).
  *
  * auto (CACHE_BOUNCES_AUTO): the smallest K whose picture is within the JND of
  * all bounces' at every seen coarse vertex: the tone-mapped colour (CIELAB ΔE,
@@ -34,8 +38,10 @@
  * specular term is left out of that colour: it only masks, so the count errs high.
  *
  * Does NOT do: the transport's own noise and bias (R rays per vertex, fixed; the
- * linear interpolation of B_k over a coarse leaf), or glossy
- * interreflection (the model transport is diffuse after the first bounce).
+ * linear interpolation of B_k over a coarse leaf), light from the back of a
+ * surface (it sends nothing, as in the gathers; the references reflect it), or
+ * glossy interreflection (the model transport is diffuse after the first bounce).
+ * Units: B_k and E_m are irradiance, W·m⁻² (RGB), like E_i.
  * Threads: the cache's (one thread); the tracing uses the sampler's threads.
  */
 #include "mesh/cache/cache_internal.h"
