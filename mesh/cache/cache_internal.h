@@ -170,7 +170,9 @@ typedef struct cache_source_state {
  * barycentric), each 1/rays of its cosine-weighted hemisphere. */
 enum {
     CACHE_BOUNCE_LEAVES = 2048, /* the further bounces' coarse mesh: about this many triangles of equal area */
-    CACHE_BOUNCE_DEPTH = 6      /* ... split at most this deep */
+    CACHE_BOUNCE_DEPTH = 6,     /* ... split at most this deep */
+    CACHE_BOUNCE_RAY_BUDGET = 1 << 19 /* the transport's rays in all: scenes whose roots alone give more
+                                         coarse vertices than this over bounce_rays get fewer a vertex */
 };
 
 typedef struct cache_bounce_state {
