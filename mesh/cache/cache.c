@@ -51,7 +51,7 @@ static int sees_light(const scene *s, uint32_t t, void *user)
     return above && in_front;
 }
 
-static int has_albedo(const scene *s, uint32_t t, void *user)
+int cache_has_albedo(const scene *s, uint32_t t, void *user)
 {
     (void)user;
     const float *kd = s->materials[s->tris[t].material].kd;
@@ -109,6 +109,14 @@ void cache_destroy(cache *c)
     free(c);
 }
 
+/* The further bounces' coarse mesh (cache_bounces.c splits it). */
+static lm_result make_bounce_mesh(cache *c, lm_error *err)
+{
+    return mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3,
+                                                .node_cap = c->desc.node_cap},
+                             &c->indirect1, err);
+}
+
 lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
 {
     *out = NULL;
@@ -153,14 +161,12 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
                               &c->light[l], err);
     }
     if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3, .node_cap = cap},
                               &c->direct, err);
     if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3, .node_cap = cap},
                               &c->indirect, err);
-    if (r == LM_OK && c->desc.bounces != 1)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3, .node_cap = cap},
-                              &c->indirect1, err);
+    if (r == LM_OK && c->desc.bounces != 1) r = make_bounce_mesh(c, err);
     uint32_t glossy = 0;
     for (uint32_t t = 0; r == LM_OK && t < c->s->tri_count; ++t) glossy += has_gloss(c->s, t, NULL) != 0;
     if (r == LM_OK && glossy) /* model only what the scene needs: no gloss, no mesh */
@@ -392,9 +398,7 @@ lm_result cache_set_bounces(cache *c, int bounces, lm_error *err)
         c->indirect1 = NULL;
         cache_bounces_free(&c->bnc);
     } else if (!c->indirect1) {
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_albedo, .channels = 3,
-                                                 .node_cap = c->desc.node_cap},
-                              &c->indirect1, err);
+        r = make_bounce_mesh(c, err);
         if (r == LM_OK && c->initialised) r = cache_bounces_init(c, err);
     }
     cache_bounces_touch(c);
@@ -429,7 +433,7 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
     if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
     /* The coarse cache first, here: the scheduler is below this file and cannot ask for it. */
     lm_result r = c->initialised ? LM_OK : cache_init(c, err);
-    if (r == LM_OK) r = cache_bounces_see(c, desc->pixels, err);
+    if (r == LM_OK) cache_bounces_see(c, desc->pixels);
     if (r == LM_OK) return cache_sched_refine(c, desc, out, err);
     if (out) *out = (cache_refine_result){0};
     return r;

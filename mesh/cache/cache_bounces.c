@@ -79,13 +79,6 @@ void cache_bounces_free(cache_bounce_state *b)
     memset(b, 0, sizeof *b);
 }
 
-static int keeps_light(const scene *s, uint32_t t, void *user)
-{
-    (void)user;
-    const float *kd = s->materials[s->tris[t].material].kd;
-    return kd[0] > 0.0f || kd[1] > 0.0f || kd[2] > 0.0f;
-}
-
 static double tri_area(const scene *s, uint32_t t)
 {
     const uint32_t *v = s->tris[t].v;
@@ -313,7 +306,7 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
         }
         r = samp_surface_hits_trace(c->sp, pts, nv,
                                     &(samp_surface_hits){.rays = R, .count = count, .tri = tri, .bary = bary,
-                                                         .keep = keeps_light},
+                                                         .keep = cache_has_albedo},
                                     err);
     }
     /* Kept compact: each vertex's hits one after the other, each with the coarse
@@ -498,13 +491,12 @@ static int whole_series(cache *c, const float *first, float *whole)
     return k;
 }
 
-lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
+lm_result cache_bounces_update(cache *c, lm_error *err)
 {
     cache_bounce_state *b = &c->bnc;
     if (!c->indirect1) return LM_OK;
     lm_result r = b->hit_first ? LM_OK : cache_bounces_init(c, err);
     if (r != LM_OK) return r;
-    if (pixels) mark_seen(c, pixels);
     /* Nothing it reads has changed much (the source rebuilt after a sampler
      * change, or after a few splits): the last evaluation stands. E_m is smooth
      * and global; a few splits move it a little everywhere, and every source
@@ -536,8 +528,7 @@ lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err)
     st->series_seconds += lm_now_seconds() - t2;
     memcpy(b->b, b->shown, n3 * sizeof *b->b);
     memset(b->sum, 0, n3 * sizeof *b->sum);
-    seen_direct(c, b->lab_prev); /* (lab_prev is free until the first step) */
-    memcpy(b->ldd, b->lab_prev, 3 * (size_t)b->tv_n * sizeof *b->ldd);
+    seen_direct(c, b->ldd);
     seen_colours(c, b->ldd, b->whole, b->lab_whole);
     seen_colours(c, b->ldd, b->shown, b->lab_shown);
     int K = 1;
@@ -600,9 +591,7 @@ void cache_bounces_touch(cache *c)
     c->bnc.dirty = 1;
 }
 
-lm_result cache_bounces_see(cache *c, const uint32_t *pixels, lm_error *err)
+void cache_bounces_see(cache *c, const uint32_t *pixels)
 {
-    (void)err;
     if (c->indirect1 && c->bnc.seen && pixels) mark_seen(c, pixels);
-    return LM_OK;
 }

@@ -419,17 +419,20 @@ void cache_node_importance(const cache *c, uint32_t node, float *imp_max, float 
 
 /* Traces the transport (once; cache_init, after the coarse direct mesh). */
 lm_result cache_bounces_init(cache *c, lm_error *err);
-/* E_m from the direct mesh as it is now, and with auto the bounce count, by the
- * pixel counts given (NULL: those of the last call that had some, or all); writes
+/* E_m from the direct mesh as it is now, and with auto the bounce count, by what
+ * cache_bounces_see last said is seen (before it: everything); writes
  * c->indirect1. No ray. */
-lm_result cache_bounces_update(cache *c, const uint32_t *pixels, lm_error *err);
+lm_result cache_bounces_update(cache *c, lm_error *err);
 /* The depth of the coarse mesh's leaves on scene triangle tri (0: a root, or none). */
 int cache_bounces_depth(const cache *c, uint32_t tri);
 /* The lights changed (L_dd without a change of the direct mesh's shape): the
  * next cache_bounces_update evaluates again. */
 void cache_bounces_touch(cache *c);
 /* The seen coarse vertices from now on: the corners of triangles with pixels. */
-lm_result cache_bounces_see(cache *c, const uint32_t *pixels, lm_error *err);
+void cache_bounces_see(cache *c, const uint32_t *pixels);
+/* The scene triangles with a diffuse albedo: the roots of the direct, indirect and
+ * coarse meshes, and the surfaces the bounces' transport records (a mesh root filter). */
+int cache_has_albedo(const scene *s, uint32_t t, void *user);
 void cache_bounces_free(cache_bounce_state *b);
 
 /* ---- cache_estimate.c: the error estimate, values worth more rays ------------------ */

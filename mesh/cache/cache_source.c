@@ -552,7 +552,7 @@ static lm_result build_source(cache *c, int track, lm_error *err)
 {
     const scene *s = c->s;
     const int with_em = c->indirect1 != NULL;
-    lm_result r = with_em ? cache_bounces_update(c, NULL, err) : LM_OK;
+    lm_result r = with_em ? cache_bounces_update(c, err) : LM_OK;
     if (r == LM_OK) r = choose_cut(c, err);
     size_t count = 0;
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
