@@ -32,6 +32,7 @@ static inline int v3_isfinite(lm_vec3 a) { return isfinite(a.x) && isfinite(a.y)
 static inline lm_dvec3 dv3(double x, double y, double z) { lm_dvec3 r = {x, y, z}; return r; }
 static inline lm_dvec3 dv3_from(lm_vec3 a) { return dv3(a.x, a.y, a.z); }
 static inline lm_dvec3 dv3_load(const float *p) { return dv3(p[0], p[1], p[2]); }
+static inline lm_dvec3 dv3_load_d(const double *p) { return dv3(p[0], p[1], p[2]); }
 static inline lm_dvec3 dv3_add(lm_dvec3 a, lm_dvec3 b) { return dv3(a.x + b.x, a.y + b.y, a.z + b.z); }
 static inline lm_dvec3 dv3_sub(lm_dvec3 a, lm_dvec3 b) { return dv3(a.x - b.x, a.y - b.y, a.z - b.z); }
 static inline lm_dvec3 dv3_scale(lm_dvec3 a, double s) { return dv3(a.x * s, a.y * s, a.z * s); }

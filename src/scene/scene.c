@@ -34,13 +34,13 @@ void scene_builder_free(scene_builder *b)
     memset(b, 0, sizeof *b);
 }
 
-lm_result scene_builder_add_triangle(scene_builder *b, const float p[9], const float *n,
+lm_result scene_builder_add_triangle(scene_builder *b, const double p[9], const float *n,
                                      uint32_t material, uint32_t part, lm_error *err)
 {
     if (b->count == b->cap) { /* four arrays, one capacity */
         size_t ncap = lm_grow_capacity(b->cap, b->count + 1, 1024, UINT32_MAX);
         if (!ncap) return lm_fail(err, LM_ERR_BAD_INPUT, "%s: more than 4 billion triangles", b->source);
-        if (!lm_realloc_array(&b->pos, b->cap, ncap, 9 * sizeof(float)) ||
+        if (!lm_realloc_array(&b->pos, b->cap, ncap, 9 * sizeof(double)) ||
             !lm_realloc_array(&b->nrm, b->cap, ncap, 9 * sizeof(float)) ||
             !lm_realloc_array(&b->mat, b->cap, ncap, sizeof(uint32_t)) ||
             !lm_realloc_array(&b->part, b->cap, ncap, sizeof(uint32_t)))
@@ -48,7 +48,7 @@ lm_result scene_builder_add_triangle(scene_builder *b, const float p[9], const f
                            b->count);
         b->cap = ncap;
     }
-    memcpy(b->pos + 9 * b->count, p, 9 * sizeof(float));
+    memcpy(b->pos + 9 * b->count, p, 9 * sizeof(double));
     if (n)
         memcpy(b->nrm + 9 * b->count, n, 9 * sizeof(float));
     else
@@ -81,7 +81,7 @@ lm_result scene_builder_add_part(scene_builder *b, const char *name, const char 
     return LM_OK;
 }
 
-lm_result scene_builder_add_point_light(scene_builder *b, const scene_point_light *p, lm_error *err)
+lm_result scene_builder_add_point_light(scene_builder *b, const scene_builder_point_light *p, lm_error *err)
 {
     if (!grow(&b->points, &b->point_cap, (size_t)b->point_count + 1, sizeof *b->points))
         return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (lights)", b->source);
@@ -89,7 +89,7 @@ lm_result scene_builder_add_point_light(scene_builder *b, const scene_point_ligh
     return LM_OK;
 }
 
-lm_result scene_builder_add_camera(scene_builder *b, const scene_camera *c, lm_error *err)
+lm_result scene_builder_add_camera(scene_builder *b, const scene_builder_camera *c, lm_error *err)
 {
     if (!grow(&b->cams, &b->cam_cap, (size_t)b->cam_count + 1, sizeof *b->cams))
         return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (cameras)", b->source);
@@ -164,6 +164,11 @@ void scene_destroy(scene *s)
     for (uint32_t i = 0; i < s->report.note_count; ++i) free(s->report.notes[i]);
     free(s->report.notes);
     free(s);
+}
+
+void scene_to_file(const scene *s, const float local[3], double out[3])
+{
+    for (int k = 0; k < 3; ++k) out[k] = s->origin[k] + (double)local[k];
 }
 
 int scene_find_camera(const scene *s, const char *name)

@@ -7,6 +7,11 @@
  * tone mapping settings. Loaded from a mesh file (through Assimp), from a JSON
  * scene description, or the built-in Cornell box.
  *
+ * Coordinates: every position in a scene (vertices, lights, cameras, bounds) is in
+ * float, relative to scene.origin, a point near the geometry that the loader
+ * chose in double; the file's coordinates are origin + local (scene_to_file).
+ * What is shown to users (`info`) speaks in the file's coordinates.
+ *
  * Orientation: a triangle's front is the side of its winding normal
  * (counter-clockwise corners). When the file gives vertex normals that all point
  * to the other side, the triangle is re-wound so that front agrees with them.
@@ -38,6 +43,10 @@ enum {
     SCENE_NAME_MAX = 64,
     SCENE_PATH_MAX = 1024
 };
+
+/* Corners farther than this from the file's origin are dropped and counted: a
+ * squared length of such a scene overflows a float (2^62, about 4.6e18). */
+#define SCENE_COORD_MAX 4.611686018427388e18
 
 /* What a loader had to approximate in a material (bits of scene_material.notes). */
 typedef enum scene_material_note {
@@ -96,6 +105,7 @@ typedef struct scene_part {
 typedef struct scene_report {
     uint32_t input_triangles;        /* after triangulating polygons, before cleaning */
     uint32_t dropped_nonfinite;      /* a corner had NaN/Inf coordinates */
+    uint32_t dropped_out_of_range;   /* a corner beyond SCENE_COORD_MAX from the file's origin */
     uint32_t dropped_degenerate;     /* zero area: repeated or collinear corners */
     uint32_t dropped_duplicate;      /* same three corners as an earlier triangle (either winding) */
     uint32_t rewound;                /* winding flipped to agree with the file's vertex normals */
@@ -136,7 +146,8 @@ typedef struct scene {
     uint32_t part_count;
 
     float exposure;                  /* tone mapping, stops */
-    float bounds_min[3], bounds_max[3];
+    double origin[3];                /* the file's coordinates of local (0,0,0); see "Coordinates" */
+    float bounds_min[3], bounds_max[3]; /* local */
     float crease_angle_deg;          /* used for computed normals */
 
     mesh_geo *topology;              /* edge neighbours (OpenMesh) */
@@ -153,6 +164,9 @@ typedef struct scene_load_desc {
 
 lm_result scene_load(const scene_load_desc *desc, scene **out, lm_error *err);
 void scene_destroy(scene *s); /* NULL is a no-op */
+
+/* A local position in the file's coordinates: origin + local, in double. */
+void scene_to_file(const scene *s, const float local[3], double out[3]);
 
 /* Index of the camera named `name`, or -1. NULL or "" gives 0. */
 int scene_find_camera(const scene *s, const char *name);

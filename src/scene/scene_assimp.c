@@ -197,10 +197,10 @@ static void mat4_mul(const double *a, const double *b, double *out)
     memcpy(out, r, sizeof r);
 }
 
-static void transform_point(const double *m, const struct aiVector3D *p, float out[3])
+static void transform_point(const double *m, const struct aiVector3D *p, double out[3])
 {
     for (int i = 0; i < 3; ++i)
-        out[i] = (float)(m[4 * i] * p->x + m[4 * i + 1] * p->y + m[4 * i + 2] * p->z + m[4 * i + 3]);
+        out[i] = m[4 * i] * p->x + m[4 * i + 1] * p->y + m[4 * i + 2] * p->z + m[4 * i + 3];
 }
 
 /* Normals transform with the cofactor matrix (inverse transpose times det). */
@@ -242,7 +242,8 @@ static lm_result emit_mesh(import_state *st, unsigned mesh_i, const double *m, l
             st->skipped_non_triangles++;
             continue;
         }
-        float p[9], n[9];
+        double p[9];
+        float n[9];
         int has_n = mesh->mNormals != NULL, ok = 1;
         for (int k = 0; k < 3; ++k) {
             unsigned vi = face->mIndices[mirror && k ? 3 - k : k];
@@ -299,7 +300,7 @@ static int looks_binary_text_format(const char *ext, const char *data, size_t si
     return memchr(data, '\0', size) != NULL;
 }
 
-lm_result scene_import_mesh_file(scene_builder *b, const char *path, const float *transform,
+lm_result scene_import_mesh_file(scene_builder *b, const char *path, const double *transform,
                                  int32_t material_override, lm_error *err)
 {
     char ext[16], dotext[20];

@@ -1,7 +1,9 @@
 /* scene_build.c — turns the raw triangles every loader produces into a clean scene.
  *
  * One place for every cleaning rule, so all formats are treated alike:
- *  1. triangles with a NaN/Inf corner are dropped and counted;
+ *  1. triangles with a NaN/Inf corner, or one beyond SCENE_COORD_MAX, are dropped
+ *     and counted; the rest are taken relative to the local origin (in double) and
+ *     rounded to float;
  *  2. corners are welded by exact position (bitwise, -0 == +0): cache vertices are
  *     keyed by scene vertex ids (docs/cache.md, mesh/vtable.h), so shared corners must share ids;
  *  3. zero-area triangles (repeated or collinear corners) are dropped and counted;
@@ -284,6 +286,64 @@ static void framing_camera(const scene *s, int width, int height, scene_camera *
     c->up[1] = 1.0f;
 }
 
+/* ---- the local origin ---------------------------------------------------- */
+
+/* Where the scene's float coordinates are measured from (scene.origin; docs/
+ * scene-model.md, "Coordinates"). Floats carry 24 bits: a room 10^5 units from
+ * the file's origin keeps only millimetres, and offsets scaled by the largest
+ * coordinate step over its features. So the corners (in double until here) are
+ * taken relative to a point near the middle of the finite geometry.
+ *
+ * The point is the bounds' centre truncated towards zero to a multiple of q, the
+ * power of two at or above the geometry's extent: every local coordinate is then
+ * within 1.5·q of 0 (about the precision of a scene at the origin), a scene that
+ * already surrounds the origin keeps origin 0 (its floats bit for bit as before),
+ * and a scene moved by a round offset is, after recentring, the same floats as
+ * the scene at the origin. */
+static void choose_local_origin(const scene_builder *b, double origin[3])
+{
+    double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (size_t i = 0; i < 9 * b->count; ++i) {
+        double x = b->pos[i];
+        if (!(fabs(x) <= SCENE_COORD_MAX)) continue; /* NaN, Inf and absurd values are dropped later */
+        int k = (int)(i % 3);
+        lo[k] = fmin(lo[k], x);
+        hi[k] = fmax(hi[k], x);
+    }
+    double extent = 0.0;
+    for (int k = 0; k < 3; ++k) extent = fmax(extent, hi[k] - lo[k]);
+    origin[0] = origin[1] = origin[2] = 0.0;
+    if (!(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2])) return;
+    double q = extent > 0.0 ? exp2(ceil(log2(extent))) : 1.0;
+    for (int k = 0; k < 3; ++k) origin[k] = q * trunc(0.5 * (lo[k] + hi[k]) / q);
+}
+
+/* Warns when the float coordinates cannot hold the scene's smallest feature:
+ * its shortest edge spans fewer than PRECISION_STEPS float steps at the scene's
+ * largest local coordinate, so corners are rounded by more than 1/128 of it. */
+#define PRECISION_STEPS 64.0
+static void note_precision(scene_builder *b, const scene *s)
+{
+    double largest = 0.0, shortest = INFINITY;
+    for (int k = 0; k < 3; ++k)
+        largest = fmax(largest, fmax(fabs((double)s->bounds_min[k]), fabs((double)s->bounds_max[k])));
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (int e = 0; e < 3; ++e) {
+            lm_dvec3 a = dv3_load(s->positions + 3 * (size_t)s->tris[t].v[e]);
+            lm_dvec3 c = dv3_load(s->positions + 3 * (size_t)s->tris[t].v[(e + 1) % 3]);
+            shortest = fmin(shortest, dv3_length(dv3_sub(c, a)));
+        }
+    if (!(largest > 0.0) || !isfinite(shortest)) return;
+    int exponent;
+    frexp(largest, &exponent);
+    double step = ldexp(1.0, exponent - 24); /* float spacing at `largest` */
+    if (shortest < PRECISION_STEPS * step)
+        scene_builder_note(b, "the shortest edge (%.3g) is only %.0f float steps long at the scene's extent "
+                              "(%.3g from its centre): corners are rounded by up to %.2g, so its small "
+                              "features are distorted; split the scene or model it in smaller units",
+                           shortest, shortest / step, largest, 0.5 * step);
+}
+
 /* ---- the build ----------------------------------------------------------- */
 
 typedef struct build_tmp {
@@ -345,15 +405,24 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
                          sizeof *t.part_dups);
     if (!t.tri_v || !t.keep || !t.weld.slots || !t.weld.positions || !t.part_dups)
         return fail_build(&t, s, lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory", b->source));
+    choose_local_origin(b, s->origin);
     for (size_t i = 0; i < n; ++i) {
-        const float *p = b->pos + 9 * i;
-        int finite = 1;
-        for (int k = 0; k < 9; ++k) finite &= isfinite(p[k]) != 0;
-        if (!finite) {
-            s->report.dropped_nonfinite++;
+        const double *p = b->pos + 9 * i;
+        int finite = 1, in_range = 1;
+        for (int k = 0; k < 9; ++k) {
+            finite &= isfinite(p[k]) != 0;
+            in_range &= fabs(p[k]) <= SCENE_COORD_MAX;
+        }
+        if (!finite || !in_range) {
+            if (!finite)
+                s->report.dropped_nonfinite++;
+            else
+                s->report.dropped_out_of_range++;
             continue;
         }
-        for (int k = 0; k < 3; ++k) t.tri_v[3 * i + (size_t)k] = weld(&t.weld, p + 3 * k);
+        float local[9];
+        for (int k = 0; k < 9; ++k) local[k] = (float)(p[k] - s->origin[k % 3]);
+        for (int k = 0; k < 3; ++k) t.tri_v[3 * i + (size_t)k] = weld(&t.weld, local + 3 * k);
         t.keep[i] = 1;
     }
 
@@ -413,6 +482,11 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
     if (s->report.dropped_nonfinite)
         scene_builder_note(b, "dropped %u triangle%s with NaN/Inf coordinates",
                            s->report.dropped_nonfinite, s->report.dropped_nonfinite == 1 ? "" : "s");
+    if (s->report.dropped_out_of_range)
+        scene_builder_note(b, "dropped %u triangle%s with a coordinate beyond %.2g (too large to compute with "
+                              "in float)",
+                           s->report.dropped_out_of_range, s->report.dropped_out_of_range == 1 ? "" : "s",
+                           SCENE_COORD_MAX);
     if (s->report.dropped_degenerate)
         scene_builder_note(b, "dropped %u degenerate (zero-area) triangle%s",
                            s->report.dropped_degenerate,
@@ -424,9 +498,10 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
         return fail_build(
             &t, s,
             lm_fail(err, LM_ERR_BAD_INPUT,
-                    "%s: no triangles left after cleaning (%zu read: %u with NaN/Inf, %u "
+                    "%s: no triangles left after cleaning (%zu read: %u with NaN/Inf, %u out of range, %u "
                     "degenerate, %u duplicate)",
-                    b->source, n, s->report.dropped_nonfinite, s->report.dropped_degenerate,
+                    b->source, n, s->report.dropped_nonfinite, s->report.dropped_out_of_range,
+                    s->report.dropped_degenerate,
                     s->report.dropped_duplicate));
 
     /* Materials used by kept triangles, renumbered densely. */
@@ -562,6 +637,8 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
             if (x > s->bounds_max[k]) s->bounds_max[k] = x;
         }
 
+    note_precision(b, s);
+
     /* 7: topology */
     mesh_geo_desc gd = {.positions = s->positions,
                         .vertex_count = s->vertex_count,
@@ -595,7 +672,11 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
         s->point_lights = malloc(b->point_count * sizeof *s->point_lights);
         if (!s->point_lights)
             return fail_build(&t, s, lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory", b->source));
-        memcpy(s->point_lights, b->points, b->point_count * sizeof *s->point_lights);
+        for (uint32_t i = 0; i < b->point_count; ++i) {
+            scene_point_light *p = &s->point_lights[i];
+            memcpy(p->intensity, b->points[i].intensity, sizeof p->intensity);
+            for (int k = 0; k < 3; ++k) p->position[k] = (float)(b->points[i].position[k] - s->origin[k]);
+        }
         s->point_light_count = b->point_count;
     }
     int width = desc->default_width > 0 ? desc->default_width : DEFAULT_WIDTH;
@@ -605,8 +686,12 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
     if (!s->cameras)
         return fail_build(&t, s, lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory", b->source));
     if (b->cam_count) {
-        memcpy(s->cameras, b->cams, b->cam_count * sizeof *s->cameras);
         for (uint32_t i = 0; i < s->camera_count; ++i) {
+            s->cameras[i] = b->cams[i].cam;
+            for (int k = 0; k < 3; ++k) {
+                s->cameras[i].position[k] = (float)(b->cams[i].position[k] - s->origin[k]);
+                s->cameras[i].target[k] = (float)(b->cams[i].target[k] - s->origin[k]);
+            }
             if (s->cameras[i].width <= 0) s->cameras[i].width = width;
             if (s->cameras[i].height <= 0) s->cameras[i].height = height;
             if (!(s->cameras[i].fov_y_deg > 0.0f)) s->cameras[i].fov_y_deg = DEFAULT_FOV_DEG;

@@ -12,10 +12,25 @@
 #include <stddef.h>
 #include "src/scene/scene.h"
 
+/* A camera as the file gives it: where it stands and looks in the file's
+ * coordinates, kept in double until scene_build knows the local origin. */
+typedef struct scene_builder_camera {
+    scene_camera cam;         /* name, up, fov, size; cam.position/target unused */
+    double position[3], target[3];
+} scene_builder_camera;
+
+typedef struct scene_builder_point_light {
+    float intensity[3];       /* W·sr⁻¹ */
+    double position[3];       /* file coordinates */
+} scene_builder_point_light;
+
 typedef struct scene_builder {
     const char *source;       /* top-level path, for messages */
 
-    float *pos;               /* 9 floats per raw triangle: 3 corners, world space */
+    /* Corners in the file's coordinates, in double: scene_build subtracts the
+     * local origin before anything is rounded to float (docs/scene-model.md,
+     * "Coordinates"). */
+    double *pos;              /* 9 doubles per raw triangle: 3 corners, world space */
     float *nrm;               /* 9 floats per raw triangle: file normals, (0,0,0) where none */
     uint32_t *mat;            /* material per raw triangle */
     uint32_t *part;           /* part per raw triangle */
@@ -25,9 +40,9 @@ typedef struct scene_builder {
     uint32_t mat_count, mat_cap;
     scene_part *parts;
     uint32_t part_count, part_cap;
-    scene_point_light *points;
+    scene_builder_point_light *points;
     uint32_t point_count, point_cap;
-    scene_camera *cams;
+    scene_builder_camera *cams;
     uint32_t cam_count, cam_cap;
     char **notes;
     uint32_t note_count, note_cap;
@@ -37,15 +52,15 @@ typedef struct scene_builder {
 
 void scene_builder_free(scene_builder *b);
 
-/* n may be NULL (no file normals). Corners are world space. */
-lm_result scene_builder_add_triangle(scene_builder *b, const float p[9], const float *n,
+/* n may be NULL (no file normals). Corners are world space (the file's coordinates). */
+lm_result scene_builder_add_triangle(scene_builder *b, const double p[9], const float *n,
                                      uint32_t material, uint32_t part, lm_error *err);
 lm_result scene_builder_add_material(scene_builder *b, const scene_material *m, uint32_t *out_index,
                                      lm_error *err);
 lm_result scene_builder_add_part(scene_builder *b, const char *name, const char *source,
                                  uint32_t *out_index, lm_error *err);
-lm_result scene_builder_add_point_light(scene_builder *b, const scene_point_light *p, lm_error *err);
-lm_result scene_builder_add_camera(scene_builder *b, const scene_camera *c, lm_error *err);
+lm_result scene_builder_add_point_light(scene_builder *b, const scene_builder_point_light *p, lm_error *err);
+lm_result scene_builder_add_camera(scene_builder *b, const scene_builder_camera *c, lm_error *err);
 /* Adds one line to the load report (identical lines are kept once). */
 void scene_builder_note(scene_builder *b, const char *fmt, ...)
 #if defined(__GNUC__)
@@ -57,10 +72,10 @@ void scene_builder_note(scene_builder *b, const char *fmt, ...)
 scene_material scene_material_default(const char *name);
 
 /* Imports a mesh file through Assimp into the builder.
- * transform: 16 floats row-major (p' = M·p), or NULL for identity.
+ * transform: 16 doubles row-major (p' = M·p), or NULL for identity.
  * material_override: a builder material index given to every triangle, or -1 to
  * use the file's own materials. */
-lm_result scene_import_mesh_file(scene_builder *b, const char *path, const float *transform,
+lm_result scene_import_mesh_file(scene_builder *b, const char *path, const double *transform,
                                  int32_t material_override, lm_error *err);
 
 /* Reads a JSON scene description (see docs/scene-format.md) into the builder. */

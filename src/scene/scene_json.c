@@ -38,29 +38,57 @@ static lm_result shape_error(const json_ctx *c, lm_error *err, const char *where
     return lm_fail(err, LM_ERR_BAD_INPUT, "%s: %s: %s", c->path, where, what);
 }
 
-/* Reads an array of exactly n finite numbers. */
-static int get_numbers(const cJSON *item, float *out, int n)
+/* Reads an array of exactly n finite numbers. Positions and transforms stay in
+ * double until scene_build has subtracted the local origin (scene-model.md,
+ * "Coordinates"); they must still fit a float, as everything does in the end. */
+static int get_doubles(const cJSON *item, double *out, int n)
 {
     if (!cJSON_IsArray(item) || cJSON_GetArraySize(item) != n) return 0;
     int i = 0;
     for (const cJSON *e = item->child; e; e = e->next, ++i) {
         if (!cJSON_IsNumber(e) || !isfinite(e->valuedouble)) return 0;
-        out[i] = (float)e->valuedouble;
-        if (!isfinite(out[i])) return 0; /* finite double, too large for float */
+        if (!isfinite((float)e->valuedouble)) return 0; /* finite double, too large for float */
+        out[i] = e->valuedouble;
     }
     return 1;
+}
+
+static int get_numbers(const cJSON *item, float *out, int n)
+{
+    double d[16];
+    if (n > 16 || !get_doubles(item, d, n)) return 0;
+    for (int i = 0; i < n; ++i) out[i] = (float)d[i];
+    return 1;
+}
+
+static lm_result vec3_error(const json_ctx *c, const cJSON *item, const char *where, const char *key,
+                            int required, lm_error *err)
+{
+    char at[160];
+    snprintf(at, sizeof at, "%s.%s", where, key);
+    if (!item) return required ? shape_error(c, err, at, "missing (expected [x, y, z])") : LM_OK;
+    return shape_error(c, err, at, "expected an array of 3 finite numbers");
 }
 
 static lm_result get_vec3(const json_ctx *c, const cJSON *obj, const char *key, const char *where,
                           int required, int nonnegative, float out[3], lm_error *err)
 {
     const cJSON *item = cJSON_GetObjectItemCaseSensitive(obj, key);
-    char at[160];
-    snprintf(at, sizeof at, "%s.%s", where, key);
-    if (!item) return required ? shape_error(c, err, at, "missing (expected [x, y, z])") : LM_OK;
-    if (!get_numbers(item, out, 3)) return shape_error(c, err, at, "expected an array of 3 finite numbers");
-    if (nonnegative && (out[0] < 0 || out[1] < 0 || out[2] < 0))
+    if (!item || !get_numbers(item, out, 3)) return vec3_error(c, item, where, key, required, err);
+    if (nonnegative && (out[0] < 0 || out[1] < 0 || out[2] < 0)) {
+        char at[160];
+        snprintf(at, sizeof at, "%s.%s", where, key);
         return shape_error(c, err, at, "values must not be negative");
+    }
+    return LM_OK;
+}
+
+/* A position or offset in the file's coordinates (double, see get_doubles). */
+static lm_result get_point(const json_ctx *c, const cJSON *obj, const char *key, const char *where,
+                           int required, double out[3], lm_error *err)
+{
+    const cJSON *item = cJSON_GetObjectItemCaseSensitive(obj, key);
+    if (!item || !get_doubles(item, out, 3)) return vec3_error(c, item, where, key, required, err);
     return LM_OK;
 }
 
@@ -145,15 +173,15 @@ static lm_result load_mesh(json_ctx *c, const cJSON *m, int index, lm_error *err
     if (!lm_path_join(c->dir, file->valuestring, full, sizeof full))
         return shape_error(c, err, where, "file path too long");
 
-    float transform[16];
+    double transform[16];
     const cJSON *tf = cJSON_GetObjectItemCaseSensitive(m, "transform");
     if (tf) {
-        if (!get_numbers(tf, transform, 16))
+        if (!get_doubles(tf, transform, 16))
             return shape_error(c, err, where, "\"transform\" must be an array of 16 finite numbers "
                                               "(row-major 4x4)");
-        double det = (double)transform[0] * ((double)transform[5] * transform[10] - (double)transform[6] * transform[9]) -
-                     (double)transform[1] * ((double)transform[4] * transform[10] - (double)transform[6] * transform[8]) +
-                     (double)transform[2] * ((double)transform[4] * transform[9] - (double)transform[5] * transform[8]);
+        double det = transform[0] * (transform[5] * transform[10] - transform[6] * transform[9]) -
+                     transform[1] * (transform[4] * transform[10] - transform[6] * transform[8]) +
+                     transform[2] * (transform[4] * transform[9] - transform[5] * transform[8]);
         if (det == 0.0 || !isfinite(det))
             return shape_error(c, err, where, "\"transform\" is singular (it flattens the mesh)");
     }
@@ -198,8 +226,8 @@ static lm_result load_light(json_ctx *c, const cJSON *l, int index, lm_error *er
     if (strcmp(type->valuestring, "point") == 0) {
         static const char *const known[] = {"type", "position", "intensity", NULL};
         note_unknown_keys(c, l, where, known);
-        scene_point_light p;
-        if ((r = get_vec3(c, l, "position", where, 1, 0, p.position, err)) != LM_OK) return r;
+        scene_builder_point_light p;
+        if ((r = get_point(c, l, "position", where, 1, p.position, err)) != LM_OK) return r;
         if ((r = get_vec3(c, l, "intensity", where, 1, 1, p.intensity, err)) != LM_OK) return r;
         return scene_builder_add_point_light(c->b, &p, err);
     }
@@ -207,35 +235,35 @@ static lm_result load_light(json_ctx *c, const cJSON *l, int index, lm_error *er
         return shape_error(c, err, where, "\"type\" must be \"quad\" or \"point\"");
     static const char *const known[] = {"type", "corner", "edge1", "edge2", "radiance", "kd", NULL};
     note_unknown_keys(c, l, where, known);
-    float corner[3], e1[3], e2[3];
+    double corner[3], e1[3], e2[3];
     scene_material m = scene_material_default(where);
     m.kd[0] = m.kd[1] = m.kd[2] = 0.0f; /* a black emitter unless "kd" says otherwise */
-    if ((r = get_vec3(c, l, "corner", where, 1, 0, corner, err)) != LM_OK) return r;
-    if ((r = get_vec3(c, l, "edge1", where, 1, 0, e1, err)) != LM_OK) return r;
-    if ((r = get_vec3(c, l, "edge2", where, 1, 0, e2, err)) != LM_OK) return r;
+    if ((r = get_point(c, l, "corner", where, 1, corner, err)) != LM_OK) return r;
+    if ((r = get_point(c, l, "edge1", where, 1, e1, err)) != LM_OK) return r;
+    if ((r = get_point(c, l, "edge2", where, 1, e2, err)) != LM_OK) return r;
     if ((r = get_vec3(c, l, "radiance", where, 1, 1, m.le, err)) != LM_OK) return r;
     if ((r = get_vec3(c, l, "kd", where, 0, 1, m.kd, err)) != LM_OK) return r;
-    lm_vec3 cr = v3_cross(v3_load(e1), v3_load(e2));
-    if (!(v3_length(cr) > 0.0f) || !v3_isfinite(cr))
+    lm_dvec3 cr = dv3_cross(dv3_load_d(e1), dv3_load_d(e2));
+    if (!(dv3_length(cr) > 0.0) || !isfinite(dv3_length(cr)))
         return shape_error(c, err, where, "edge1 and edge2 are parallel or zero: the quad has no area");
     uint32_t mi, part;
     if ((r = scene_builder_add_material(c->b, &m, &mi, err)) != LM_OK) return r;
     if ((r = scene_builder_add_part(c->b, where, c->path, &part, err)) != LM_OK) return r;
     /* Emits towards edge1 x edge2: corners c, c+e1, c+e1+e2, c+e2 counter-clockwise. */
-    float q[4][3];
+    double q[4][3];
     for (int k = 0; k < 3; ++k) {
         q[0][k] = corner[k];
         q[1][k] = corner[k] + e1[k];
         q[2][k] = corner[k] + e1[k] + e2[k];
         q[3][k] = corner[k] + e2[k];
     }
-    float t0[9], t1[9];
-    memcpy(t0, q[0], 12);
-    memcpy(t0 + 3, q[1], 12);
-    memcpy(t0 + 6, q[2], 12);
-    memcpy(t1, q[0], 12);
-    memcpy(t1 + 3, q[2], 12);
-    memcpy(t1 + 6, q[3], 12);
+    double t0[9], t1[9];
+    memcpy(t0, q[0], sizeof q[0]);
+    memcpy(t0 + 3, q[1], sizeof q[0]);
+    memcpy(t0 + 6, q[2], sizeof q[0]);
+    memcpy(t1, q[0], sizeof q[0]);
+    memcpy(t1 + 3, q[2], sizeof q[0]);
+    memcpy(t1 + 6, q[3], sizeof q[0]);
     if ((r = scene_builder_add_triangle(c->b, t0, NULL, mi, part, err)) != LM_OK) return r;
     return scene_builder_add_triangle(c->b, t1, NULL, mi, part, err);
 }
@@ -264,8 +292,9 @@ static lm_result load_camera(json_ctx *c, const cJSON *j, int index, lm_error *e
     if (!cJSON_IsObject(j)) return shape_error(c, err, where, "expected an object");
     static const char *const known[] = {"name", "position", "target", "up", "fov_y", "width", "height", NULL};
     note_unknown_keys(c, j, where, known);
-    scene_camera cam;
-    memset(&cam, 0, sizeof cam);
+    scene_builder_camera bc;
+    memset(&bc, 0, sizeof bc);
+    scene_camera cam = bc.cam;
     snprintf(cam.name, sizeof cam.name, "camera%d", index);
     cam.up[1] = 1.0f;
     const cJSON *name = cJSON_GetObjectItemCaseSensitive(j, "name");
@@ -275,8 +304,8 @@ static lm_result load_camera(json_ctx *c, const cJSON *j, int index, lm_error *e
         lm_strlcpy(cam.name, name->valuestring, sizeof cam.name);
     }
     lm_result r;
-    if ((r = get_vec3(c, j, "position", where, 1, 0, cam.position, err)) != LM_OK) return r;
-    if ((r = get_vec3(c, j, "target", where, 1, 0, cam.target, err)) != LM_OK) return r;
+    if ((r = get_point(c, j, "position", where, 1, bc.position, err)) != LM_OK) return r;
+    if ((r = get_point(c, j, "target", where, 1, bc.target, err)) != LM_OK) return r;
     if ((r = get_vec3(c, j, "up", where, 0, 0, cam.up, err)) != LM_OK) return r;
     const cJSON *fov = cJSON_GetObjectItemCaseSensitive(j, "fov_y");
     if (fov) {
@@ -286,15 +315,16 @@ static lm_result load_camera(json_ctx *c, const cJSON *j, int index, lm_error *e
     }
     if ((r = get_positive_int(c, j, "width", where, &cam.width, err)) != LM_OK) return r;
     if ((r = get_positive_int(c, j, "height", where, &cam.height, err)) != LM_OK) return r;
-    lm_vec3 dir = v3_sub(v3_load(cam.target), v3_load(cam.position));
-    if (!(v3_length(dir) > 0.0f)) return shape_error(c, err, where, "position and target are the same point");
-    lm_vec3 up = v3_load(cam.up);
-    if (!(v3_length(v3_cross(v3_normalize(dir), v3_normalize(up))) > 1e-4f))
+    lm_dvec3 dir = dv3_sub(dv3_load_d(bc.target), dv3_load_d(bc.position));
+    if (!(dv3_length(dir) > 0.0)) return shape_error(c, err, where, "position and target are the same point");
+    lm_dvec3 up = dv3_load(cam.up);
+    if (!(dv3_length(dv3_cross(dv3_normalize(dir), dv3_normalize(up))) > 1e-4))
         return shape_error(c, err, where, "\"up\" is zero or parallel to the view direction");
     for (uint32_t i = 0; i < c->b->cam_count; ++i)
-        if (strcmp(c->b->cams[i].name, cam.name) == 0)
+        if (strcmp(c->b->cams[i].cam.name, cam.name) == 0)
             return shape_error(c, err, where, "two cameras have the same name");
-    return scene_builder_add_camera(c->b, &cam, err);
+    bc.cam = cam;
+    return scene_builder_add_camera(c->b, &bc, err);
 }
 
 /* ---- top level ----------------------------------------------------------- */
