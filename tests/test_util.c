@@ -104,23 +104,33 @@ double test_write_icosphere(int level, double radius, const char *path)
 
 struct scene *test_plane_load(const test_plane *p, const char *name)
 {
-    char file[256], obj[1024], text[2048];
+    char file[256], obj[1024], text[4096], tf[512] = "";
+    const double S = p->scale > 0.0 ? p->scale : 1.0, T = p->offset;
+    const double in_file = p->offset_in_file ? 1.0 : 0.0;
     snprintf(file, sizeof file, "%s.obj", name);
-    test_write_file(file,
-                    "v -4 0 -4\nv 4 0 -4\nv 4 0 4\nv -4 0 4\n"
-                    "f 1 4 3\nf 1 3 2\n", /* counter-clockwise seen from +y */
-                    obj, sizeof obj);
+    {
+        char vs[1024];
+        const double a = in_file ? T - 4.0 * S : -4.0, b = in_file ? T + 4.0 * S : 4.0, y = in_file ? T : 0.0;
+        /* counter-clockwise seen from +y */
+        snprintf(vs, sizeof vs, "v %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\n"
+                                "f 1 4 3\nf 1 3 2\n",
+                 a, y, a, b, y, a, b, y, b, a, y, b);
+        test_write_file(file, vs, obj, sizeof obj);
+    }
+    if (!in_file && (S != 1.0 || T != 0.0))
+        snprintf(tf, sizeof tf, ", \"transform\": [%.17g,0,0,%.17g, 0,%.17g,0,%.17g, 0,0,%.17g,%.17g, 0,0,0,1]", S, T,
+                 S, T, S, T);
     /* edge1 × edge2 = (1,0,0) × (0,0,1) = (0,-1,0): the light faces the plane. */
     snprintf(text, sizeof text,
-             "{\"meshes\": [{\"file\": \"%s\", \"material\": \"paint\"}],"
+             "{\"meshes\": [{\"file\": \"%s\", \"material\": \"paint\"%s}],"
              " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}},"
-             " \"lights\": [{\"type\": \"quad\", \"corner\": [%g, %g, %g], \"edge1\": [%g, 0, 0],"
-             " \"edge2\": [0, 0, %g], \"radiance\": [%g, %g, %g]}],"
-             " \"cameras\": [{\"position\": [0, %g, 0], \"target\": [0, 0, 0], \"up\": [0, 0, -1],"
+             " \"lights\": [{\"type\": \"quad\", \"corner\": [%.17g, %.17g, %.17g], \"edge1\": [%.17g, 0, 0],"
+             " \"edge2\": [0, 0, %.17g], \"radiance\": [%g, %g, %g]}],"
+             " \"cameras\": [{\"position\": [%.17g, %.17g, %.17g], \"target\": [%.17g, %.17g, %.17g], \"up\": [0, 0, -1],"
              " \"fov_y\": %g, \"width\": %d, \"height\": %d}]}",
-             file, p->kd[0], p->kd[1], p->kd[2], p->light_x - p->light_half, p->light_height,
-             p->light_z - p->light_half, 2 * p->light_half, 2 * p->light_half, p->le[0], p->le[1], p->le[2],
-             p->cam_height, p->fov_y, p->width, p->height);
+             file, tf, p->kd[0], p->kd[1], p->kd[2], T + S * (p->light_x - p->light_half), T + S * p->light_height,
+             T + S * (p->light_z - p->light_half), S * 2 * p->light_half, S * 2 * p->light_half, p->le[0], p->le[1],
+             p->le[2], T, T + S * p->cam_height, T, T, T, T, p->fov_y, p->width, p->height);
     snprintf(file, sizeof file, "%s.json", name);
     return test_load_json(file, text);
 }

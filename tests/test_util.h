@@ -63,6 +63,11 @@ typedef struct test_plane {
     double light_half;         /* half its side */
     double light_height, cam_height, fov_y;
     int width, height;
+    /* Where the file puts it: every position p written as offset + scale·p (in every
+     * axis), by the description's mesh transform, or, with offset_in_file, in the
+     * OBJ's own coordinates. G is the same at any offset and scale; 0 scale = 1. */
+    double offset, scale;
+    int offset_in_file;
 } test_plane;
 
 /* Writes NAME.obj and NAME.json and loads them; NULL (a failed check) on error. */
