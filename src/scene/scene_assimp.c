@@ -327,6 +327,20 @@ lm_result scene_import_mesh_file(scene_builder *b, const char *path, const doubl
                        path, ext);
     }
 
+    scene_number_scan numbers;
+    scene_scan_numbers(ext, ctx.main_data, ctx.main_size, &numbers);
+    b->numbers_too_large += numbers.overflow + numbers.out_of_range;
+    if (numbers.overflow)
+        scene_builder_note(b, "%s: %u number%s too large for a float (read as Inf: the triangles using them are "
+                              "dropped)",
+                           path, numbers.overflow, numbers.overflow == 1 ? " is" : "s are");
+    if (numbers.underflow)
+        scene_builder_note(b, "%s: %u non-zero number%s below float's smallest normal value (1.2e-38), read as 0",
+                           path, numbers.underflow, numbers.underflow == 1 ? "" : "s");
+    if (numbers.out_of_range)
+        scene_builder_note(b, "%s: %u number%s beyond %.2g (the triangles using them are dropped)", path,
+                           numbers.out_of_range, numbers.out_of_range == 1 ? "" : "s", SCENE_COORD_MAX);
+
     struct aiFileIO io = {io_open, io_close, (aiUserData)(void *)&ctx};
     /* Validation runs first and must stay: Assimp's triangulation aborts the process
      * on the inconsistent structures some broken files produce. */

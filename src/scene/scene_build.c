@@ -499,10 +499,11 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
             &t, s,
             lm_fail(err, LM_ERR_BAD_INPUT,
                     "%s: no triangles left after cleaning (%zu read: %u with NaN/Inf, %u out of range, %u "
-                    "degenerate, %u duplicate)",
+                    "degenerate, %u duplicate%s)",
                     b->source, n, s->report.dropped_nonfinite, s->report.dropped_out_of_range,
                     s->report.dropped_degenerate,
-                    s->report.dropped_duplicate));
+                    s->report.dropped_duplicate,
+                    b->numbers_too_large ? "; the file spells numbers too large for a float" : ""));
 
     /* Materials used by kept triangles, renumbered densely. */
     t.mat_remap = malloc(((size_t)b->mat_count + 1) * sizeof *t.mat_remap);

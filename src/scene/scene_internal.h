@@ -48,6 +48,7 @@ typedef struct scene_builder {
     uint32_t note_count, note_cap;
 
     float exposure;
+    uint32_t numbers_too_large;  /* over all files: numbers beyond float range or SCENE_COORD_MAX */
 } scene_builder;
 
 void scene_builder_free(scene_builder *b);
@@ -77,6 +78,18 @@ scene_material scene_material_default(const char *name);
  * use the file's own materials. */
 lm_result scene_import_mesh_file(scene_builder *b, const char *path, const double *transform,
                                  int32_t material_override, lm_error *err);
+
+/* Numbers in a text mesh file that a float cannot hold (scene_numbers.c). */
+typedef struct scene_number_scan {
+    uint32_t overflow;      /* beyond float's range: rewritten "inf" (their triangles are dropped) */
+    uint32_t underflow;     /* non-zero, below float's normal range: rewritten "0" */
+    uint32_t out_of_range;  /* a float, but beyond SCENE_COORD_MAX (scene_build drops their triangles) */
+} scene_number_scan;
+
+/* Checks the coordinate tokens of a text mesh file (ext "obj", "ply", "off", "stl";
+ * others are left alone) and rewrites those a float cannot hold, in place and
+ * token for token. data is NUL-terminated at data[size]. */
+void scene_scan_numbers(const char *ext, char *data, size_t size, scene_number_scan *out);
 
 /* Reads a JSON scene description (see docs/scene-format.md) into the builder. */
 lm_result scene_import_json(scene_builder *b, const char *path, lm_error *err);
