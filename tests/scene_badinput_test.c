@@ -8,11 +8,33 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "src/image/image.h"
 #include "src/scene/scene.h"
 #include "tests/test_util.h"
 
+/* An image `lumesh compare` must refuse: img_read fails with one line. */
+static void run_image_case(const char *file, const char *fragment, const char *name)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/badinput/%s", LUMESH_TEST_DIR, file);
+    img_image img = {0};
+    lm_error err;
+    memset(&err, 0, sizeof err);
+    lm_result r = img_read(path, &img, &err);
+    CHECK_MSG(r == LM_ERR_BAD_INPUT, "%s: result %s (%s)", file, lm_result_name(r), err.msg);
+    CHECK_MSG(strstr(err.msg, fragment) != NULL, "%s: message '%s' lacks '%s'", file, err.msg, fragment);
+    CHECK_MSG(strstr(err.msg, name) != NULL, "%s: message '%s' does not name '%s'", file, err.msg, name);
+    CHECK_MSG(strchr(err.msg, '\n') == NULL, "%s: message has more than one line", file);
+    printf("  %-38s image  %s\n", file, err.msg);
+    img_free(&img);
+}
+
 static void run_case(const char *file, const char *command, const char *fragment, const char *name)
 {
+    if (strcmp(command, "compare") == 0) {
+        run_image_case(file, fragment, name);
+        return;
+    }
     char path[1024];
     snprintf(path, sizeof path, "%s/badinput/%s", LUMESH_TEST_DIR, file);
     scene_load_desc d = {.path = path, .require_light = strcmp(command, "render") == 0};

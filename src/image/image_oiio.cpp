@@ -16,6 +16,7 @@
  * Every C++ exception stops here and becomes an lm_result.
  */
 #include "src/image/image.h"
+#include "src/image/image_internal.h"
 
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
@@ -415,6 +416,7 @@ lm_result read_impl(const char *path, img_image *out, lm_error *err)
     ::close(fd);
 
     /* The file is there and readable: from here on a failure is its content. */
+    if (lm_result framing = img_check_png(path, err); framing != LM_OK) return framing;
     OIIO::ImageSpec config;
     config.attribute("oiio:UnassociatedAlpha", 1);
     auto in = OIIO::ImageInput::open(path, &config);
@@ -432,10 +434,15 @@ lm_result read_impl(const char *path, img_image *out, lm_error *err)
         return lm_fail(err, LM_ERR_BAD_INPUT, "%s: image has size %dx%d with %d channels", path,
                        spec.width, spec.height, spec.nchannels);
     size_t w = (size_t)spec.width, h = (size_t)spec.height, c = (size_t)spec.nchannels;
-    size_t limit = (size_t)PTRDIFF_MAX / sizeof(float);
-    if (w > limit / h || w * h > limit / c)
-        return lm_fail(err, LM_ERR_BAD_INPUT, "%s: image of %dx%dx%d values is too large", path,
-                       spec.width, spec.height, spec.nchannels);
+    /* At most 2^28 values (1 GiB as float; 8192x8192 RGBA) and 2^21 a row: a
+     * broken header can claim any size, and OpenImageIO allocates what it claims
+     * before it finds the pixels missing. Found by fuzzing: a 700-byte EXR of
+     * 3932164x3 pixels, 7 channels, for which OpenImageIO asked 28 GB (a chunk
+     * of 256 such rows; EXR chunks hold up to 256). */
+    const size_t limit = (size_t)1 << 28, row_limit = (size_t)1 << 21;
+    if (w > row_limit / c || w * c * h > limit)
+        return lm_fail(err, LM_ERR_BAD_INPUT, "%s: image of %dx%dx%d values is larger than lumesh reads (2^28 values, 2^21 a row)",
+                       path, spec.width, spec.height, spec.nchannels);
     size_t count = w * h * c;
 
     std::unique_ptr<float, FreeDeleter> px((float *)std::malloc(count * sizeof(float)));

@@ -36,6 +36,8 @@ typedef struct io_context {
     size_t main_size;
     char missing[MAX_MISSING][256];
     int missing_count;
+    int main_is_obj;            /* every other file opened is a material library */
+    uint32_t mtl_dropped;       /* MTL statements before a newmtl, commented out (scene_guard_mtl) */
 } io_context;
 
 typedef struct mem_file {
@@ -89,6 +91,10 @@ static struct aiFile *io_open(struct aiFileIO *io, const char *path, const char 
         if (ctx->missing_count < MAX_MISSING)
             lm_strlcpy(ctx->missing[ctx->missing_count++], path, sizeof ctx->missing[0]);
         return NULL;
+    } else if (ctx->main_is_obj) {
+        /* An OBJ reader opens nothing but material libraries, whatever their names:
+         * each goes through the MTL guard (the OBJ itself did before the import). */
+        ctx->mtl_dropped += scene_guard_mtl(data, size);
     }
     struct aiFile *f = calloc(1, sizeof *f);
     mem_file *m = calloc(1, sizeof *m);
@@ -315,6 +321,7 @@ lm_result scene_import_mesh_file(scene_builder *b, const char *path, const doubl
     io_context ctx;
     memset(&ctx, 0, sizeof ctx);
     ctx.main_path = path;
+    ctx.main_is_obj = strcmp(ext, "obj") == 0;
     lm_result r = vfs_read(path, MAX_MESH_FILE_BYTES, &ctx.main_data, &ctx.main_size, err);
     if (r != LM_OK) return r;
     if (ctx.main_size == 0) {
@@ -327,8 +334,23 @@ lm_result scene_import_mesh_file(scene_builder *b, const char *path, const doubl
                        path, ext);
     }
 
+    const char *malformed = NULL;
+    int malformed_line = 0;
+    if (strcmp(ext, "ply") == 0) malformed = scene_guard_ply(ctx.main_data, ctx.main_size, &malformed_line);
+    if (strcmp(ext, "gltf") == 0 || strcmp(ext, "glb") == 0)
+        malformed = scene_guard_gltf(ctx.main_data, ctx.main_size);
+    if (malformed) {
+        if (malformed_line)
+            r = lm_fail(err, LM_ERR_BAD_INPUT, "%s: cannot read %s file: line %d: %s", path, ext, malformed_line,
+                        malformed);
+        else
+            r = lm_fail(err, LM_ERR_BAD_INPUT, "%s: cannot read %s file: %s", path, ext, malformed);
+        free(ctx.main_data);
+        return r;
+    }
+    if (ctx.main_is_obj) ctx.mtl_dropped += scene_guard_mtl(ctx.main_data, ctx.main_size);
     scene_number_scan numbers;
-    scene_scan_numbers(ext, ctx.main_data, ctx.main_size, &numbers);
+    scene_guard_numbers(ext, ctx.main_data, ctx.main_size, &numbers);
     b->numbers_too_large += numbers.overflow + numbers.out_of_range;
     if (numbers.overflow)
         scene_builder_note(b, "%s: %u number%s too large for a float (read as Inf: the triangles using them are "
@@ -394,6 +416,9 @@ lm_result scene_import_mesh_file(scene_builder *b, const char *path, const doubl
                     st.bad_indices);
         goto done;
     }
+    if (ctx.mtl_dropped)
+        scene_builder_note(b, "%s: %u texture statement%s before the first newmtl of a material library: ignored", path,
+                           ctx.mtl_dropped, ctx.mtl_dropped == 1 ? "" : "s");
     for (int i = 0; i < ctx.missing_count; ++i)
         scene_builder_note(b, "%s: could not open '%s' that it refers to; default materials used",
                            path, ctx.missing[i]);

@@ -79,7 +79,9 @@ scene_material scene_material_default(const char *name);
 lm_result scene_import_mesh_file(scene_builder *b, const char *path, const double *transform,
                                  int32_t material_override, lm_error *err);
 
-/* Numbers in a text mesh file that a float cannot hold (scene_numbers.c). */
+/* ---- guards in front of Assimp's parsers (scene_guard.c) ---- */
+
+/* Numbers in a text mesh file that a float cannot hold. */
 typedef struct scene_number_scan {
     uint32_t overflow;      /* beyond float's range: rewritten "inf" (their triangles are dropped) */
     uint32_t underflow;     /* non-zero, below float's normal range: rewritten "0" */
@@ -89,7 +91,13 @@ typedef struct scene_number_scan {
 /* Checks the coordinate tokens of a text mesh file (ext "obj", "ply", "off", "stl";
  * others are left alone) and rewrites those a float cannot hold, in place and
  * token for token. data is NUL-terminated at data[size]. */
-void scene_scan_numbers(const char *ext, char *data, size_t size, scene_number_scan *out);
+void scene_guard_numbers(const char *ext, char *data, size_t size, scene_number_scan *out);
+/* Comments out the texture statements of an MTL file before its first newmtl; their count. */
+uint32_t scene_guard_mtl(char *data, size_t size);
+/* NULL when a PLY header is well formed, else what is wrong (*line: where). */
+const char *scene_guard_ply(const char *data, size_t size, int *line);
+/* NULL when a glTF (JSON or GLB) file's base64 data URIs are well formed. */
+const char *scene_guard_gltf(const char *data, size_t size);
 
 /* Reads a JSON scene description (see docs/scene-format.md) into the builder. */
 lm_result scene_import_json(scene_builder *b, const char *path, lm_error *err);

@@ -1,0 +1,35 @@
+/* fuzz_scene_json — libFuzzer harness for the JSON scene description.
+ *
+ * The input is the description (scene.json); it may name the mesh files "a.obj"
+ * (a lit quad, written at start-up) or anything else, relative to it. A load must
+ * end in a scene or a one-line error; ASan/UBSan and libFuzzer's timeout and
+ * memory limit catch the rest. Seeds: tests/badinput/json-*.json and the
+ * built-in scene's description (bench/fuzz.sh).
+ */
+#include <stdint.h>
+#include <stdio.h>
+#include <string.h>
+
+#include "src/scene/scene.h"
+#include "tests/fuzz/fuzz_util.h"
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
+
+int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
+{
+    static int ready;
+    char path[1024];
+    if (!ready) {
+        static const char quad[] = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 4 3\nf 1 3 2\n";
+        if (!fuzz_write("a.obj", (const uint8_t *)quad, sizeof quad - 1, path, sizeof path)) return 0;
+        ready = 1;
+    }
+    if (!fuzz_write("scene.json", data, size, path, sizeof path)) return 0;
+    scene *s = NULL;
+    lm_error err;
+    if (scene_load(&(scene_load_desc){.path = path}, &s, &err) == LM_OK)
+        scene_destroy(s);
+    else if (strchr(err.msg, '\n'))
+        __builtin_trap(); /* an error is one line */
+    return 0;
+}

@@ -1,0 +1,38 @@
+/* fuzz_util.c — see fuzz_util.h. */
+#define _POSIX_C_SOURCE 200809L /* mkdtemp */
+#include "tests/fuzz/fuzz_util.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+const char *fuzz_dir(void)
+{
+    static char dir[512];
+    if (!dir[0]) {
+        const char *tmp = getenv("TMPDIR");
+        snprintf(dir, sizeof dir, "%s/lumesh-fuzz-XXXXXX", tmp && tmp[0] ? tmp : "/tmp");
+        if (!mkdtemp(dir)) {
+            perror("mkdtemp");
+            abort();
+        }
+    }
+    return dir;
+}
+
+int fuzz_write(const char *name, const uint8_t *data, size_t size, char *out, size_t out_size)
+{
+    int n = snprintf(out, out_size, "%s/%s", fuzz_dir(), name);
+    if (n < 0 || (size_t)n >= out_size) return 0;
+    FILE *f = fopen(out, "wb");
+    if (!f) return 0;
+    int ok = fwrite(data, 1, size, f) == size;
+    return fclose(f) == 0 && ok;
+}
+
+const char *fuzz_ext(const char *fallback)
+{
+    const char *e = getenv("LUMESH_FUZZ_EXT");
+    return e && e[0] ? e : fallback;
+}
