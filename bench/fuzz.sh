@@ -56,15 +56,17 @@ run_one() { # target -> one line of the table
   local corpus=$build/fuzz-corpus/$t findings=$build/fuzz-findings log=$build/fuzz-logs/$t.log
   mkdir -p "$corpus" "$findings" "$build/fuzz-logs"
   local seeds; seeds=$(seed_dir "$t")
-  LUMESH_FUZZ_EXT=$t ASAN_OPTIONS=detect_leaks=1 \
+  LUMESH_FUZZ_EXT=$t ASAN_OPTIONS=detect_leaks=1 LUMESH_READER_CPU_SECONDS=10 \
     LSAN_OPTIONS=suppressions=$PWD/tests/lsan.supp \
     "$build/tests/fuzz/$h" "$corpus" "$seeds" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=4096 \
-      -max_len=65536 -print_final_stats=1 -artifact_prefix="$findings/$t-" >"$log" 2>&1 || true
+      -max_len=65536 -fork=1 -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1 \
+      -artifact_prefix="$findings/$t-" >"$log" 2>&1 || true
+  # Fork mode: a finding is saved and the run goes on for the whole time.
   local runs execs cov ft corp found
-  runs=$(grep -o 'stat::number_of_executed_units: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
-  execs=$(grep -o 'stat::average_exec_per_sec: *[0-9]*' "$log" | grep -o '[0-9]*$' | tail -1)
-  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*')
-  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*')
+  runs=$(grep -o '^#[0-9]*' "$log" | tail -1 | tr -d '#' || true)
+  execs=$(grep -o 'exec/s:\? [0-9]*' "$log" | tail -1 | grep -o '[0-9]*$' || true)
+  cov=$(grep -o 'cov: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*' || true)
+  ft=$(grep -o 'ft: [0-9]*' "$log" | tail -1 | grep -o '[0-9]*' || true)
   corp=$(find "$corpus" -type f | wc -l)
   found=$(find "$findings" -name "$t-*" -type f | wc -l)
   printf '| %s | %s | %s | %s | %s | %s | %s | %s | %s |\n' "$t" "$h" "$seconds" "${runs:-?}" "${execs:-?}" \

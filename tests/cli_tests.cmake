@@ -103,6 +103,19 @@ foreach(line IN LISTS corpus)
   endif()
 endforeach()
 
+# The mesh reader runs in a child process (src/scene/scene_isolate.c): a reader
+# that crashes or never returns becomes one line and exit 2 (fault injection).
+foreach(fault crash hang)
+  set(want "crashed on this file")
+  if(fault STREQUAL "hang")
+    set(want "ran out of time")
+  endif()
+  add_test(NAME cli_reader_${fault} COMMAND ${CMAKE_COMMAND} -E env LUMESH_FAULT_INJECT=reader-${fault}
+           ${CMAKE_COMMAND} "-DCMD=${LUMESH_EXE}|info" # the built-in scene's OBJ
+           -DEXPECT_EXIT=2 "-DEXPECT_ERR=cornell-box.obj: the file reader \\(Assimp\\) ${want}"
+           -DONE_ERR_LINE=1 -P ${RUN_CLI})
+endforeach()
+
 # --sampler and --gl: fixed spellings, checked before the scene is read.
 lumesh_cli_test(render_bad_sampler 1 ARGS render -o x.png --sampler cuda ERR "--sampler must be gl, embree or auto, not 'cuda'")
 lumesh_cli_test(converge_bad_gl 1 ARGS converge --reference r.exr --seconds 1 --out d --gl glx ERR "--gl must be egl or osmesa")

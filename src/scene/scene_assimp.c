@@ -8,9 +8,10 @@
  * which referenced file (an MTL, a glTF buffer) could not be opened.
  *
  * This file only translates: node transforms, materials, triangles. Cleaning
- * happens in scene_build.c. Assimp keeps its last error in a process-wide
- * string, so loads must not run concurrently (they do not: loading happens
- * once, on the main thread).
+ * happens in scene_build.c. The import runs in a child process (scene_isolate.c:
+ * Assimp crashes, loops and leaks on some malformed files), after the guards of
+ * scene_guard.c. Assimp keeps its last error in a process-wide string, so loads
+ * must not run concurrently (they do not: loading happens on one thread).
  */
 #include <assimp/cfileio.h>
 #include <assimp/cimport.h>
@@ -306,9 +307,25 @@ static int looks_binary_text_format(const char *ext, const char *data, size_t si
     return memchr(data, '\0', size) != NULL;
 }
 
+typedef struct import_args {
+    const char *path;
+    const double *transform;
+} import_args;
+
+static lm_result import_mesh_file(scene_builder *b, void *user, int32_t material_override, lm_error *err);
+
 lm_result scene_import_mesh_file(scene_builder *b, const char *path, const double *transform,
                                  int32_t material_override, lm_error *err)
 {
+    import_args args = {path, transform};
+    return scene_isolate(b, path, material_override, import_mesh_file, &args, err);
+}
+
+/* The import itself (in the child process scene_isolate made). */
+static lm_result import_mesh_file(scene_builder *b, void *user, int32_t material_override, lm_error *err)
+{
+    const char *path = ((const import_args *)user)->path;
+    const double *transform = ((const import_args *)user)->transform;
     char ext[16], dotext[20];
     lm_path_ext(path, ext, sizeof ext);
     snprintf(dotext, sizeof dotext, ".%s", ext);

@@ -72,7 +72,18 @@ void scene_builder_note(scene_builder *b, const char *fmt, ...)
 /* A material with the loader defaults: grey kd 0.7, no ks, n 1, no emission. */
 scene_material scene_material_default(const char *name);
 
-/* Imports a mesh file through Assimp into the builder.
+/* Fills builder b (empty in a child process) from user's source; material
+ * override as scene_import_mesh_file's (a builder material index, or -1). */
+typedef lm_result (*scene_fill_fn)(scene_builder *b, void *user, int32_t material_override, lm_error *err);
+
+/* Runs fill in a forked child and appends what it built to b (scene_isolate.c):
+ * a crash, hang or leak of a third-party reader stays in the child and comes
+ * back as one line about `what` (the file). */
+lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
+                        void *user, lm_error *err);
+
+/* Imports a mesh file through Assimp into the builder, in a child process
+ * (scene_isolate).
  * transform: 16 doubles row-major (p' = M·p), or NULL for identity.
  * material_override: a builder material index given to every triangle, or -1 to
  * use the file's own materials. */

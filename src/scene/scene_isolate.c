@@ -1,0 +1,254 @@
+/* scene_isolate.c — a third-party reader run in a child process.
+ *
+ * Assimp parses files from anywhere, and fuzzing found it crashing (a texture
+ * line before an MTL's first newmtl), looping forever (a broken PLY header) and
+ * leaking (OBJ and glTF files) on malformed input; we cannot fix a system
+ * library, and each guard in scene_guard.c answers one case only. So the import
+ * runs in a forked child: it fills an empty builder, sends it through a pipe and
+ * exits. Whatever the reader does wrong dies with the child and comes back as
+ * one line: a crash (by its signal), a hang (a CPU-time limit, SIGXCPU), a
+ * failed allocation. What it leaks is the child's. Assimp's scene graph also
+ * lives only in the child, so the parent's peak memory is the builder's.
+ *
+ * The child runs only the reader and plain C library calls (no threads, no GL,
+ * no Embree), which is what fork() in a threaded process allows in practice with
+ * glibc (malloc is fork-safe there). LUMESH_IMPORT_IN_PROCESS=1 runs the reader
+ * in the process instead (for a debugger), as does a failed fork().
+ *
+ * Wire format, in order, native byte order (the same program on both ends): the
+ * result code and message; counts; the triangle arrays; materials, parts, point
+ * lights, cameras (fixed-size structs); notes (length-prefixed); the
+ * number-guard count.
+ */
+#define _POSIX_C_SOURCE 200809L /* fork, pipe, setrlimit, kill */
+#include <errno.h>
+#include <signal.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/resource.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include "src/scene/scene_internal.h"
+
+/* CPU seconds the reader may use: generous for a large file (Assimp reads a
+ * 100 MB OBJ in well under a minute here), finite for a loop.
+ * LUMESH_READER_CPU_SECONDS overrides it (bench/fuzz.sh: below libFuzzer's timeout). */
+static rlim_t cpu_limit_seconds(const char *path)
+{
+    const char *env = getenv("LUMESH_READER_CPU_SECONDS");
+    if (env && atoi(env) > 0) return (rlim_t)atoi(env);
+    struct stat st;
+    double mb = stat(path, &st) == 0 ? (double)st.st_size / (1 << 20) : 0.0;
+    return (rlim_t)(60.0 + 2.0 * mb);
+}
+
+/* ---- the child's side: write everything, then _exit ---------------------- */
+
+static int put(int fd, const void *p, size_t n)
+{
+    const char *c = p;
+    while (n) {
+        ssize_t w = write(fd, c, n);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) return 0;
+        c += w;
+        n -= (size_t)w;
+    }
+    return 1;
+}
+
+static int put_builder(int fd, lm_result r, const lm_error *err, const scene_builder *b)
+{
+    uint64_t counts[6] = {(uint64_t)b->count, b->mat_count, b->part_count, b->point_count, b->cam_count,
+                          b->note_count};
+    int32_t code = (int32_t)r;
+    int ok = put(fd, &code, sizeof code) && put(fd, err->msg, sizeof err->msg) && put(fd, counts, sizeof counts);
+    if (!ok || r != LM_OK) return ok;
+    ok = put(fd, b->pos, b->count * 9 * sizeof *b->pos) && put(fd, b->nrm, b->count * 9 * sizeof *b->nrm) &&
+         put(fd, b->mat, b->count * sizeof *b->mat) && put(fd, b->part, b->count * sizeof *b->part) &&
+         put(fd, b->mats, b->mat_count * sizeof *b->mats) && put(fd, b->parts, b->part_count * sizeof *b->parts) &&
+         put(fd, b->points, b->point_count * sizeof *b->points) && put(fd, b->cams, b->cam_count * sizeof *b->cams);
+    for (uint32_t i = 0; ok && i < b->note_count; ++i) {
+        uint32_t len = (uint32_t)strlen(b->notes[i]);
+        ok = put(fd, &len, sizeof len) && put(fd, b->notes[i], len);
+    }
+    return ok && put(fd, &b->numbers_too_large, sizeof b->numbers_too_large);
+}
+
+/* ---- the parent's side: read the child's builder into b ------------------ */
+
+typedef struct wire {
+    const char *at, *end;
+} wire;
+
+static int get(wire *w, void *out, size_t n)
+{
+    if ((size_t)(w->end - w->at) < n) return 0;
+    memcpy(out, w->at, n);
+    w->at += n;
+    return 1;
+}
+
+/* Appends the child's builder (in w) to b: its materials and parts after b's,
+ * material 0 standing for `override` when override >= 0. */
+static lm_result merge(scene_builder *b, wire *w, int32_t override, const char *what, lm_error *err)
+{
+    int32_t code;
+    lm_error child_err;
+    uint64_t counts[6];
+    if (!get(w, &code, sizeof code) || !get(w, child_err.msg, sizeof child_err.msg) || !get(w, counts, sizeof counts))
+        return lm_fail(err, LM_ERR_RUNTIME, "%s: the reader's process ended before it answered", what);
+    child_err.msg[sizeof child_err.msg - 1] = '\0';
+    if (code != LM_OK) return lm_fail(err, (lm_result)code, "%s", child_err.msg);
+    const uint64_t n = counts[0];
+    const size_t tri_bytes = 9 * sizeof(double) + 9 * sizeof(float) + 2 * sizeof(uint32_t);
+    if (n > (size_t)(w->end - w->at) / tri_bytes || counts[1] > UINT32_MAX || counts[2] > UINT32_MAX)
+        return lm_fail(err, LM_ERR_RUNTIME, "%s: the reader's process sent a short answer", what);
+    const char *tris = w->at;
+    w->at += n * tri_bytes;
+    /* With an override, the child's material 0 is the parent's override: not added again. */
+    const uint32_t skip = override >= 0 ? 1 : 0;
+    uint32_t mat_base = b->mat_count, part_base = b->part_count;
+    lm_result r = LM_OK;
+    for (uint64_t i = 0; r == LM_OK && i < counts[1]; ++i) {
+        scene_material m;
+        uint32_t idx;
+        if (!get(w, &m, sizeof m)) return lm_fail(err, LM_ERR_RUNTIME, "%s: short answer (materials)", what);
+        m.name[sizeof m.name - 1] = '\0';
+        if (i >= skip) r = scene_builder_add_material(b, &m, &idx, err);
+    }
+    for (uint64_t i = 0; r == LM_OK && i < counts[2]; ++i) {
+        scene_part p;
+        uint32_t idx;
+        if (!get(w, &p, sizeof p)) return lm_fail(err, LM_ERR_RUNTIME, "%s: short answer (parts)", what);
+        p.name[sizeof p.name - 1] = p.source[sizeof p.source - 1] = '\0';
+        r = scene_builder_add_part(b, p.name, p.source, &idx, err);
+    }
+    for (uint64_t i = 0; r == LM_OK && i < counts[3]; ++i) {
+        scene_builder_point_light p;
+        if (!get(w, &p, sizeof p)) return lm_fail(err, LM_ERR_RUNTIME, "%s: short answer (lights)", what);
+        r = scene_builder_add_point_light(b, &p, err);
+    }
+    for (uint64_t i = 0; r == LM_OK && i < counts[4]; ++i) {
+        scene_builder_camera c;
+        if (!get(w, &c, sizeof c)) return lm_fail(err, LM_ERR_RUNTIME, "%s: short answer (cameras)", what);
+        c.cam.name[sizeof c.cam.name - 1] = '\0';
+        r = scene_builder_add_camera(b, &c, err);
+    }
+    for (uint64_t i = 0; r == LM_OK && i < counts[5]; ++i) {
+        uint32_t len;
+        char note[512];
+        if (!get(w, &len, sizeof len) || len >= sizeof note || !get(w, note, len))
+            return lm_fail(err, LM_ERR_RUNTIME, "%s: short answer (notes)", what);
+        note[len] = '\0';
+        scene_builder_note(b, "%s", note);
+    }
+    uint32_t too_large = 0;
+    if (r == LM_OK && !get(w, &too_large, sizeof too_large))
+        return lm_fail(err, LM_ERR_RUNTIME, "%s: short answer", what);
+    b->numbers_too_large += too_large;
+    /* The triangles last: their material and part ids are now known. */
+    const char *pos = tris, *nrm = pos + n * 9 * sizeof(double), *mat = nrm + n * 9 * sizeof(float),
+               *part = mat + n * sizeof(uint32_t);
+    for (uint64_t i = 0; r == LM_OK && i < n; ++i) {
+        double p[9];
+        float nv[9];
+        uint32_t m, pt;
+        memcpy(p, pos + i * sizeof p, sizeof p);
+        memcpy(nv, nrm + i * sizeof nv, sizeof nv);
+        memcpy(&m, mat + i * sizeof m, sizeof m);
+        memcpy(&pt, part + i * sizeof pt, sizeof pt);
+        uint32_t material = skip && m == 0 ? (uint32_t)override : m < counts[1] ? mat_base + m - skip : UINT32_MAX;
+        r = scene_builder_add_triangle(b, p, nv, material, pt < counts[2] ? part_base + pt : part_base, err);
+    }
+    return r;
+}
+
+/* Why a child that sent no complete answer ended, as the user's one line. */
+static lm_result child_failure(int status, const char *what, lm_error *err)
+{
+    if (WIFSIGNALED(status)) {
+        int sig = WTERMSIG(status);
+        if (sig == SIGXCPU || sig == SIGKILL)
+            return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) ran out of time on this file", what);
+        return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) crashed on this file (signal %d, %s)",
+                       what, sig, strsignal(sig));
+    }
+    return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) failed on this file (exit status %d)", what,
+                   WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+}
+
+lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
+                        void *user, lm_error *err)
+{
+    const char *inproc = getenv("LUMESH_IMPORT_IN_PROCESS");
+    int fds[2];
+    if ((inproc && inproc[0] == '1') || pipe(fds) != 0) return fill(b, user, material_override, err);
+    fflush(NULL); /* nothing buffered may be written twice */
+    pid_t pid = fork();
+    if (pid < 0) {
+        close(fds[0]);
+        close(fds[1]);
+        return fill(b, user, material_override, err);
+    }
+    if (pid == 0) { /* the child: fill an empty builder (material 0: the override), send it, leave */
+        close(fds[0]);
+        struct rlimit cpu = {cpu_limit_seconds(what), cpu_limit_seconds(what) + 5};
+        setrlimit(RLIMIT_CPU, &cpu);
+        /* Fault injection for the tests (tests/cli_tests.cmake): a reader that
+         * crashes, or one that never returns. */
+        const char *fault = getenv("LUMESH_FAULT_INJECT");
+        if (fault && strcmp(fault, "reader-crash") == 0) raise(SIGSEGV);
+        if (fault && strcmp(fault, "reader-hang") == 0) {
+            struct rlimit one = {1, 2};
+            setrlimit(RLIMIT_CPU, &one);
+            for (volatile unsigned long spin = 0;; ++spin) {
+            }
+        }
+        scene_builder cb;
+        memset(&cb, 0, sizeof cb);
+        cb.source = b->source;
+        lm_error cerr;
+        memset(&cerr, 0, sizeof cerr);
+        lm_result r = LM_OK;
+        uint32_t zero;
+        if (material_override >= 0) r = scene_builder_add_material(&cb, &b->mats[material_override], &zero, &cerr);
+        if (r == LM_OK) r = fill(&cb, user, material_override >= 0 ? 0 : -1, &cerr);
+        int ok = put_builder(fds[1], r, &cerr, &cb);
+        close(fds[1]);
+        _exit(ok ? 0 : 3); /* no atexit handlers, no leak check: the child's memory goes with it */
+    }
+    close(fds[1]);
+    char *buf = NULL;
+    size_t len = 0, cap = 0;
+    lm_result r = LM_OK;
+    for (;;) {
+        if (len == cap && !LM_GROW(buf, cap, len + (1 << 16))) {
+            r = lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory reading the file's triangles", what);
+            kill(pid, SIGKILL);
+            break;
+        }
+        ssize_t got = read(fds[0], buf + len, cap - len);
+        if (got < 0 && errno == EINTR) continue;
+        if (got <= 0) break;
+        len += (size_t)got;
+    }
+    close(fds[0]);
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (r == LM_OK) {
+        if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
+            r = child_failure(status, what, err);
+        } else {
+            wire w = {buf, buf + len};
+            r = merge(b, &w, material_override, what, err);
+        }
+    }
+    free(buf);
+    return r;
+}
