@@ -91,6 +91,7 @@ int ref_sample_area_light(const ref_lights *L, lm_rng *g, lm_vec3 p, ref_light_s
     out->wi = wi;
     out->dist = dist;
     out->ny = ny;
+    out->tri = tri;
     out->pdf = L->light_pmf[li] / A->area * dist * dist / cosy;
     out->le = A->le;
     return 1;

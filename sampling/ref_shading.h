@@ -40,6 +40,7 @@ typedef struct ref_light_sample {
     lm_vec3 wi;       /* unit direction from p to the point */
     float dist;       /* distance, scene units */
     lm_vec3 ny;       /* unit front normal of the light at the point */
+    uint32_t tri;     /* the light triangle the point is on */
     float pdf;        /* solid-angle density at p of this direction (light choice included) */
     const float *le;  /* radiance of the light */
 } ref_light_sample;

@@ -29,7 +29,6 @@ struct ref_renderer {
     const scene *s;
     rt_scene *rt;
     ref_lights lights;
-    float eps;
     int width, height, threads;
     camera_basis cam;       /* the primary rays (src/scene/camera.h) */
     ref_pixel *pixels;
@@ -55,7 +54,7 @@ typedef struct ctx {
 static lm_vec3 offset(const ctx *c, const ref_surface *x, lm_vec3 dir)
 {
     lm_vec3 n = v3_dot(dir, x->ng) >= 0.0f ? x->ng : v3_scale(x->ng, -1.0f);
-    return v3_add(x->p, v3_scale(n, c->r->eps));
+    return v3_add(x->p, v3_scale(n, rt_scene_tri_epsilon(c->r->rt, x->tri)));
 }
 
 static int trace(ctx *c, lm_vec3 org, lm_vec3 dir, rt_hit *h)
@@ -65,17 +64,20 @@ static int trace(ctx *c, lm_vec3 org, lm_vec3 dir, rt_hit *h)
     return rt_intersect(c->r->rt, o, d, 0.0f, INFINITY, h);
 }
 
-/* Nothing between the surface point x and the point x + dist·wi, whose surface
- * normal is ny (NULL for a point light). */
-static int visible(ctx *c, const ref_surface *x, lm_vec3 wi, float dist, const lm_vec3 *ny)
+/* Nothing between the surface point x and the point x + dist·wi, on triangle
+ * y_tri with surface normal ny (NULL for a point light: y_tri unused). Both ends
+ * move by the larger of their triangles' offsets. */
+static int visible(ctx *c, const ref_surface *x, lm_vec3 wi, float dist, const lm_vec3 *ny, uint32_t y_tri)
 {
+    float eps = rt_scene_tri_epsilon(c->r->rt, x->tri);
+    if (ny) eps = fmaxf(eps, rt_scene_tri_epsilon(c->r->rt, y_tri));
     float a[3], na[3], b[3], nb[3];
     v3_store(a, x->p);
     v3_store(na, x->ng);
     v3_store(b, v3_add(x->p, v3_scale(wi, dist)));
     if (ny) v3_store(nb, *ny);
     c->rays++;
-    return !rt_segment_occluded(c->r->rt, a, na, b, ny ? nb : NULL, c->r->eps);
+    return !rt_segment_occluded(c->r->rt, a, na, b, ny ? nb : NULL, eps);
 }
 
 static int emits_towards(const scene *s, uint32_t tri, lm_vec3 wi)
@@ -126,7 +128,7 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
         ref_light_sample ls;
         if (ref_sample_area_light(&c->r->lights, &c->g, x->p, &ls)) {
             float cosx = v3_dot(x->ns, ls.wi);
-            if (cosx > 0.0f && v3_dot(x->ng, ls.wi) > 0.0f && visible(c, x, ls.wi, ls.dist, &ls.ny)) {
+            if (cosx > 0.0f && v3_dot(x->ng, ls.wi) > 0.0f && visible(c, x, ls.wi, ls.dist, &ls.ny, ls.tri)) {
                 float e = cosx / ls.pdf; /* E per unit radiance */
                 float wd = 1.0f, ws = 1.0f;
                 if (mode == MIS_FULL_BRDF) {
@@ -165,7 +167,7 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
         if (!(dist > 0.0f)) continue;
         lm_vec3 wi = v3_scale(d, 1.0f / dist);
         float cosx = v3_dot(x->ns, wi);
-        if (cosx <= 0.0f || v3_dot(x->ng, wi) <= 0.0f || !visible(c, x, wi, dist, NULL)) continue;
+        if (cosx <= 0.0f || v3_dot(x->ng, wi) <= 0.0f || !visible(c, x, wi, dist, NULL, 0)) continue;
         float e = cosx / (dist * dist);
         float lobe = spec ? ref_phong_lobe(m->n, wi, wo, x->ns) : 0.0f;
         for (int k = 0; k < 3; ++k) {
@@ -379,7 +381,6 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
         ref_destroy(r);
         return res;
     }
-    r->eps = rt_scene_epsilon(r->rt);
     r->cam = camera_basis_make(cam, r->width, r->height);
     *out = r;
     return LM_OK;

@@ -9,7 +9,8 @@
 
 struct rt_scene {
     RTCScene scene;
-    float epsilon;
+    float epsilon;     /* the largest of tri_eps: for points on no known triangle */
+    float *tri_eps;    /* per scene triangle (rt_scene_tri_epsilon) */
 };
 
 /* One Embree device per process, made by the first rt_scene_create and kept until
@@ -74,14 +75,25 @@ lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *e
         return lm_fail(err, LM_ERR_RUNTIME, "%s: building the Embree scene failed: %s", s->source,
                        failed.msg[0] ? failed.msg : "no buffer");
     }
-    float extent = 0.0f;
-    for (int k = 0; k < 3; ++k) {
-        extent = fmaxf(extent, fabsf(s->bounds_min[k]));
-        extent = fmaxf(extent, fabsf(s->bounds_max[k]));
+    /* A few hundred ulps (2e-5, 168) of the largest coordinate of each triangle:
+     * above the round-off of a point interpolated on it and of a ray's
+     * intersection with its plane (both a few ulps of its corners' magnitude),
+     * and no larger, so that a feature far from the scene's largest coordinate
+     * keeps offsets of its own size (docs/scene-model.md, "Coordinates"). */
+    rt->tri_eps = malloc(((size_t)s->tri_count + 1) * sizeof *rt->tri_eps);
+    if (!rt->tri_eps) {
+        rt_scene_destroy(rt);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory for the surface offsets", s->source);
     }
-    /* A few hundred ulps at the largest coordinate: above round-off of the
-     * intersection, far below any feature size a scene models. */
-    rt->epsilon = fmaxf(extent, 1e-6f) * 2e-5f;
+    float extent = 0.0f;
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        float m = 0.0f;
+        for (int c = 0; c < 3; ++c)
+            for (int k = 0; k < 3; ++k) m = fmaxf(m, fabsf(s->positions[3 * (size_t)s->tris[t].v[c] + (size_t)k]));
+        rt->tri_eps[t] = fmaxf(m, 1e-6f) * RT_EPSILON_REL;
+        extent = fmaxf(extent, m);
+    }
+    rt->epsilon = fmaxf(extent, 1e-6f) * RT_EPSILON_REL;
     *out = rt;
     return LM_OK;
 }
@@ -90,6 +102,7 @@ void rt_scene_destroy(rt_scene *rt)
 {
     if (!rt) return;
     if (rt->scene) rtcReleaseScene(rt->scene);
+    free(rt->tri_eps);
     free(rt);
 }
 
@@ -172,3 +185,5 @@ int rt_segment_occluded(const rt_scene *rt, const float a[3], const float na[3],
 }
 
 float rt_scene_epsilon(const rt_scene *rt) { return rt->epsilon; }
+
+float rt_scene_tri_epsilon(const rt_scene *rt, uint32_t tri) { return rt->tri_eps[tri]; }

@@ -61,8 +61,12 @@ int rt_occluded(const rt_scene *rt, const float org[3], const float dir[3], floa
 int rt_segment_occluded(const rt_scene *rt, const float a[3], const float na[3], const float b[3],
                         const float nb[3], float eps);
 
-/* Offset, in scene units, that moves a ray origin off a surface robustly for
- * this scene's scale (a small multiple of float precision at the scene extent). */
+/* Surface offsets follow the local error: a ray or shadow segment that starts on
+ * triangle t starts rt_scene_tri_epsilon(rt, t) off it, RT_EPSILON_REL of the
+ * largest coordinate of t's corners (local coordinates, scene.h "Coordinates").
+ * rt_scene_epsilon is the largest of them, for a point on no known triangle. */
+#define RT_EPSILON_REL 2e-5f
+float rt_scene_tri_epsilon(const rt_scene *rt, uint32_t tri);
 float rt_scene_epsilon(const rt_scene *rt);
 
 #ifdef __cplusplus

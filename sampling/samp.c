@@ -52,14 +52,19 @@ samp_desc samp_desc_defaults(const samp_desc *desc)
     return d;
 }
 
-float samp_origin_epsilon(const samp_sampler *sp) { return rt_scene_epsilon(sp->rt); }
+float samp_point_eps_rt(const rt_scene *rt, const samp_point *x)
+{
+    return x->tri_plus_one ? rt_scene_tri_epsilon(rt, x->tri_plus_one - 1) : rt_scene_epsilon(rt);
+}
+
+float samp_point_epsilon(const samp_sampler *sp, const samp_point *x) { return samp_point_eps_rt(sp->rt, x); }
 
 int samp_points_parted(const samp_sampler *sp, const samp_point *a, const samp_point *b)
 {
-    const float eps = rt_scene_epsilon(sp->rt);
+    const float ea = samp_point_eps_rt(sp->rt, a), eb = samp_point_eps_rt(sp->rt, b), eps = fmaxf(ea, eb);
     float oa[3], ob[3], dir[3], len = 0.0f;
-    samp_point_origin(sp->s, a, eps, oa);
-    samp_point_origin(sp->s, b, eps, ob);
+    samp_point_origin(sp->s, a, ea, oa);
+    samp_point_origin(sp->s, b, eb, ob);
     for (int k = 0; k < 3; ++k) {
         dir[k] = ob[k] - oa[k];
         len += dir[k] * dir[k];
@@ -75,7 +80,7 @@ int samp_point_pull_inside(const samp_sampler *sp, samp_point *x)
     const scene *s = sp->s;
     if (x->tri_plus_one == 0 || x->tri_plus_one > s->tri_count) return 0;
     const uint32_t *v = s->tris[x->tri_plus_one - 1].v;
-    const float eps = rt_scene_epsilon(sp->rt);
+    const float eps = samp_point_eps_rt(sp->rt, x);
     float org[3], to[3], dir[3], len = 0.0f;
     samp_point_origin(s, x, eps, org);
     for (int k = 0; k < 3; ++k) {
@@ -220,7 +225,7 @@ static void point_light_G(const samp_sampler *sp, const scene_point_light *pl, c
     const double X[3] = {x->p[0], x->p[1], x->p[2]}, N[3] = {x->n[0], x->n[1], x->n[2]};
     double g = samp_point_G(P, X, N);
     if (g > 0.0) {
-        float eps = rt_scene_epsilon(sp->rt), origin[3];
+        float eps = samp_point_eps_rt(sp->rt, x), origin[3];
         samp_point_origin(sp->s, x, eps, origin);
         if (rt_segment_occluded(sp->rt, origin, NULL, pl->position, NULL, eps)) g = 0.0;
     }

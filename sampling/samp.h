@@ -280,8 +280,9 @@ int samp_point_pull_inside(const samp_sampler *sp, samp_point *x);
  * runs on into the lit room). (One Embree ray.) */
 int samp_points_parted(const samp_sampler *sp, const samp_point *a, const samp_point *b);
 
-/* The epsilon every back end of sp lifts receivers by (samp_point_origin). */
-float samp_origin_epsilon(const samp_sampler *sp);
+/* The offset every back end of sp lifts receiver x by (samp_point_origin): its
+ * triangle's (rt_scene_tri_epsilon), or the scene's largest without one. */
+float samp_point_epsilon(const samp_sampler *sp, const samp_point *x);
 
 /* True when the radiance mesh is well formed for scene s: offsets non-decreasing,
  * first[tri_count] == mesh->tri_count, barycentrics and radiance finite. */

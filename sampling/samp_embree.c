@@ -46,7 +46,6 @@ typedef struct embree_impl {
     samp_desc desc;
     const scene *s;
     const rt_scene *rt;
-    float eps;
     int threads;
     int direct_k, indirect_k; /* strata per side */
     light_table *lights;      /* per area light; read-only after creation */
@@ -93,7 +92,8 @@ static float direct_one(const embree_impl *e, uint32_t li, const samp_point *x)
     double g0 = samp_area_light_unoccluded(s, li, x->p, x->n);
     if (!(g0 > 0.0)) return 0.0f; /* behind the light or below the horizon: exactly 0 */
     float origin[3];
-    samp_point_origin(s, x, e->eps, origin);
+    const float eps = samp_point_eps_rt(e->rt, x);
+    samp_point_origin(s, x, eps, origin);
     lm_vec3 o = v3_load(origin), nx = v3_load(x->n);
     lm_rng g;
     point_rng(e, 1u + li, x, &g);
@@ -116,7 +116,8 @@ static float direct_one(const embree_impl *e, uint32_t li, const samp_point *x)
             float yf[3], nyf[3];
             v3_store(yf, y);
             v3_store(nyf, ny);
-            if (!rt_segment_occluded(e->rt, origin, NULL, yf, nyf, e->eps)) sum_vis += w;
+            if (!rt_segment_occluded(e->rt, origin, NULL, yf, nyf, fmaxf(eps, rt_scene_tri_epsilon(e->rt, tri))))
+                sum_vis += w;
         }
     double G;
     if (e->desc.direct_control_variate == SAMP_OFF)
@@ -135,7 +136,7 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
                          const samp_point *x, int k, uint32_t pass, float E[3], float *std_err)
 {
     float origin[3];
-    samp_point_origin(e->s, x, e->eps, origin);
+    samp_point_origin(e->s, x, samp_point_eps_rt(e->rt, x), origin);
     samp_frame f = samp_frame_make(x->n);
     lm_rng g;
     point_rng(e, pass ? 0x1000000u + pass : 0, x, &g);
@@ -288,7 +289,6 @@ lm_result samp_embree_create(const samp_desc *desc, const rt_scene *rt, const sa
     e->desc = *desc;
     e->s = desc->scene;
     e->rt = rt;
-    e->eps = rt_scene_epsilon(rt);
     e->threads = samp_thread_count(desc->threads);
     e->direct_k = strata_per_side(desc->direct_rays);
     e->indirect_k = strata_per_side(desc->indirect_rays);

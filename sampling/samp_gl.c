@@ -15,7 +15,8 @@
  * Depth: reversed Z with a 32-bit float depth buffer (glClipControl zero-to-one,
  * cleared to 0, GL_GREATER) and an infinite far plane, so depth precision is
  * relative (2⁻²⁴ of the distance) at every distance and the near plane can sit
- * at a thousandth of the receiver offset eps without starving the far field.
+ * at a thousandth of the receiver's offset eps (SAMP_GL_NEAR_REL; each view its
+ * own, as eps follows the receiver's triangle) without starving the far field.
  * It must be that close: at a corner the adjacent wall is about eps from the
  * lifted origin, and seen 80° off the view axis (the 160° plane, a wide direct
  * frustum) its depth is eps·cos80°; a near plane at eps/2 cut it away and the
@@ -121,8 +122,6 @@ lm_result samp_gl_create(const samp_desc *desc, const rt_scene *rt, const samp_b
     g->desc = *desc; /* defaults filled in (samp_internal.h) */
     g->s = desc->scene;
     g->rt = rt;
-    g->eps = rt_scene_epsilon(rt);
-    g->near = 1e-3 * g->eps;
     lm_result r = glctx_create(&(glctx_desc){.platform = g->desc.gl_platform}, &g->ctx, err);
     if (r != LM_OK) {
         free(g);

@@ -130,6 +130,7 @@ typedef struct frustum {
     double ex[3], ey[3], ez[3]; /* eye basis; the frustum looks along -ez (towards the light) */
     double l, r, b, t;          /* image region at unit distance (tangents), off-axis allowed */
     double depth_max;           /* farthest light point along the axis, scene units */
+    double near;                /* near plane: a thousandth of the receiver's offset (samp_gl.c says why) */
 } frustum;
 
 /* Corners of triangle tri clipped to the half-space dot(p - o, n) >= 0 (x's
@@ -204,9 +205,11 @@ static int make_frustum(const samp_gl *g, const scene_area_light *L, const samp_
 {
     const scene *s = g->s;
     float of[3];
-    samp_point_origin(s, x, g->eps, of);
+    const float eps = samp_point_eps_rt(g->rt, x);
+    samp_point_origin(s, x, eps, of);
     lm_dvec3 o = dv3(of[0], of[1], of[2]), n = dv3_normalize(dv3_load(x->n));
     memcpy(f->o, &o, sizeof f->o);
+    f->near = SAMP_GL_NEAR_REL * eps;
     int m = 0;
     lm_dvec3 mean = dv3(0, 0, 0), edge = dv3(1, 0, 0);
     for (uint32_t i = 0; i < L->count; ++i) { /* dirs holds 4 per light triangle */
@@ -393,7 +396,7 @@ lm_result samp_gl_direct(void *impl, uint32_t light, const samp_point *pts, uint
                              (float)((nb / (uint32_t)a->cols) * (uint32_t)a->tile_h), (float)a->tile_w,
                              (float)a->tile_h};
             samp_gl_view *v = &g->views[nb];
-            samp_gl_view_make(v, f.o, f.ex, f.ey, f.ez, f.l, f.r, f.b, f.t, g->near, rect);
+            samp_gl_view_make(v, f.o, f.ex, f.ey, f.ez, f.l, f.r, f.b, f.t, f.near, rect);
             lm_dvec3 nx = dv3_normalize(dv3_load(x->n));
             v->extra[0] = (float)(nx.x * f.ex[0] + nx.y * f.ex[1] + nx.z * f.ex[2]);
             v->extra[1] = (float)(nx.x * f.ey[0] + nx.y * f.ey[1] + nx.z * f.ey[2]);

@@ -210,7 +210,8 @@ lm_result samp_gl_indirect(void *impl, const samp_radiance_mesh *mesh, const sam
         for (uint32_t b = 0; b < nb; ++b) {
             const samp_point *x = &pts[first + b];
             float of[3];
-            samp_point_origin(g->s, x, g->eps, of);
+            const float eps = samp_point_eps_rt(g->rt, x);
+            samp_point_origin(g->s, x, eps, of);
             double o[3] = {of[0], of[1], of[2]}, nn[3] = {x->n[0], x->n[1], x->n[2]}, u[3], v[3];
             double len = sqrt(nn[0] * nn[0] + nn[1] * nn[1] + nn[2] * nn[2]);
             for (int k = 0; k < 3; ++k) nn[k] = len > 0.0 ? nn[k] / len : (k == 2);
@@ -226,7 +227,7 @@ lm_result samp_gl_indirect(void *impl, const samp_radiance_mesh *mesh, const sam
                 const float rect[4] = {(float)(tx + f[i].x0 * res / 2), (float)(ty + f[i].y0 * res / 2),
                                        (float)(f[i].w * res / 2), (float)(f[i].h * res / 2)};
                 samp_gl_view_make(&g->views[(size_t)b * (size_t)nf + (size_t)i], o, ex, ey, ez, f[i].l, f[i].r,
-                                  f[i].b, f[i].t, g->near, rect);
+                                  f[i].b, f[i].t, SAMP_GL_NEAR_REL * eps, rect);
             }
         }
         r = samp_gl_upload(g, g->view_buf, &g->view_cap, g->views, (size_t)nb * (size_t)nf * sizeof *g->views, err);

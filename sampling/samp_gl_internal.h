@@ -52,12 +52,13 @@ typedef struct samp_gl_grid {
     uint32_t *tris;          /* triangle ids per cell */
 } samp_gl_grid;
 
+/* Near plane of a view: this fraction of its receiver's offset (samp_gl.c says why). */
+#define SAMP_GL_NEAR_REL 1e-3
+
 typedef struct samp_gl {
     samp_desc desc;          /* defaults filled in */
     const scene *s;
     const rt_scene *rt;
-    float eps;               /* receiver offset, scene units (rt_scene_epsilon) */
-    double near;             /* near plane of every view, scene units: eps/1000 (samp_gl.c says why) */
     glctx *ctx;
     const GladGLContext *gl;
     samp_backend_ops ops;    /* gl_platform from desc, display name from the context */

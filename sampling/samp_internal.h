@@ -101,6 +101,8 @@ int samp_thread_count(int threads);
  * among them) in chunks of 16 taken from an atomic counter; returns when all are
  * done. If threads cannot be started, the caller does it all. */
 void samp_parallel_for(int threads, uint32_t n, void (*fn)(void *user, uint32_t i), void *user);
+/* samp_point_epsilon from the ray tracing scene (the back ends hold no sampler). */
+float samp_point_eps_rt(const rt_scene *rt, const samp_point *x);
 #ifdef __cplusplus
 }
 #endif

@@ -25,7 +25,6 @@ typedef struct sources_job {
     const samp_point *pts;
     const samp_source_hits *out;
     uint32_t seed;
-    float eps;
     int k; /* strata per side: k² ≤ rays */
 } sources_job;
 
@@ -42,7 +41,7 @@ static void sources_one(void *user, uint32_t i)
     uint32_t *tri = job->out->tri + (size_t)i * job->out->rays;
     float *weight = job->out->weight + (size_t)i * job->out->rays;
     float origin[3];
-    samp_point_origin(job->s, x, job->eps, origin);
+    samp_point_origin(job->s, x, samp_point_eps_rt(job->rt, x), origin);
     samp_frame f = samp_frame_make(x->n);
     lm_rng g;
     lm_rng_seed(&g, job->seed, samp_point_hash(x), 0x50u);
@@ -95,7 +94,7 @@ void samp_sources_trace(const scene *s, const rt_scene *rt, uint32_t seed, int t
     samp_radiance_index_build(s, mesh, &ix); /* without it (no memory): linear search */
     int k = (int)floor(sqrt((double)out->rays));
     sources_job job = {.s = s, .rt = rt, .mesh = mesh, .index = &ix, .pts = pts, .out = out, .seed = seed,
-                       .eps = rt_scene_epsilon(rt), .k = k < 1 ? 1 : k};
+                       .k = k < 1 ? 1 : k};
     samp_parallel_for(samp_thread_count(threads), n, sources_one, &job);
     samp_radiance_index_free(&ix);
 }
@@ -106,7 +105,6 @@ typedef struct hits_job {
     const samp_point *pts;
     const samp_surface_hits *out;
     uint32_t seed;
-    float eps;
     int k;
 } hits_job;
 
@@ -117,7 +115,7 @@ static void hits_one(void *user, uint32_t i)
     uint32_t *tri = job->out->tri + (size_t)i * job->out->rays;
     float *bary = job->out->bary + 2 * (size_t)i * job->out->rays;
     float origin[3];
-    samp_point_origin(job->s, x, job->eps, origin);
+    samp_point_origin(job->s, x, samp_point_eps_rt(job->rt, x), origin);
     samp_frame f = samp_frame_make(x->n);
     lm_rng g;
     lm_rng_seed(&g, job->seed, samp_point_hash(x), 0xb0u);
@@ -140,7 +138,7 @@ void samp_surface_hits_run(const scene *s, const rt_scene *rt, uint32_t seed, in
                            uint32_t n, const samp_surface_hits *out)
 {
     int k = (int)floor(sqrt((double)out->rays));
-    hits_job job = {.s = s, .rt = rt, .pts = pts, .out = out, .seed = seed, .eps = rt_scene_epsilon(rt),
+    hits_job job = {.s = s, .rt = rt, .pts = pts, .out = out, .seed = seed,
                     .k = k < 1 ? 1 : k};
     samp_parallel_for(samp_thread_count(threads), n, hits_one, &job);
 }

@@ -1129,7 +1129,7 @@ static void cornell_exact_Ei(const scene *s, const rt_scene *rt, samp_sampler *d
 {
     enum { K = 64 };
     float origin[3];
-    samp_point_origin(s, x, rt_scene_epsilon(rt), origin);
+    samp_point_origin(s, x, samp_point_epsilon(dsp, x), origin);
     lm_vec3 n = v3_normalize(v3_load(x->n));
     float sign = copysignf(1.0f, n.z), a = -1.0f / (sign + n.z), b = n.x * n.y * a;
     lm_vec3 t1 = v3(1.0f + sign * n.x * n.x * a, sign * b, -sign * n.x), t2 = v3(b, sign + n.y * n.y * a, -n.y);

@@ -1,12 +1,14 @@
 /* offset_test — the closed-form plane far from the origin and at other scales.
  *
- * Usage: offset_test reference|render OFFSET SCALE [file]
+ * Usage: offset_test reference|render OFFSET SCALE [file|far]
  *
  * The scene is tests/test_util.h's plane under a square light (kd/π·Le·G in every
  * pixel, G by Lambert's formula), with every position p written as
  * OFFSET + SCALE·p: by the description's mesh transform, or with `file` in the
  * OBJ's own coordinates (Assimp reads those as floats, so they are rounded there:
- * at 10^5 by up to 1/256 unit). G does not change with either, so:
+ * at 10^5 by up to 1/256 unit). With `far`, two triangles 10^5 away make the
+ * scene 2·10^5 wide around the plane (offsets follow each triangle's own
+ * coordinates, not the scene's largest). G does not change with any of it, so:
  *   - reference: the path tracer's image matches Lambert within 1% in the mean,
  *     within its standard error, and pixel by pixel within 5 standard errors;
  *   - render: the cache and composite (ID pass, worker, frame) give the picture
@@ -69,7 +71,7 @@ static void check_reference(const scene *s)
     double rel = sum / sum_want - 1.0, rel_se = sqrt(se2) / sum_want;
     printf("reference at offset %g, scale %g%s: mean %+.3f%% from Lambert (standard error %.3f%%), worst pixel "
            "%.2f standard errors\n",
-           plane.offset, plane.scale, plane.offset_in_file ? " (in the file)" : "", 100.0 * rel, 100.0 * rel_se,
+           plane.offset, plane.scale, plane.offset_in_file ? " (in the file)" : plane.far_geometry ? " (far geometry)" : "", 100.0 * rel, 100.0 * rel_se,
            worst);
     CHECK_MSG(fabs(rel) <= 0.01, "mean %.3f%% from Lambert", 100.0 * rel);
     /* The file's own floats move the plane by up to 1/256 unit at 10^5: a bias the
@@ -118,6 +120,7 @@ static int check_render(const scene *s, const char *name)
     home.offset = 0.0;
     home.scale = 1.0;
     home.offset_in_file = 0;
+    home.far_geometry = 0;
     scene *s0 = NULL;
     {
         test_plane keep = plane;
@@ -147,7 +150,8 @@ static int check_render(const scene *s, const char *name)
             }
         printf("render at offset %g, scale %g%s: mean |difference| %.4f%% of the origin's picture, worst ΔE "
                "%.3f from Lambert\n",
-               plane.offset, plane.scale, plane.offset_in_file ? " (in the file)" : "", 100.0 * diff / total,
+               plane.offset, plane.scale, plane.offset_in_file ? " (in the file)" : plane.far_geometry ? " (far geometry)" : "",
+               100.0 * diff / total,
                worst_de);
         CHECK_MSG(diff <= 0.01 * total, "%.3f%% from the origin's render", 100.0 * diff / total);
         CHECK_MSG(worst_de <= JND, "a pixel ΔE %.3f from Lambert", worst_de);
@@ -166,8 +170,10 @@ int main(int argc, char **argv)
     plane.offset = atof(argv[2]);
     plane.scale = atof(argv[3]);
     plane.offset_in_file = argc > 4 && strcmp(argv[4], "file") == 0;
+    plane.far_geometry = argc > 4 && strcmp(argv[4], "far") == 0;
     char name[160];
-    snprintf(name, sizeof name, "offset_%s_%s_%s%s", argv[1], argv[2], argv[3], plane.offset_in_file ? "_file" : "");
+    snprintf(name, sizeof name, "offset_%s_%s_%s%s", argv[1], argv[2], argv[3],
+             plane.offset_in_file ? "_file" : plane.far_geometry ? "_far" : "");
     scene *s = test_plane_load(&plane, name);
     if (s) {
         if (strcmp(argv[1], "reference") == 0)

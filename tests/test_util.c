@@ -112,9 +112,14 @@ struct scene *test_plane_load(const test_plane *p, const char *name)
         char vs[1024];
         const double a = in_file ? T - 4.0 * S : -4.0, b = in_file ? T + 4.0 * S : 4.0, y = in_file ? T : 0.0;
         /* counter-clockwise seen from +y */
-        snprintf(vs, sizeof vs, "v %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\n"
-                                "f 1 4 3\nf 1 3 2\n",
-                 a, y, a, b, y, a, b, y, b, a, y, b);
+        int n = snprintf(vs, sizeof vs,
+                         "v %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\n"
+                         "f 1 4 3\nf 1 3 2\n",
+                         a, y, a, b, y, a, b, y, b, a, y, b);
+        if (p->far_geometry && n > 0 && (size_t)n < sizeof vs) /* 10^5 away, below the horizon */
+            snprintf(vs + n, sizeof vs - (size_t)n,
+                     "v -1e5 -100 0\nv -1e5 -100 1\nv -1e5 -99 0\nv 1e5 -100 0\nv 1e5 -99 0\n"
+                     "v 1e5 -100 1\nf 5 6 7\nf 8 9 10\n");
         test_write_file(file, vs, obj, sizeof obj);
     }
     if (!in_file && (S != 1.0 || T != 0.0))

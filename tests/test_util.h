@@ -68,6 +68,10 @@ typedef struct test_plane {
      * OBJ's own coordinates. G is the same at any offset and scale; 0 scale = 1. */
     double offset, scale;
     int offset_in_file;
+    /* Two triangles 10^5 units away on either side, below the plane's horizon and
+     * outside the view (they change no pixel): the scene's extent, and so its
+     * largest coordinate, is then 10^4 times the plane's. */
+    int far_geometry;
 } test_plane;
 
 /* Writes NAME.obj and NAME.json and loads them; NULL (a failed check) on error. */

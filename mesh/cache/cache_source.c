@@ -464,7 +464,6 @@ static lm_result mark_outdated(cache *c, lm_error *err)
     far_field ff = {0};
     if (r == LM_OK && any && !far_field_make(&ff, ch, nch))
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
-    const float eps = samp_origin_epsilon(c->sp);
     for (uint32_t vid = 0; r == LM_OK && any && vid < id_limit; ++vid) {
         float e[3];
         if (c->src.outdated[vid] || mesh_qmesh_get_value(c->indirect, vid, e) != 1) continue;
@@ -472,7 +471,7 @@ static lm_result mark_outdated(cache *c, lm_error *err)
         /* From where the gather looks (a point on a surface's plane sees none of it). */
         samp_point sp = cache_vertex_point(c, vid);
         float o[3];
-        samp_point_origin(s, &sp, eps, o);
+        samp_point_origin(s, &sp, samp_point_epsilon(c->sp, &sp), o);
         const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
         double add[3] = {M_PI * small[0], M_PI * small[1], M_PI * small[2]};
         drift_bound(&ff, ch, nch, x, nx, add);

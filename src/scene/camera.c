@@ -66,7 +66,7 @@ float camera_near(const scene *s)
 {
     double e = 0.0;
     for (int k = 0; k < 3; ++k) e = fmax(e, (double)s->bounds_max[k] - s->bounds_min[k]);
-    double n = 1e-5 * e;
+    double n = 1e-8 * e;
     return n > 1e-30 ? (float)n : 1e-30f;
 }
 

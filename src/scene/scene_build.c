@@ -292,14 +292,12 @@ static void framing_camera(const scene *s, int width, int height, scene_camera *
  * scene-model.md, "Coordinates"). Floats carry 24 bits: a room 10^5 units from
  * the file's origin keeps only millimetres, and offsets scaled by the largest
  * coordinate step over its features. So the corners (in double until here) are
- * taken relative to a point near the middle of the finite geometry.
- *
- * The point is the bounds' centre truncated towards zero to a multiple of q, the
- * power of two at or above the geometry's extent: every local coordinate is then
- * within 1.5·q of 0 (about the precision of a scene at the origin), a scene that
- * already surrounds the origin keeps origin 0 (its floats bit for bit as before),
- * and a scene moved by a round offset is, after recentring, the same floats as
- * the scene at the origin. */
+ * taken relative to the middle of the finite geometry: the bounds' centre,
+ * rounded to a multiple of q = 2^-16 of the power of two at or above the extent
+ * (so every local coordinate is within extent/2 + q of zero, and a scene moved by
+ * a round offset keeps exactly its floats). A scene whose bounds already hold the
+ * file's origin keeps origin 0: its coordinates are within its extent of zero,
+ * and its floats stay bit for bit what they were before recentring existed. */
 static void choose_local_origin(const scene_builder *b, double origin[3])
 {
     double lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
@@ -310,12 +308,13 @@ static void choose_local_origin(const scene_builder *b, double origin[3])
         lo[k] = fmin(lo[k], x);
         hi[k] = fmax(hi[k], x);
     }
-    double extent = 0.0;
-    for (int k = 0; k < 3; ++k) extent = fmax(extent, hi[k] - lo[k]);
     origin[0] = origin[1] = origin[2] = 0.0;
     if (!(lo[0] <= hi[0] && lo[1] <= hi[1] && lo[2] <= hi[2])) return;
-    double q = extent > 0.0 ? exp2(ceil(log2(extent))) : 1.0;
-    for (int k = 0; k < 3; ++k) origin[k] = q * trunc(0.5 * (lo[k] + hi[k]) / q);
+    if (lo[0] <= 0.0 && hi[0] >= 0.0 && lo[1] <= 0.0 && hi[1] >= 0.0 && lo[2] <= 0.0 && hi[2] >= 0.0) return;
+    double extent = 0.0;
+    for (int k = 0; k < 3; ++k) extent = fmax(extent, hi[k] - lo[k]);
+    double q = extent > 0.0 ? exp2(ceil(log2(extent)) - 16.0) : 1.0;
+    for (int k = 0; k < 3; ++k) origin[k] = q * nearbyint(0.5 * (lo[k] + hi[k]) / q);
 }
 
 /* Warns when the float coordinates cannot hold the scene's smallest feature:
