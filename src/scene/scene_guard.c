@@ -87,6 +87,18 @@ static void scan_tokens(char *p, char *end, scene_number_scan *out)
     }
 }
 
+/* The line at *at (ending at a newline or `end`): its first non-blank character,
+ * its end in *eol; *at moves past it. */
+static char *take_line(char **at, char *end, char **eol)
+{
+    char *line = *at, *e = memchr(line, '\n', (size_t)(end - line));
+    if (!e) e = end;
+    *eol = e;
+    *at = e + 1;
+    while (line < e && is_space(*line)) ++line;
+    return line;
+}
+
 static int starts_with_word(const char *p, const char *end, const char *word)
 {
     size_t n = strlen(word);
@@ -105,11 +117,8 @@ void scene_guard_numbers(const char *ext, char *data, size_t size, scene_number_
     }
     int body = !(ply || off); /* PLY and OFF: from the line after their header */
     char *end = data + size;
-    for (char *line = data; line < end;) {
-        char *eol = memchr(line, '\n', (size_t)(end - line));
-        if (!eol) eol = end;
-        char *p = line;
-        while (p < eol && is_space(*p)) ++p;
+    for (char *at = data; at < end;) {
+        char *eol, *p = take_line(&at, end, &eol);
         if (obj) {
             if (starts_with_word(p, eol, "v") || starts_with_word(p, eol, "vn")) scan_tokens(p + 2, eol, out);
         } else if (stl) {
@@ -121,7 +130,6 @@ void scene_guard_numbers(const char *ext, char *data, size_t size, scene_number_
         } else if (p < eol && *p != '#') {
             body = 1; /* OFF: its first line ("OFF" or the counts) */
         }
-        line = eol + 1;
     }
 }
 
@@ -138,11 +146,8 @@ uint32_t scene_guard_mtl(char *data, size_t size)
     static const char *const textures[] = {"map_", "bump", "disp", "decal", "norm", "refl", NULL};
     uint32_t dropped = 0;
     char *end = data + size;
-    for (char *line = data; line < end;) {
-        char *eol = memchr(line, '\n', (size_t)(end - line));
-        if (!eol) eol = end;
-        char *p = line;
-        while (p < eol && is_space(*p)) ++p;
+    for (char *at = data; at < end;) {
+        char *eol, *p = take_line(&at, end, &eol);
         if (eol - p >= 6 && memcmp(p, "newmtl", 6) == 0) return dropped;
         for (const char *const *t = textures; *t; ++t)
             if ((size_t)(eol - p) >= strlen(*t) && memcmp(p, *t, strlen(*t)) == 0) {
@@ -150,7 +155,6 @@ uint32_t scene_guard_mtl(char *data, size_t size)
                 dropped++;
                 break;
             }
-        line = eol + 1;
     }
     return dropped;
 }

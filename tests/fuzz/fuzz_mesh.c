@@ -12,20 +12,9 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "src/scene/scene.h"
 #include "tests/fuzz/fuzz_util.h"
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size);
-
-static void load(const char *path)
-{
-    scene *s = NULL;
-    lm_error err;
-    if (scene_load(&(scene_load_desc){.path = path}, &s, &err) == LM_OK)
-        scene_destroy(s);
-    else if (strchr(err.msg, '\n'))
-        __builtin_trap(); /* an error is one line */
-}
 
 int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
 {
@@ -33,7 +22,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     char name[32], path[1024];
     snprintf(name, sizeof name, "mesh.%s", ext);
     if (!fuzz_write(name, data, size, path, sizeof path)) return 0;
-    load(path);
+    fuzz_load_scene(path);
     if (strcmp(ext, "obj") == 0) {
         static const char head[] = "mtllib mesh.mtl\n";
         uint8_t *both = malloc(sizeof head - 1 + size);
@@ -42,7 +31,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
         memcpy(both + sizeof head - 1, data, size);
         if (fuzz_write("mesh.mtl", data, size, path, sizeof path) &&
             fuzz_write("with-mtl.obj", both, sizeof head - 1 + size, path, sizeof path))
-            load(path);
+            fuzz_load_scene(path);
         free(both);
     }
     return 0;

@@ -2,6 +2,8 @@
 #define _POSIX_C_SOURCE 200809L /* mkdtemp */
 #include "tests/fuzz/fuzz_util.h"
 
+#include "src/scene/scene.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,4 +37,17 @@ const char *fuzz_ext(const char *fallback)
 {
     const char *e = getenv("LUMESH_FUZZ_EXT");
     return e && e[0] ? e : fallback;
+}
+
+void fuzz_load_scene(const char *path)
+{
+    /* A sanitizer report on our code in the reader's child process is a finding
+     * (scene_isolate.c); the reader's own crashes are handled errors. */
+    setenv("LUMESH_READER_STRICT", "1", 0);
+    scene *s = NULL;
+    lm_error err;
+    if (scene_load(&(scene_load_desc){.path = path}, &s, &err) == LM_OK)
+        scene_destroy(s);
+    else if (strchr(err.msg, '\n'))
+        __builtin_trap(); /* an error is one line */
 }
