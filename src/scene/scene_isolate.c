@@ -170,18 +170,40 @@ static lm_result merge(scene_builder *b, wire *w, int32_t override, const char *
     return r;
 }
 
-/* Why a child that sent no complete answer ended, as the user's one line. */
-static lm_result child_failure(int status, const char *what, lm_error *err)
+/* The last non-empty line the child wrote to f (its stderr), without the
+ * newline, "" when none. */
+static void last_line(FILE *f, char *out, size_t size)
 {
+    out[0] = '\0';
+    if (!f || fseek(f, 0, SEEK_SET) != 0) return;
+    char line[512];
+    while (fgets(line, sizeof line, f)) {
+        line[strcspn(line, "\r\n")] = '\0';
+        if (line[0]) lm_strlcpy(out, line, size);
+    }
+}
+
+static void print_all(FILE *f, FILE *to)
+{
+    char line[512];
+    if (!f || fseek(f, 0, SEEK_SET) != 0) return;
+    while (fgets(line, sizeof line, f)) fputs(line, to);
+}
+
+/* Why a child that sent no complete answer ended, as the user's one line; detail:
+ * the last line the reader printed, or "". */
+static lm_result child_failure(int status, const char *what, const char *detail, lm_error *err)
+{
+    const char *sep = detail[0] ? ": " : "";
     if (WIFSIGNALED(status)) {
         int sig = WTERMSIG(status);
         if (sig == SIGXCPU || sig == SIGKILL)
             return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) ran out of time on this file", what);
-        return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) crashed on this file (signal %d, %s)",
-                       what, sig, strsignal(sig));
+        return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) crashed on this file (signal %d, %s)%s%s",
+                       what, sig, strsignal(sig), sep, detail);
     }
-    return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) failed on this file (exit status %d)", what,
-                   WIFEXITED(status) ? WEXITSTATUS(status) : -1);
+    return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) failed on this file (exit status %d)%s%s",
+                   what, WIFEXITED(status) ? WEXITSTATUS(status) : -1, sep, detail);
 }
 
 lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
@@ -191,10 +213,12 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
     int fds[2];
     if ((inproc && inproc[0] == '1') || pipe(fds) != 0) return fill(b, user, material_override, err);
     fflush(NULL); /* nothing buffered may be written twice */
+    FILE *child_err = tmpfile(); /* what the reader prints (Assimp's assertions): the message's detail */
     pid_t pid = fork();
     if (pid < 0) {
         close(fds[0]);
         close(fds[1]);
+        if (child_err) fclose(child_err);
         return fill(b, user, material_override, err);
     }
     if (pid == 0) { /* the child: fill an empty builder (material 0: the override), send it, leave */
@@ -203,6 +227,7 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
          * sanitizer's, libFuzzer's, the command line's): the parent reads it. */
         static const int crashes[] = {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT, SIGXCPU, SIGINT};
         for (size_t i = 0; i < sizeof crashes / sizeof crashes[0]; ++i) signal(crashes[i], SIG_DFL);
+        if (child_err) dup2(fileno(child_err), STDERR_FILENO); /* the user sees one line, from the parent */
         struct rlimit cpu = {cpu_limit_seconds(what), cpu_limit_seconds(what) + 5};
         setrlimit(RLIMIT_CPU, &cpu);
         /* Fault injection for the tests (tests/cli_tests.cmake): a reader that
@@ -252,14 +277,20 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
             /* Any other exit status is not the reader's: a sanitizer's report on our
              * own code in the child (ASan exits 1). LUMESH_READER_STRICT=1 (the
              * fuzzing harnesses) makes that the parent's crash, so it is found. */
+            char detail[256];
+            last_line(child_err, detail, sizeof detail);
             const char *strict = getenv("LUMESH_READER_STRICT");
-            if (strict && strict[0] == '1' && WIFEXITED(status) && WEXITSTATUS(status) != 3) abort();
-            r = child_failure(status, what, err);
+            if (strict && strict[0] == '1' && WIFEXITED(status) && WEXITSTATUS(status) != 3) {
+                print_all(child_err, stderr); /* the sanitizer's report */
+                abort();
+            }
+            r = child_failure(status, what, detail, err);
         } else {
             wire w = {buf, buf + len};
             r = merge(b, &w, material_override, what, err);
         }
     }
     free(buf);
+    if (child_err) fclose(child_err);
     return r;
 }
