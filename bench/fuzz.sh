@@ -11,7 +11,8 @@
 #
 # Corpora grow in BUILD_DIR/fuzz-corpus/TARGET (kept between runs); seeds are
 # tests/badinput, the built-in scene, tests/fuzz/seeds and a few small shared
-# scenes. A crash, leak, hang (-timeout=20 s) or sanitizer report is written to
+# scenes. A crash, leak, hang (-timeout=30 s; the reader's child gets 5 s of CPU) or
+# sanitizer report is written to
 # BUILD_DIR/fuzz-findings/TARGET-*: reproduce it with
 #   LUMESH_FUZZ_EXT=EXT BUILD_DIR/tests/fuzz/fuzz_HARNESS FILE
 # and add it to tests/badinput with its fix.
@@ -56,9 +57,9 @@ run_one() { # target -> one line of the table
   local corpus=$build/fuzz-corpus/$t findings=$build/fuzz-findings log=$build/fuzz-logs/$t.log
   mkdir -p "$corpus" "$findings" "$build/fuzz-logs"
   local seeds; seeds=$(seed_dir "$t")
-  LUMESH_FUZZ_EXT=$t ASAN_OPTIONS=detect_leaks=1 LUMESH_READER_CPU_SECONDS=10 \
+  LUMESH_FUZZ_EXT=$t ASAN_OPTIONS=detect_leaks=1 LUMESH_READER_CPU_SECONDS=5 \
     LSAN_OPTIONS=suppressions=$PWD/tests/lsan.supp \
-    "$build/tests/fuzz/$h" "$corpus" "$seeds" -max_total_time="$seconds" -timeout=20 -rss_limit_mb=4096 \
+    "$build/tests/fuzz/$h" "$corpus" "$seeds" -max_total_time="$seconds" -timeout=30 -rss_limit_mb=4096 \
       -max_len=65536 -fork=1 -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1 \
       -artifact_prefix="$findings/$t-" >"$log" 2>&1 || true
   # Fork mode: a finding is saved and the run goes on for the whole time.

@@ -198,8 +198,8 @@ const char *scene_guard_ply(const char *data, size_t size, int *line_out)
         *line_out = line;
         const char *eol = memchr(p, '\n', (size_t)(end - p));
         if (!eol) return "the header has no end_header line";
-        for (const char *c = p; c < eol; ++c)
-            if ((unsigned char)*c > 126 || ((unsigned char)*c < 32 && !is_space(*c)))
+        for (const char *c = p; c < eol; ++c) /* printable ASCII, tabs, CR: no \v or \f (Assimp looped on one) */
+            if ((unsigned char)*c > 126 || ((unsigned char)*c < 32 && *c != '\t' && *c != '\r'))
                 return "the header holds bytes that are not text";
         const char *q = p, *w;
         size_t n = next_word(&q, eol, &w);
