@@ -14,6 +14,7 @@
  *     faces around the vertex within the crease angle;
  *  7. topology (OpenMesh), area lights, unused materials, bounds, a framing camera.
  */
+#include <float.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -338,7 +339,7 @@ static void note_precision(scene_builder *b, const scene *s)
     double step = ldexp(1.0, exponent - 24); /* float spacing at `largest` */
     if (shortest < PRECISION_STEPS * step)
         scene_builder_note(b, "the shortest edge (%.3g) is only %.0f float steps long at the scene's extent "
-                              "(%.3g from its centre): corners are rounded by up to %.2g, so its small "
+                              "(%.3g from its local origin): corners are rounded by up to %.2g, so its small "
                               "features are distorted; split the scene or model it in smaller units",
                            shortest, shortest / step, largest, 0.5 * step);
 }
@@ -353,6 +354,7 @@ typedef struct build_tmp {
     unsigned char *has_file_n;  /* 3 per kept triangle */
     uint32_t *mat_remap;
     weld_table weld;
+    uint32_t denormals;         /* local coordinates below float's normal range, set to 0 */
 } build_tmp;
 
 static void build_tmp_free(build_tmp *t)
@@ -420,7 +422,13 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
             continue;
         }
         float local[9];
-        for (int k = 0; k < 9; ++k) local[k] = (float)(p[k] - s->origin[k % 3]);
+        for (int k = 0; k < 9; ++k) {
+            local[k] = (float)(p[k] - s->origin[k % 3]);
+            if (local[k] != 0.0f && fabsf(local[k]) < FLT_MIN) { /* a denormal (binary files carry them) */
+                local[k] = 0.0f;
+                t.denormals++;
+            }
+        }
         for (int k = 0; k < 3; ++k) t.tri_v[3 * i + (size_t)k] = weld(&t.weld, local + 3 * k);
         t.keep[i] = 1;
     }
@@ -481,6 +489,9 @@ lm_result scene_build(scene_builder *b, const scene_load_desc *desc, scene **out
     if (s->report.dropped_nonfinite)
         scene_builder_note(b, "dropped %u triangle%s with NaN/Inf coordinates",
                            s->report.dropped_nonfinite, s->report.dropped_nonfinite == 1 ? "" : "s");
+    if (t.denormals)
+        scene_builder_note(b, "%s: %u coordinate%s below float's smallest normal value (1.2e-38) set to 0",
+                           b->source, t.denormals, t.denormals == 1 ? "" : "s");
     if (s->report.dropped_out_of_range)
         scene_builder_note(b, "dropped %u triangle%s with a coordinate beyond %.2g (too large to compute with "
                               "in float)",
