@@ -199,6 +199,8 @@ static lm_result child_failure(int status, const char *what, const char *detail,
         int sig = WTERMSIG(status);
         if (sig == SIGXCPU || sig == SIGKILL)
             return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) ran out of time on this file", what);
+        if (sig == SIGINT || sig == SIGTERM) /* Ctrl-C reaches the whole process group */
+            return lm_fail(err, LM_ERR_RUNTIME, "%s: loading was interrupted", what);
         return lm_fail(err, LM_ERR_BAD_INPUT, "%s: the file reader (Assimp) crashed on this file (signal %d, %s)%s%s",
                        what, sig, strsignal(sig), sep, detail);
     }
