@@ -11,6 +11,7 @@ struct rt_scene {
     RTCScene scene;
     float epsilon;     /* the largest of tri_eps: for points on no known triangle */
     float *tri_eps;    /* per scene triangle (rt_scene_tri_epsilon) */
+    uint32_t tri_count;
 };
 
 /* One Embree device per process, made by the first rt_scene_create and kept until
@@ -85,6 +86,7 @@ lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *e
         rt_scene_destroy(rt);
         return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory for the surface offsets", s->source);
     }
+    rt->tri_count = s->tri_count;
     float extent = 0.0f;
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         float m = 0.0f;
@@ -186,4 +188,7 @@ int rt_segment_occluded(const rt_scene *rt, const float a[3], const float na[3],
 
 float rt_scene_epsilon(const rt_scene *rt) { return rt->epsilon; }
 
-float rt_scene_tri_epsilon(const rt_scene *rt, uint32_t tri) { return rt->tri_eps[tri]; }
+float rt_scene_tri_epsilon(const rt_scene *rt, uint32_t tri)
+{
+    return tri < rt->tri_count ? rt->tri_eps[tri] : rt->epsilon; /* a garbage id gets the largest */
+}

@@ -64,7 +64,8 @@ int rt_segment_occluded(const rt_scene *rt, const float a[3], const float na[3],
 /* Surface offsets follow the local error: a ray or shadow segment that starts on
  * triangle t starts rt_scene_tri_epsilon(rt, t) off it, RT_EPSILON_REL of the
  * largest coordinate of t's corners (local coordinates, scene.h "Coordinates").
- * rt_scene_epsilon is the largest of them, for a point on no known triangle. */
+ * rt_scene_epsilon is the largest of them, for a point on no known triangle (and
+ * what rt_scene_tri_epsilon answers for an id that names no triangle). */
 #define RT_EPSILON_REL 2e-5f
 float rt_scene_tri_epsilon(const rt_scene *rt, uint32_t tri);
 float rt_scene_epsilon(const rt_scene *rt);
