@@ -38,7 +38,7 @@ typedef struct io_context {
     char missing[MAX_MISSING][256];
     int missing_count;
     int main_is_obj;            /* every other file opened is a material library */
-    uint32_t mtl_dropped;       /* MTL statements before a newmtl, commented out (scene_guard_mtl) */
+    uint32_t mtl_dropped;       /* texture statements before a newmtl, commented out (scene_guard_mtl) */
 } io_context;
 
 typedef struct mem_file {
