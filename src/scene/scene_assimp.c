@@ -27,7 +27,7 @@
 #include "src/base/vfs.h"
 #include "src/scene/scene_internal.h"
 
-enum { MAX_MESH_FILE_BYTES = 1 << 30, MAX_MISSING = 8 };
+enum { MAX_MESH_FILE_BYTES = 1 << 30, MAX_MISSING = 8, MTL_MIN_BYTES = 16 };
 
 /* ---- aiFileIO over vfs_read -------------------------------------------- */
 
@@ -38,6 +38,8 @@ typedef struct io_context {
     char missing[MAX_MISSING][256];
     int missing_count;
     int main_is_obj;            /* every other file opened is a material library */
+    char empty[MAX_MISSING][256]; /* material libraries that define no material */
+    int empty_count;
     uint32_t mtl_dropped;       /* texture statements before a newmtl, commented out (scene_guard_mtl) */
 } io_context;
 
@@ -77,6 +79,14 @@ static enum aiReturn io_seek(struct aiFile *f, size_t offset, enum aiOrigin orig
     return aiReturn_SUCCESS;
 }
 
+/* Whether a material library holds a `newmtl` statement anywhere. */
+static int defines_material(const char *data, size_t size)
+{
+    for (size_t i = 0; i + 6 <= size; ++i)
+        if (data[i] == 'n' && memcmp(data + i, "newmtl", 6) == 0) return 1;
+    return 0;
+}
+
 static struct aiFile *io_open(struct aiFileIO *io, const char *path, const char *mode)
 {
     io_context *ctx = (io_context *)(void *)io->UserData;
@@ -96,6 +106,21 @@ static struct aiFile *io_open(struct aiFileIO *io, const char *path, const char 
         /* An OBJ reader opens nothing but material libraries, whatever their names:
          * each goes through the MTL guard (the OBJ itself did before the import). */
         ctx->mtl_dropped += scene_guard_mtl(data, size);
+        if (!defines_material(data, size) && ctx->empty_count < MAX_MISSING)
+            lm_strlcpy(ctx->empty[ctx->empty_count++], path, sizeof ctx->empty[0]);
+        /* Assimp refuses a library of 1 to 7 bytes ("File is too small") and with it
+         * the whole OBJ; blank lines change nothing in an MTL. */
+        if (size < MTL_MIN_BYTES) {
+            char *padded = realloc(data, MTL_MIN_BYTES + 1);
+            if (!padded) {
+                free(data);
+                return NULL;
+            }
+            memset(padded + size, '\n', MTL_MIN_BYTES - size);
+            padded[MTL_MIN_BYTES] = '\0';
+            data = padded;
+            size = MTL_MIN_BYTES;
+        }
     }
     struct aiFile *f = calloc(1, sizeof *f);
     mem_file *m = calloc(1, sizeof *m);
@@ -436,6 +461,9 @@ static lm_result import_mesh_file(scene_builder *b, void *user, int32_t material
     if (ctx.mtl_dropped)
         scene_builder_note(b, "%s: %u texture statement%s before the first newmtl of a material library: ignored", path,
                            ctx.mtl_dropped, ctx.mtl_dropped == 1 ? "" : "s");
+    for (int i = 0; i < ctx.empty_count; ++i)
+        scene_builder_note(b, "%s: its material library '%s' defines no material (no newmtl): default materials used",
+                           path, ctx.empty[i]);
     for (int i = 0; i < ctx.missing_count; ++i)
         scene_builder_note(b, "%s: could not open '%s' that it refers to; default materials used",
                            path, ctx.missing[i]);
