@@ -64,6 +64,10 @@ lm_result lm_read_file(const char *path, size_t max_bytes, char **out_data, size
         return lm_fail(err, LM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     if (S_ISDIR(st.st_mode))
         return lm_fail(err, LM_ERR_IO, "%s: is a directory, not a file", path);
+    /* A FIFO would block the open until something writes to it, a device may
+     * never end: only regular files are read. */
+    if (!S_ISREG(st.st_mode))
+        return lm_fail(err, LM_ERR_IO, "%s: is not a regular file (a pipe, device or socket)", path);
     FILE *f = fopen(path, "rb");
     if (!f) return lm_fail(err, LM_ERR_IO, "%s: cannot open: %s", path, strerror(errno));
     size_t cap = S_ISREG(st.st_mode) && st.st_size > 0 ? (size_t)st.st_size + 1 : 4096;

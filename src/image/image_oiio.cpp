@@ -411,6 +411,8 @@ lm_result read_impl(const char *path, img_image *out, lm_error *err)
         return lm_fail(err, LM_ERR_IO, "%s: cannot open: %s", path, std::strerror(errno));
     if (S_ISDIR(st.st_mode))
         return lm_fail(err, LM_ERR_IO, "%s: is a directory, not an image", path);
+    if (!S_ISREG(st.st_mode)) /* a FIFO would block the open below */
+        return lm_fail(err, LM_ERR_IO, "%s: is not a regular file (a pipe, device or socket)", path);
     int fd = ::open(path, O_RDONLY | O_CLOEXEC);
     if (fd < 0) return lm_fail(err, LM_ERR_IO, "%s: cannot open: %s", path, std::strerror(errno));
     ::close(fd);
