@@ -60,6 +60,9 @@ static void scan_tokens(char *p, char *end, scene_number_scan *out)
         while (p < end && !is_space(*p)) ++p;
         size_t len = (size_t)(p - tok);
         if (number_length(tok, p) != len) continue; /* not a plain number: Assimp's to judge */
+        /* Without an exponent, 18 characters cannot leave the range (under 10^18,
+         * above 10^-17 when not 0): the common case skips strtod. */
+        if (len <= 18 && !memchr(tok, 'e', len) && !memchr(tok, 'E', len)) continue;
         /* strtod needs a terminator: the token ends at whitespace or the buffer's NUL. */
         char saved = *p;
         *p = '\0';

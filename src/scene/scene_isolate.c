@@ -230,7 +230,8 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
         static const int crashes[] = {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT, SIGXCPU, SIGINT};
         for (size_t i = 0; i < sizeof crashes / sizeof crashes[0]; ++i) signal(crashes[i], SIG_DFL);
         if (child_err) dup2(fileno(child_err), STDERR_FILENO); /* the user sees one line, from the parent */
-        struct rlimit cpu = {cpu_limit_seconds(what), cpu_limit_seconds(what) + 5};
+        const rlim_t seconds = cpu_limit_seconds(what);
+        struct rlimit cpu = {seconds, seconds + 5};
         setrlimit(RLIMIT_CPU, &cpu);
         /* Fault injection for the tests (tests/cli_tests.cmake): a reader that
          * crashes, or one that never returns. */
