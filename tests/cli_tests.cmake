@@ -73,6 +73,10 @@ if(EXISTS ${CB}/CornellBox-Original.obj)
   # lamp, turned to face the door (+Z after the file's Z-up rotation), and its camera.
   lumesh_cli_test(info_veach_door 0 ARGS info ${CMAKE_SOURCE_DIR}/bench/scenes/veach-door.json
     OUT "triangles   20764 .*lights      1 \\(1 area, 0 point\\).*'lamp': 2 triangles, area 9095.18, radiance \\(1420, 1552, 1642\\).*facing \\+Z.*main .*fov_y 32.3792°, 320x180")
+  # The same scene from its own scene.xml (Mitsuba 0.4), as it is: the lamp's emitting
+  # side from lamp.obj's normals, textures as their mean colours, the approximations listed.
+  lumesh_cli_test(info_veach_door_xml 0 ARGS info ${LUMESH_SCENES}/veach-door/scene.xml
+    OUT "triangles   20764 .*bumpmetal .*\\(approximated: see notes\\).*lights      1 \\(1 area, 0 point\\).*'lamp': 2 triangles, area 9095.18, radiance \\(1420, 1552, 1642\\).*facing \\+Z.*sensor .*fov_y 32.3792°, 1280x720.*roughconductor Al: specular 0.73 0.738 0.739; roughness 0.15 as Phong n 86.8889; bump ignored.*texture 'data/marble.jpg' approximated by its mean colour 0.811 0.795 0.903.*dielectric: opaque, no transmission")
   lumesh_cli_test(info_bunny 0 ARGS info ${LUMESH_SCENES}/stanford-bunny/stanford-bunny.obj
     OUT "triangles   69451 .*lights      0 \\(0 area, 0 point\\).*none: no triangle emits")
 endif()

@@ -8,6 +8,7 @@ packages=(
   libopenmesh-dev                    # geometric mesh topology
   libopenimageio-dev                 # EXR and PNG images
   libcjson-dev                       # JSON scene descriptions and statistics
+  libexpat1-dev                      # Mitsuba XML scenes
   libstb-dev                         # stb_easy_font: text in plots and the viewer's HUD (header only)
   libembree-dev                      # CPU ray tracing: reference renderer, Embree sampler
   python3-glad                       # generates the OpenGL 4.5 loader at build time (glad 2, MX)

@@ -79,6 +79,7 @@ static void print_scene(const scene *s)
             printf("  Le %g %g %g", m->le[0], m->le[1], m->le[2]);
         if (m->notes & SCENE_MATNOTE_DEFAULT) printf("  (default: the file has no material)");
         if (m->notes & SCENE_MATNOTE_OVERRIDDEN) printf("  (set by the scene description)");
+        if (m->notes & SCENE_MATNOTE_APPROXIMATED) printf("  (approximated: see notes)");
         printf("\n");
     }
 

@@ -138,8 +138,9 @@ lm_result scene_load(const scene_load_desc *desc, scene **out, lm_error *err)
 
     char ext[16];
     lm_path_ext(path, ext, sizeof ext);
-    lm_result r = strcmp(ext, "json") == 0 ? scene_import_json(&b, path, err)
-                                           : scene_import_mesh_file(&b, path, NULL, -1, err);
+    lm_result r = strcmp(ext, "json") == 0  ? scene_import_json(&b, path, err)
+                  : strcmp(ext, "xml") == 0 ? scene_import_mitsuba(&b, path, err)
+                                            : scene_import_mesh_file(&b, path, NULL, -1, err);
     if (r == LM_OK) r = scene_build(&b, desc, out, err);
     scene_builder_free(&b);
     if (r == LM_OK) (*out)->report.load_seconds = lm_now_seconds() - t0;
@@ -164,6 +165,41 @@ void scene_destroy(scene *s)
     for (uint32_t i = 0; i < s->report.note_count; ++i) free(s->report.notes[i]);
     free(s->report.notes);
     free(s);
+}
+
+void scene_mat4_mul(const double *a, const double *b, double *out)
+{
+    double r[16];
+    for (int i = 0; i < 4; ++i)
+        for (int j = 0; j < 4; ++j) {
+            double sum = 0.0;
+            for (int k = 0; k < 4; ++k) sum += a[4 * i + k] * b[4 * k + j];
+            r[4 * i + j] = sum;
+        }
+    memcpy(out, r, sizeof r);
+}
+
+void scene_mat4_point(const double *m, const double p[3], double out[3])
+{
+    double r[3];
+    for (int i = 0; i < 3; ++i) r[i] = m[4 * i] * p[0] + m[4 * i + 1] * p[1] + m[4 * i + 2] * p[2] + m[4 * i + 3];
+    memcpy(out, r, sizeof r);
+}
+
+double scene_mat4_normal_matrix(const double *m, double c[9])
+{
+#define M(i, j) m[4 * (i) + (j)]
+    c[0] = M(1, 1) * M(2, 2) - M(1, 2) * M(2, 1);
+    c[1] = M(1, 2) * M(2, 0) - M(1, 0) * M(2, 2);
+    c[2] = M(1, 0) * M(2, 1) - M(1, 1) * M(2, 0);
+    c[3] = M(0, 2) * M(2, 1) - M(0, 1) * M(2, 2);
+    c[4] = M(0, 0) * M(2, 2) - M(0, 2) * M(2, 0);
+    c[5] = M(0, 1) * M(2, 0) - M(0, 0) * M(2, 1);
+    c[6] = M(0, 1) * M(1, 2) - M(0, 2) * M(1, 1);
+    c[7] = M(0, 2) * M(1, 0) - M(0, 0) * M(1, 2);
+    c[8] = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
+#undef M
+    return m[0] * c[0] + m[1] * c[1] + m[2] * c[2];
 }
 
 void scene_to_file(const scene *s, const float local[3], double out[3])

@@ -54,7 +54,8 @@ typedef enum scene_material_note {
     SCENE_MATNOTE_TRANSPARENCY_IGNORED = 1u << 1, /* opacity < 1 (d < 1): modelled opaque */
     SCENE_MATNOTE_GAINS_ENERGY = 1u << 2,         /* kd + ks > 1 in some channel */
     SCENE_MATNOTE_DEFAULT = 1u << 3,              /* the file gave no material: default grey */
-    SCENE_MATNOTE_OVERRIDDEN = 1u << 4            /* replaced (in part) by the scene description */
+    SCENE_MATNOTE_OVERRIDDEN = 1u << 4,           /* replaced (in part) by the scene description */
+    SCENE_MATNOTE_APPROXIMATED = 1u << 5          /* a richer model (a Mitsuba BSDF) approximated: see notes */
 } scene_material_note;
 
 typedef struct scene_material {

@@ -216,41 +216,6 @@ typedef struct import_state {
     uint32_t bad_indices;
 } import_state;
 
-/* m is row-major 4x4 (p' = M·p). */
-static void mat4_mul(const double *a, const double *b, double *out)
-{
-    double r[16];
-    for (int i = 0; i < 4; ++i)
-        for (int j = 0; j < 4; ++j) {
-            double s = 0.0;
-            for (int k = 0; k < 4; ++k) s += a[4 * i + k] * b[4 * k + j];
-            r[4 * i + j] = s;
-        }
-    memcpy(out, r, sizeof r);
-}
-
-static void transform_point(const double *m, const struct aiVector3D *p, double out[3])
-{
-    for (int i = 0; i < 3; ++i)
-        out[i] = m[4 * i] * p->x + m[4 * i + 1] * p->y + m[4 * i + 2] * p->z + m[4 * i + 3];
-}
-
-/* Normals transform with the cofactor matrix (inverse transpose times det). */
-static void cofactor3(const double *m, double c[9])
-{
-#define M(i, j) m[4 * (i) + (j)]
-    c[0] = M(1, 1) * M(2, 2) - M(1, 2) * M(2, 1);
-    c[1] = M(1, 2) * M(2, 0) - M(1, 0) * M(2, 2);
-    c[2] = M(1, 0) * M(2, 1) - M(1, 1) * M(2, 0);
-    c[3] = M(0, 2) * M(2, 1) - M(0, 1) * M(2, 2);
-    c[4] = M(0, 0) * M(2, 2) - M(0, 2) * M(2, 0);
-    c[5] = M(0, 1) * M(2, 0) - M(0, 0) * M(2, 1);
-    c[6] = M(0, 1) * M(1, 2) - M(0, 2) * M(1, 1);
-    c[7] = M(0, 2) * M(1, 0) - M(0, 0) * M(1, 2);
-    c[8] = M(0, 0) * M(1, 1) - M(0, 1) * M(1, 0);
-#undef M
-}
-
 static lm_result emit_mesh(import_state *st, unsigned mesh_i, const double *m, lm_error *err)
 {
     const struct aiMesh *mesh = st->ai->mMeshes[mesh_i];
@@ -264,8 +229,7 @@ static lm_result emit_mesh(import_state *st, unsigned mesh_i, const double *m, l
                             ? st->mat_index[mesh->mMaterialIndex]
                             : UINT32_MAX;
     double cof[9];
-    cofactor3(m, cof);
-    double det = m[0] * cof[0] + m[1] * cof[1] + m[2] * cof[2];
+    double det = scene_mat4_normal_matrix(m, cof);
     double nsign = det < 0.0 ? -1.0 : 1.0; /* cofactor = det·M^-T: keep the direction */
     int mirror = det < 0.0;
     for (unsigned f = 0; f < mesh->mNumFaces; ++f) {
@@ -283,7 +247,9 @@ static lm_result emit_mesh(import_state *st, unsigned mesh_i, const double *m, l
                 ok = 0;
                 break;
             }
-            transform_point(m, &mesh->mVertices[vi], p + 3 * k);
+            const struct aiVector3D *vp = &mesh->mVertices[vi];
+            const double local[3] = {vp->x, vp->y, vp->z};
+            scene_mat4_point(m, local, p + 3 * k);
             if (has_n) {
                 const struct aiVector3D *v = &mesh->mNormals[vi];
                 for (int i = 0; i < 3; ++i)
@@ -311,7 +277,7 @@ static lm_result walk(import_state *st, const struct aiNode *node, const double 
     double local[16] = {t->a1, t->a2, t->a3, t->a4, t->b1, t->b2, t->b3, t->b4,
                         t->c1, t->c2, t->c3, t->c4, t->d1, t->d2, t->d3, t->d4};
     double m[16];
-    mat4_mul(parent, local, m);
+    scene_mat4_mul(parent, local, m);
     for (unsigned i = 0; i < node->mNumMeshes; ++i) {
         if (node->mMeshes[i] >= st->ai->mNumMeshes) continue;
         lm_result r = emit_mesh(st, node->mMeshes[i], m, err);

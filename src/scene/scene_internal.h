@@ -110,6 +110,16 @@ const char *scene_guard_ply(const char *data, size_t size, int *line);
 /* NULL when a glTF (JSON or GLB) file's base64 data URIs are well formed. */
 const char *scene_guard_gltf(const char *data, size_t size);
 
+/* Reads a Mitsuba XML scene (scene_mitsuba.c; docs/scene-format.md) into the builder. */
+lm_result scene_import_mitsuba(scene_builder *b, const char *path, lm_error *err);
+
+/* ---- affine transforms of the loaders: row-major 4x4, p' = M·p ---- */
+void scene_mat4_mul(const double *a, const double *b, double *out); /* out = a·b; out may alias */
+void scene_mat4_point(const double *m, const double p[3], double out[3]);
+/* c = the cofactor matrix of m's 3x3 part (det·M^-T: normals transform with it);
+ * returns the determinant. */
+double scene_mat4_normal_matrix(const double *m, double c[9]);
+
 /* Reads a JSON scene description (see docs/scene-format.md) into the builder. */
 lm_result scene_import_json(scene_builder *b, const char *path, lm_error *err);
 
