@@ -7,7 +7,7 @@
 #   SECONDS    time for each target (default 60; the runs: 1800)
 #   BUILD_DIR  the clang fuzzing build, configured and built here when missing
 #              (default build/fuzz)
-#   TARGETS    among json obj ply gltf exr png (default: all); JOBS (default 2) run at a time
+#   TARGETS    among json xml obj ply gltf exr png (default: all); JOBS (default 2) run at a time
 #
 # Corpora grow in BUILD_DIR/fuzz-corpus/TARGET (kept between runs); seeds are
 # tests/badinput, the built-in scene, tests/fuzz/seeds and a few small shared
@@ -23,23 +23,25 @@ seconds=${1:-60}
 build=${2:-build/fuzz}
 shift $(( $# < 2 ? $# : 2 ))
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(json obj ply gltf exr png)
+[ ${#targets[@]} -gt 0 ] || targets=(json xml obj ply gltf exr png)
 command -v clang >/dev/null || { echo "clang is missing: apt-get install clang libclang-rt-14-dev"; exit 1; }
 
 if [ ! -x "$build/tests/fuzz/fuzz_mesh" ]; then
   echo "building the fuzzing tree in $build (clang, ASan, UBSan, libFuzzer)" >&2
   CC=clang CXX=clang++ cmake -S . -B "$build" -DLUMESH_FUZZ=ON -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DBUILD_TESTING=OFF >/dev/null
-  cmake --build "$build" -j2 --target fuzz_scene_json fuzz_mesh fuzz_image >/dev/null
+  cmake --build "$build" -j2 --target fuzz_scene_json fuzz_scene_xml fuzz_mesh fuzz_image >/dev/null
 fi
 
 shared=../shared/scenes
-harness_of() { case $1 in json) echo fuzz_scene_json ;; obj|ply|gltf) echo fuzz_mesh ;; *) echo fuzz_image ;; esac; }
+harness_of() { case $1 in json) echo fuzz_scene_json ;; xml) echo fuzz_scene_xml ;; obj|ply|gltf) echo fuzz_mesh ;; *) echo fuzz_image ;; esac; }
 seed_dir() { # the seeds of target $1, in a fresh directory
   local t=$1 d=$build/fuzz-seeds/$1
   rm -rf "$d"; mkdir -p "$d"
   case $t in
     json) cp tests/badinput/json-*.json data/cornell-box.json "$d"/ ;;
+    xml) cp tests/badinput/mitsuba-*.xml tests/fuzz/seeds/*.xml "$d"/
+         [ -f "$shared"/veach-door/scene.xml ] && cp "$shared"/veach-door/scene.xml "$d"/veach-door.xml ;;
     obj) cp tests/badinput/*.obj data/cornell-box.obj data/cornell-box.mtl "$d"/
          for f in "$shared"/cornell-box/CornellBox-Original.{obj,mtl}; do [ -f "$f" ] && cp "$f" "$d"/; done ;;
     ply) cp tests/badinput/*.ply "$d"/ ;;
