@@ -409,7 +409,7 @@ static lm_result load_shape(mts_ctx *c, const mts_node *shape, const double *par
 
     if (strcmp(type, "obj") == 0 || strcmp(type, "ply") == 0) {
         const char *file = mts_get_string(c, shape, "filename", NULL);
-        if (!file || !file[0]) return mts_error(c, shape, err, "a %s shape needs a filename", type);
+        if (!file || !file[0]) return mts_error(c, shape, err, "shape type '%s' needs a filename", type);
         char full[SCENE_PATH_MAX];
         if (!lm_path_join(c->dir, file, full, sizeof full)) return mts_error(c, shape, err, "file path too long");
         size_t first = c->b->count;
