@@ -197,7 +197,7 @@ int main(void)
     cache *c = NULL;
     CHECK(samp_create(&sd_sync, &sp, &err) == LM_OK);
     CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
-    CHECK(cache_init(c, &err) == LM_OK);
+    CHECK(cache_init_seen(c, pixels, &err) == LM_OK); /* as the worker starts: what is seen and reached */
     uint64_t tested = 0;
     while (tested < budget) {
         cache_refine_result res;

@@ -106,6 +106,7 @@ void cache_destroy(cache *c)
     cache_outlines_free(&c->outl);
     cache_source_free(&c->src);
     cache_sched_free(&c->sched);
+    free(c->active);
     free(c);
 }
 
@@ -187,12 +188,15 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     return LM_OK;
 }
 
-/* The distinct corner vertices of every root of m. */
-static lm_result root_vertices(const cache *c, const mesh_qmesh *m, uint32_t **out, uint32_t *n, lm_error *err)
+/* The distinct corner vertices of the roots of m over triangles tris[0..ntris)
+ * (NULL: every active triangle) that have no value yet. */
+static lm_result root_vertices(const cache *c, const mesh_qmesh *m, const uint32_t *tris, uint32_t ntris, uint32_t **out,
+                               uint32_t *n, lm_error *err)
 {
     const scene *s = c->s;
+    const uint32_t count = tris ? ntris : s->tri_count;
     uint8_t *seen = NULL;
-    uint32_t *v = malloc(3 * (size_t)(s->tri_count ? s->tri_count : 1) * sizeof *v), cnt = 0;
+    uint32_t *v = malloc(3 * (size_t)(count ? count : 1) * sizeof *v), cnt = 0;
     const uint32_t limit = mesh_vtable_id_limit(c->vt);
     seen = calloc(limit ? limit : 1, 1);
     if (!v || !seen) {
@@ -200,14 +204,16 @@ static lm_result root_vertices(const cache *c, const mesh_qmesh *m, uint32_t **o
         free(seen);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
     }
-    for (uint32_t t = 0; t < s->tri_count; ++t) {
+    for (uint32_t i = 0; i < count; ++i) {
+        uint32_t t = tris ? tris[i] : i;
+        if (!tris && !cache_tri_active(c, t)) continue;
         uint32_t root = mesh_qmesh_root(m, t);
         if (root == MESH_QMESH_NONE) continue;
         const mesh_qnode *nd = mesh_qmesh_node(m, root);
         for (int k = 0; k < 3; ++k)
             if (nd->v[k] < limit && !seen[nd->v[k]]) {
                 seen[nd->v[k]] = 1;
-                v[cnt++] = nd->v[k];
+                if (mesh_qmesh_get_value(m, nd->v[k], NULL) != 1) v[cnt++] = nd->v[k];
             }
     }
     free(seen);
@@ -216,13 +222,14 @@ static lm_result root_vertices(const cache *c, const mesh_qmesh *m, uint32_t **o
     return LM_OK;
 }
 
-/* The root corners of the direct or specular mesh, their values from the light
- * meshes (visible fractions; samples only where those cannot answer). */
-static lm_result sample_roots(cache *c, cache_kind kind, lm_error *err)
+/* The root corners of the direct or specular mesh over tris (NULL: every active
+ * triangle), their values from the light meshes (visible fractions; samples only
+ * where those cannot answer). */
+static lm_result sample_roots(cache *c, cache_kind kind, const uint32_t *tris, uint32_t ntris, lm_error *err)
 {
     mesh_qmesh *m = cache_kind_mesh(c, kind);
     uint32_t *v = NULL, n = 0;
-    lm_result r = root_vertices(c, m, &v, &n, err);
+    lm_result r = root_vertices(c, m, tris, ntris, &v, &n, err);
     float *rgb = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *rgb) : NULL;
     cache_site *sites = r == LM_OK ? malloc((n ? n : 1) * sizeof *sites) : NULL;
     if (r == LM_OK && (!rgb || !sites)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
@@ -251,38 +258,190 @@ lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err)
     c->specular = NULL;
     lm_result r = mesh_qmesh_create(
         &(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap}, &c->specular, err);
-    if (r == LM_OK && c->initialised) r = sample_roots(c, CACHE_KIND_SPECULAR, err);
+    if (r == LM_OK && c->initialised) r = sample_roots(c, CACHE_KIND_SPECULAR, NULL, 0, err);
     cache_sched_requeue(&c->sched, CACHE_KIND_SPECULAR);
     cache_sched_forget(&c->sched, CACHE_KIND_SPECULAR);
     return r;
 }
 
-lm_result cache_init(cache *c, lm_error *err)
+/* The coarse cache over triangles tris[0..ntris) (NULL: every active one): the
+ * root corners of the light meshes, then of the direct and specular meshes (from
+ * the light meshes), the further bounces' transport over what is active, the
+ * source (kd·L_dd over a cut of the direct mesh; after the first time its change
+ * flags the values it moved), and gathers at the indirect mesh's root corners
+ * (§5). Corners that have a value already are not sampled again. */
+static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, lm_error *err)
 {
     uint32_t *v = NULL, n = 0;
     lm_result r = LM_OK;
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
         if (!c->light[l]) continue;
-        r = root_vertices(c, c->light[l], &v, &n, err);
+        r = root_vertices(c, c->light[l], tris, ntris, &v, &n, err);
         if (r == LM_OK) r = cache_sample_light(c, l, v, n, err);
         free(v);
         v = NULL;
     }
-    if (r == LM_OK) r = sample_roots(c, CACHE_KIND_DIRECT, err);
-    if (r == LM_OK && c->specular) r = sample_roots(c, CACHE_KIND_SPECULAR, err);
-    /* Indirect: gathered from the coarse direct mesh just made (§5); further
-     * bounces through E_m in the source, from a transport traced here once
-     * (cache_bounces.c). */
+    if (r == LM_OK) r = sample_roots(c, CACHE_KIND_DIRECT, tris, ntris, err);
+    if (r == LM_OK && c->specular) r = sample_roots(c, CACHE_KIND_SPECULAR, tris, ntris, err);
+    /* Further bounces through E_m in the source, from a transport traced here
+     * (cache_bounces.c) over the active triangles: traced again when more take part. */
+    if (r == LM_OK && c->initialised && c->indirect1) {
+        mesh_qmesh_destroy(c->indirect1);
+        c->indirect1 = NULL;
+        cache_bounces_free(&c->bnc);
+        r = make_bounce_mesh(c, err);
+    }
     if (r == LM_OK) r = cache_bounces_init(c, err);
     if (r == LM_OK) r = cache_update_radiance_source(c, 1, err);
-    if (r == LM_OK) r = root_vertices(c, c->indirect, &v, &n, err);
+    if (r == LM_OK) r = root_vertices(c, c->indirect, tris, ntris, &v, &n, err);
     float *E = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E) : NULL;
     if (r == LM_OK && !E) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
     if (r == LM_OK) r = cache_sample_indirect(c, v, n, E, err);
     for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, v[i], E + 3 * (size_t)i, err);
     free(E);
     free(v);
+    return r;
+}
+
+lm_result cache_init(cache *c, lm_error *err) { return cache_init_seen(c, NULL, err); }
+
+/* ---- what takes part: seen triangles and what their gathers reach ------------ */
+
+static int keep_unreached(const scene *s, uint32_t t, void *user)
+{
+    const cache *c = user;
+    return !c->active[t] && cache_has_albedo(s, t, NULL);
+}
+
+/* Takes part the triangles seed[0..nseed) and, transitively, every triangle with
+ * albedo that CACHE_REACH_RAYS cosine-weighted rays from the direct mesh's root
+ * corners of a newly taken triangle meet (a gather there would draw light from
+ * it; so would the further bounces from it). *out (malloc'ed) lists the newly
+ * taken ones. Rays from a corner on an open edge start inside its triangle, as
+ * gathers do (cache_vertex_on_open_edge). */
+static lm_result take_part(cache *c, const uint32_t *seed, uint32_t nseed, uint32_t **out, uint32_t *nout, lm_error *err)
+{
+    enum { BATCH = 16384 };
+    const uint32_t R = CACHE_REACH_RAYS, limit = mesh_vtable_id_limit(c->vt);
+    uint32_t *list = NULL, *vstamp = calloc(limit ? limit : 1, sizeof *vstamp);
+    size_t n = 0, cap = 0;
+    samp_point *pts = malloc(BATCH * sizeof *pts);
+    uint32_t *count = malloc(BATCH * sizeof *count), *hit = malloc((size_t)BATCH * R * sizeof *hit);
+    float *bary = malloc(2 * (size_t)BATCH * R * sizeof *bary);
+    lm_result r = vstamp && pts && count && hit && bary ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
+    for (uint32_t i = 0; r == LM_OK && i < nseed; ++i) {
+        uint32_t t = seed[i];
+        if (c->active[t]) continue;
+        if (!LM_GROW(list, cap, n + 1)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
+        else c->active[t] = 1, list[n++] = t, c->active_count++;
+    }
+    /* Breadth first: the triangles taken in one round are traced from in the next. */
+    size_t from = 0;
+    uint32_t round = 0;
+    while (r == LM_OK && from < n) {
+        const size_t to = n;
+        round++;
+        uint32_t np = 0;
+        for (size_t i = from; r == LM_OK && i <= to; ++i) {
+            if (i < to) {
+                uint32_t root = mesh_qmesh_root(c->direct, list[i]);
+                if (root == MESH_QMESH_NONE) continue;
+                const mesh_qnode *nd = mesh_qmesh_node(c->direct, root);
+                for (int k = 0; k < 3 && np < BATCH; ++k) {
+                    uint32_t vid = nd->v[k];
+                    if (vid >= limit || vstamp[vid] == round) continue;
+                    vstamp[vid] = round;
+                    pts[np] = cache_vertex_point(c, vid);
+                    if (cache_vertex_on_open_edge(c, vid)) samp_point_pull_inside(c->sp, &pts[np]);
+                    np++;
+                }
+            }
+            if (np + 3 > BATCH || (i == to && np)) { /* trace a batch; what it meets is taken */
+                r = samp_surface_hits_trace(c->sp, pts, np, &(samp_surface_hits){.rays = R, .count = count, .tri = hit,
+                                                                                  .bary = bary, .keep = keep_unreached,
+                                                                                  .keep_user = c},
+                                            err);
+                c->reach_rays += (uint64_t)np * R;
+                for (uint32_t p = 0; r == LM_OK && p < np; ++p)
+                    for (uint32_t j = 0; j < count[p]; ++j) {
+                        uint32_t t = hit[(size_t)p * R + j];
+                        if (c->active[t]) continue;
+                        if (!LM_GROW(list, cap, n + 1)) {
+                            r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
+                            break;
+                        }
+                        c->active[t] = 1, list[n++] = t, c->active_count++;
+                    }
+                np = 0;
+            }
+        }
+        from = to;
+    }
+    free(vstamp);
+    free(pts);
+    free(count);
+    free(hit);
+    free(bary);
+    if (r != LM_OK) {
+        free(list);
+        return r;
+    }
+    *out = list;
+    *nout = (uint32_t)n;
+    return LM_OK;
+}
+
+/* The triangles with pixels that do not take part yet: taken, with what they reach. */
+static lm_result take_seen(cache *c, const uint32_t *pixels, uint32_t **out, uint32_t *nout, lm_error *err)
+{
+    *out = NULL;
+    *nout = 0;
+    uint32_t *seed = NULL, ns = 0;
+    size_t cap = 0;
+    for (uint32_t t = 0; t < c->s->tri_count; ++t) {
+        if (!pixels[t] || c->active[t]) continue;
+        if (!LM_GROW(seed, cap, (size_t)ns + 1)) {
+            free(seed);
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what is seen");
+        }
+        seed[ns++] = t;
+    }
+    lm_result r = ns ? take_part(c, seed, ns, out, nout, err) : LM_OK;
+    free(seed);
+    return r;
+}
+
+lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err)
+{
+    if (!c) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_init_seen: no cache");
+    if (c->initialised) return LM_OK;
+    uint32_t *tris = NULL, n = 0;
+    lm_result r = LM_OK;
+    if (pixels) {
+        c->active = calloc(c->s->tri_count ? c->s->tri_count : 1, 1);
+        c->active_count = 0;
+        r = c->active ? take_seen(c, pixels, &tris, &n, err) : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
+        free(tris); /* sample_coarse takes every active triangle */
+    } else {
+        c->active_count = c->s->tri_count;
+    }
+    if (r == LM_OK) r = sample_coarse(c, NULL, 0, err);
     if (r == LM_OK) c->initialised = 1;
+    return r;
+}
+
+/* Triangles a camera move shows that did not take part: taken now, with what
+ * they reach; every mesh's leaves scheduled again. */
+static lm_result take_newly_seen(cache *c, const uint32_t *pixels, lm_error *err)
+{
+    if (!c->active || !pixels) return LM_OK;
+    uint32_t *tris = NULL, n = 0;
+    lm_result r = take_seen(c, pixels, &tris, &n, err);
+    if (r == LM_OK && n) {
+        r = sample_coarse(c, tris, n, err);
+        cache_sched_requeue(&c->sched, CACHE_KINDS);
+    }
+    free(tris);
     return r;
 }
 
@@ -359,6 +518,8 @@ void cache_get_stats(cache *c, cache_stats *out)
         out->bounces.bounces = 1;
         snprintf(out->bounces.why, sizeof out->bounces.why, "1 bounce, as asked");
     }
+    out->active_triangles = c->active_count;
+    out->reach_rays = c->reach_rays;
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
     out->bytes += vs.bytes + cache_light_state_bytes(&c->vis, c->light_count) + c->outl.bytes +
@@ -432,7 +593,7 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
 {
     if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
     /* The coarse cache first, here: the scheduler is below this file and cannot ask for it. */
-    lm_result r = c->initialised ? LM_OK : cache_init(c, err);
+    lm_result r = c->initialised ? take_newly_seen(c, desc->pixels, err) : cache_init_seen(c, desc->pixels, err);
     if (r == LM_OK) cache_bounces_see(c, desc->pixels);
     if (r == LM_OK) return cache_sched_refine(c, desc, out, err);
     if (out) *out = (cache_refine_result){0};

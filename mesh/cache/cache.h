@@ -116,6 +116,17 @@ void cache_destroy(cache *c); /* NULL is a no-op */
  * stands in for indirect until the coarse direct mesh exists; it exists after this). */
 lm_result cache_init(cache *c, lm_error *err);
 
+/* The coarse cache over what is needed only (issue 16, docs/cache.md "Start-up
+ * bounded by what is seen"): the triangles with pixels (rend_id counts, per scene
+ * triangle), and those that gathers from them reach, found by tracing
+ * CACHE_REACH_RAYS cosine-weighted rays from the root corners of each newly
+ * taken triangle until no new one is met (the reach of reach too: further
+ * bounces travel it). The others keep unsampled roots and send no light until
+ * cache_refine's pixels see one (a camera move), which takes it and what it
+ * reaches the same way. pixels NULL: cache_init. Units: none. */
+enum { CACHE_REACH_RAYS = 16 };
+lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err);
+
 /* The cache's estimate of its error (cache_estimate_error, below, says what each
  * figure means). */
 typedef struct cache_mesh_estimate {
@@ -251,6 +262,8 @@ typedef struct cache_stats {
     uint64_t regathered;        /* indirect values gathered again: the source had moved them (counted in
                                    indirect.samples too) */
     cache_bounce_stats bounces;
+    uint32_t active_triangles;  /* scene triangles taken part (cache_init_seen); all of them after cache_init */
+    uint64_t reach_rays;        /* rays traced to find what the seen triangles' gathers reach */
     size_t bytes;               /* everything: meshes, vertex table, bookkeeping */
 } cache_stats;
 

@@ -150,13 +150,13 @@ static lm_result index_vertices(cache *c, uint32_t **at_out, lm_error *err)
     const scene *s = c->s;
     double total = 0.0;
     for (uint32_t t = 0; t < s->tri_count; ++t)
-        if (mesh_qmesh_root(c->indirect1, t) != MESH_QMESH_NONE) total += tri_area(s, t);
+        if (cache_tri_active(c, t) && mesh_qmesh_root(c->indirect1, t) != MESH_QMESH_NONE) total += tri_area(s, t);
     const double target = total / CACHE_BOUNCE_LEAVES;
     b->depth = calloc(s->tri_count ? s->tri_count : 1, 1);
     lm_result r = b->depth ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the bounces' transport");
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(c->indirect1, t);
-        if (root == MESH_QMESH_NONE || !(target > 0.0)) continue;
+        if (root == MESH_QMESH_NONE || !(target > 0.0) || !cache_tri_active(c, t)) continue;
         double ratio = tri_area(s, t) / target;
         int depth = ratio > 1.0 ? (int)ceil(0.5 * log2(ratio)) : 0;
         depth = depth < CACHE_BOUNCE_DEPTH ? depth : CACHE_BOUNCE_DEPTH;
@@ -176,7 +176,7 @@ static lm_result index_vertices(cache *c, uint32_t **at_out, lm_error *err)
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
         b->tv_first[t] = b->tv_n;
         uint32_t root = mesh_qmesh_root(c->indirect1, t);
-        if (root == MESH_QMESH_NONE) continue;
+        if (root == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue;
         x.tri = t;
         const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
         r = cache_region_walk(c->indirect1, &whole, index_leaf, &x, err);
@@ -219,7 +219,7 @@ static lm_result refine_direct_to_coarse(cache *c, lm_error *err)
     direct_split_ctx x = {.c = c};
     lm_result r = LM_OK;
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
-        if (!b->depth[t] || mesh_qmesh_root(c->direct, t) == MESH_QMESH_NONE) continue;
+        if (!b->depth[t] || mesh_qmesh_root(c->direct, t) == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue;
         x.n = 0;
         x.depth = b->depth[t];
         const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
@@ -252,6 +252,13 @@ static lm_result refine_direct_to_coarse(cache *c, lm_error *err)
     free(rgb);
     free(sites);
     return r;
+}
+
+/* What the transport records: the fronts of active triangles with albedo
+ * (cache_init_seen: the others send nothing until they take part). */
+static int sends_light(const scene *s, uint32_t t, void *user)
+{
+    return cache_tri_active(user, t) && cache_has_albedo(s, t, NULL);
 }
 
 lm_result cache_bounces_init(cache *c, lm_error *err)
@@ -306,7 +313,7 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
         }
         r = samp_surface_hits_trace(c->sp, pts, nv,
                                     &(samp_surface_hits){.rays = R, .count = count, .tri = tri, .bary = bary,
-                                                         .keep = cache_has_albedo},
+                                                         .keep = sends_light, .keep_user = c},
                                     err);
     }
     /* Kept compact: each vertex's hits one after the other, each with the coarse

@@ -142,7 +142,7 @@ lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_est
         for (uint32_t t = 0; t < c->s->tri_count; ++t) {
             uint32_t root = mesh_qmesh_root(w.m, t);
             double px = pixels ? (double)pixels[t] : 1e6;
-            if (root != MESH_QMESH_NONE && px > 0.0) walk_tree(&w, root, px, visit_leaf);
+            if (root != MESH_QMESH_NONE && px > 0.0 && cache_tri_active(c, t)) walk_tree(&w, root, px, visit_leaf);
         }
         sum += per[k]->interpolation + per[k]->noise;
         above += per[k]->pixels_above_jnd;
@@ -215,7 +215,7 @@ lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t 
     for (uint32_t t = 0; t < c->s->tri_count && !nw.failed; ++t) {
         uint32_t root = mesh_qmesh_root(c->indirect, t);
         double px = pixels ? (double)pixels[t] : 1e6;
-        if (root != MESH_QMESH_NONE && px > 0.0) walk_tree(&nw.w, root, px, visit_noisy);
+        if (root != MESH_QMESH_NONE && px > 0.0 && cache_tri_active(c, t)) walk_tree(&nw.w, root, px, visit_noisy);
     }
     if (nw.failed) {
         free(nw.leaves);

@@ -255,6 +255,15 @@ struct cache {
                                   an emitter the viewer sees (cache_sees_front) */
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
     int initialised;
+    /* Which scene triangles take part (cache.c: cache_init_seen, and cache_refine
+     * for triangles its pixels see later): an
+     * active triangle's roots are sampled in every mesh, scheduled, and send
+     * light in the indirect source and the bounces' transport; an inactive one
+     * keeps unsampled roots and sends nothing, until a pixel sees it or a gather
+     * from an active triangle reaches it. NULL: every triangle (cache_init). */
+    uint8_t *active;
+    uint32_t active_count;
+    uint64_t reach_rays;       /* rays traced to find what gathers reach (cache_stats.reach_rays) */
     /* The parts. The meshes' values are written by the part that computes them
      * (light meshes, direct and specular: cache_light.c; indirect: cache_source.c)
      * and their trees by cache_refine.c (splits) and cache_light.c (light meshes). */
@@ -264,6 +273,9 @@ struct cache {
     cache_sched sched;
     cache_bounce_state bnc;
 };
+
+/* Does scene triangle t take part (struct cache.active)? */
+static inline int cache_tri_active(const cache *c, uint32_t t) { return !c->active || c->active[t]; }
 
 /* ---- cache_site.c: points, leaves, regions, what the viewer sees ----------------- */
 

@@ -667,7 +667,7 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
     lm_result r = LM_OK;
     for (uint32_t i = 0; r == LM_OK && i < region_count; ++i) r = cache_region_walk(m, &regions[i], requeue_visit, &q, err);
     for (uint32_t t = 0; r == LM_OK && !regions && t < c->s->tri_count; ++t) {
-        if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE) continue;
+        if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue;
         const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
         r = cache_region_walk(m, &whole, requeue_visit, &q, err);
     }
@@ -725,7 +725,8 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
     if (!c->sched.roots[kind]) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");
     for (uint32_t t = 0; t < c->s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(m, t);
-        if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0)) c->sched.roots[kind][c->sched.root_count[kind]++] = root;
+        if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0) && cache_tri_active(c, t))
+            c->sched.roots[kind][c->sched.root_count[kind]++] = root;
     }
     /* Rare (a start, an edit): a buffer of its own, not kept. */
     mesh_qmesh_tri *tris = NULL;
@@ -737,6 +738,7 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
         if (leaf == last) continue; /* a fan emits several triangles per leaf */
         last = leaf;
         const mesh_qnode *n = mesh_qmesh_node(m, leaf);
+        if (!cache_tri_active(c, n->tri)) continue; /* unsampled roots: nothing to test yet */
         float p = leaf_priority(c, m, kind, leaf, n, pixels); /* 0: unseen and nothing gathers from it */
         r = sched_add(c, kind, leaf, p, err);
     }

@@ -176,7 +176,7 @@ static lm_result choose_cut(cache *c, lm_error *err)
     uint32_t hn = 0, count = 0;
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(c->direct, t);
-        if (root == MESH_QMESH_NONE) continue;
+        if (root == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue; /* inactive: sends nothing yet */
         count++;
         float e = source_error(c, root);
         if (e > 0.0f) heap_push(c->src.cut_heap, &hn, (struct source_pick){e * cut_weight(c, root), root});
@@ -556,7 +556,7 @@ static lm_result build_source(cache *c, int track, lm_error *err)
     size_t count = 0;
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
         uint32_t root = mesh_qmesh_root(c->direct, t);
-        if (root != MESH_QMESH_NONE) r = collect_source(c, root, &count, err);
+        if (root != MESH_QMESH_NONE && cache_tri_active(c, t)) r = collect_source(c, root, &count, err);
     }
     if (r != LM_OK) return r;
     r = grow_source(s, &c->src.rm_first, &c->src.rm_bary, &c->src.rm_rad, &c->src.rm_cap, count, err);

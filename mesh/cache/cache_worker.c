@@ -248,7 +248,8 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
         if (later_bounces) cd.bounces = 1;
         r = cache_create(&cd, c, err);
     }
-    if (r == LM_OK) r = cache_init(*c, err);
+    /* Only what the camera sees and what gathers from it reach (issue 16). */
+    if (r == LM_OK) r = cache_init_seen(*c, w->pixels, err);
     /* A few rounds before the first image, by the pixel counts given at creation
      * (measured in docs/renderer.md, "The first image"). */
     if (r == LM_OK && w->desc.first_budget && w->pixels) {

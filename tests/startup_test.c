@@ -1,0 +1,205 @@
+/* startup_test — start-up work that does not depend on triangles nothing sees
+ * (issue 16, docs/cache.md "Start-up bounded by what is seen").
+ *
+ * A lit room seen through its open front, and the same room with a closed box
+ * behind its back wall holding a sphere of 1,280 triangles (100 times the room's
+ * triangles): no camera ray and no gather from the room reaches them. From the
+ * same view, cache_init_seen samples the same points in both (within 10%, here
+ * exactly), takes part the same triangles, and gives the same values; cache_init
+ * (every triangle) would sample the box and the sphere too, which shows the test
+ * can fail. A camera that then sees the box from outside takes part the box's
+ * faces and not the sphere inside. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "mesh/cache/cache.h"
+#include "sampling/samp.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_id.h"
+#include "tests/test_util.h"
+
+enum { W = 128, H = 96 };
+
+static const char *ROOM_XML =
+    "<scene version='0.5.0'>\n"
+    "  <bsdf type='diffuse' id='white'><rgb name='reflectance' value='0.7'/></bsdf>\n"
+    "  <bsdf type='diffuse' id='red'><rgb name='reflectance' value='0.6 0.1 0.1'/></bsdf>\n"
+    "  <shape type='rectangle' id='floor'><transform name='toWorld'><rotate x='1' angle='-90'/>"
+    "<translate y='0'/></transform><ref id='white'/></shape>\n"
+    "  <shape type='rectangle' id='ceiling'><transform name='toWorld'><rotate x='1' angle='90'/>"
+    "<translate y='2'/></transform><ref id='white'/></shape>\n"
+    "  <shape type='rectangle' id='back'><transform name='toWorld'><translate y='1' z='-1'/></transform>"
+    "<ref id='white'/></shape>\n"
+    "  <shape type='rectangle' id='left'><transform name='toWorld'><rotate y='1' angle='90'/>"
+    "<translate x='-1' y='1'/></transform><ref id='red'/></shape>\n"
+    "  <shape type='rectangle' id='right'><transform name='toWorld'><rotate y='1' angle='-90'/>"
+    "<translate x='1' y='1'/></transform><ref id='white'/></shape>\n"
+    "  <shape type='rectangle' id='lamp'><transform name='toWorld'><scale value='0.25'/><rotate x='1' angle='90'/>"
+    "<translate y='1.99'/></transform><emitter type='area'><rgb name='radiance' value='20'/></emitter></shape>\n"
+    "  <sensor type='perspective' id='front'><float name='fov' value='40'/><string name='fovAxis' value='y'/>\n"
+    "    <transform name='toWorld'><lookat origin='0, 1, 3.5' target='0, 1, 0' up='0, 1, 0'/></transform>\n"
+    "    <film type='hdrfilm'><integer name='width' value='128'/><integer name='height' value='96'/></film></sensor>\n"
+    "  <sensor type='perspective' id='behind'><float name='fov' value='40'/><string name='fovAxis' value='y'/>\n"
+    "    <transform name='toWorld'><lookat origin='0, 1, -7' target='0, 1, -3' up='0, 1, 0'/></transform></sensor>\n"
+    "%s"
+    "</scene>\n";
+
+/* Behind the back wall (z = -1): a closed box facing out, a sphere inside. */
+static const char *BOX_XML =
+    "  <shape type='cube' id='box'><transform name='toWorld'><scale value='0.5'/><translate y='1' z='-3'/></transform>"
+    "<ref id='white'/></shape>\n"
+    "  <shape type='sphere' id='inside'><point name='center' x='0' y='1' z='-3'/><float name='radius' value='0.3'/>"
+    "<ref id='white'/></shape>\n";
+
+static scene *load(const char *name, const char *extra)
+{
+    char text[8192], path[1024];
+    snprintf(text, sizeof text, ROOM_XML, extra);
+    test_write_file(name, text, path, sizeof path);
+    scene *s = NULL;
+    lm_error err;
+    CHECK_MSG(scene_load(&(scene_load_desc){.path = path}, &s, &err) == LM_OK, "%s", err.msg);
+    return s;
+}
+
+typedef struct start {
+    uint64_t light_samples, indirect_samples, direct_samples;
+    uint32_t active;
+} start;
+
+static uint32_t *pixels_of(const GladGLContext *gl, const scene *s, int camera)
+{
+    rend_id *ip = NULL;
+    rend_id_result ids;
+    lm_error err;
+    uint32_t *px = NULL;
+    if (rend_id_create(gl, &(rend_id_desc){.scene = s, .width = W, .height = H}, &ip, &err) == LM_OK &&
+        rend_id_render(ip, &s->cameras[camera], &ids, &err) == LM_OK) {
+        px = malloc(s->tri_count * sizeof *px);
+        memcpy(px, ids.pixels, s->tri_count * sizeof *px);
+    }
+    CHECK_MSG(px != NULL, "%s", err.msg);
+    rend_id_destroy(ip);
+    return px;
+}
+
+/* The coarse cache from the front camera's pixels (NULL: cache_init). *out
+ * keeps the cache when asked (the caller destroys it and its sampler). */
+static start coarse(const scene *s, const uint32_t *pixels, cache **keep, samp_sampler **keep_sp)
+{
+    start st = {0};
+    lm_error err;
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    int ok = samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .seed = 7, .threads = 1}, &sp, &err) ==
+                 LM_OK &&
+             cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK &&
+             (pixels ? cache_init_seen(c, pixels, &err) : cache_init(c, &err)) == LM_OK;
+    CHECK_MSG(ok, "%s", err.msg);
+    if (ok) {
+        cache_stats cs;
+        cache_get_stats(c, &cs);
+        for (uint32_t l = 0; l < cs.light_count; ++l) st.light_samples += cs.lights[l].samples;
+        st.indirect_samples = cs.indirect.samples;
+        st.direct_samples = cs.direct.samples;
+        st.active = cs.active_triangles;
+    }
+    if (keep && ok) {
+        *keep = c;
+        *keep_sp = sp;
+        return st;
+    }
+    cache_destroy(c);
+    samp_destroy(sp);
+    return st;
+}
+
+/* The room's triangles are the first 12 of both scenes (shapes load in file
+ * order, the box and the sphere come last): their coarse values agree. */
+static double largest_difference(cache *a, cache *b)
+{
+    double worst = 0.0;
+    lm_error err;
+    for (uint32_t t = 0; t < 12; ++t) {
+        float x[3], y[3];
+        for (int which = 0; which < 2; ++which) {
+            lm_result ra = which ? cache_eval_indirect(a, t, 1.0 / 3, 1.0 / 3, x, &err)
+                                 : cache_eval_direct(a, t, 1.0 / 3, 1.0 / 3, x, &err);
+            lm_result rb = which ? cache_eval_indirect(b, t, 1.0 / 3, 1.0 / 3, y, &err)
+                                 : cache_eval_direct(b, t, 1.0 / 3, 1.0 / 3, y, &err);
+            if (ra != LM_OK || rb != LM_OK) continue; /* the lamp has no albedo: no root */
+            for (int k = 0; k < 3; ++k) worst = fmax(worst, fabs(x[k] - y[k]) / fmax(1e-6, fabs(x[k])));
+        }
+    }
+    return worst;
+}
+
+int main(void)
+{
+    scene *room = load("startup_room.xml", ""), *boxed = load("startup_boxed.xml", BOX_XML);
+    if (!room || !boxed) return test_finish("startup_test");
+    CHECK(room->tri_count == 12 && boxed->tri_count == 12 + 12 + 1280);
+    glctx *ctx = NULL;
+    lm_error err;
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
+    const GladGLContext *gl = glctx_gl(ctx);
+    uint32_t *px_room = pixels_of(gl, room, 0), *px_boxed = pixels_of(gl, boxed, 0);
+    uint32_t *px_behind = pixels_of(gl, boxed, 1);
+    if (!px_room || !px_boxed || !px_behind) return test_finish("startup_test");
+    uint32_t seen_box = 0;
+    for (uint32_t t = 12; t < boxed->tri_count; ++t) seen_box += px_boxed[t];
+    CHECK(seen_box == 0); /* the front camera sees nothing of the box */
+
+    cache *ca = NULL, *cb = NULL;
+    samp_sampler *sa = NULL, *sb = NULL;
+    start a = coarse(room, px_room, &ca, &sa), b = coarse(boxed, px_boxed, &cb, &sb);
+    start all = coarse(boxed, NULL, NULL, NULL);
+    printf("room: %llu light, %llu indirect samples, %u triangles take part\n", (unsigned long long)a.light_samples,
+           (unsigned long long)a.indirect_samples, a.active);
+    printf("room + box: %llu light, %llu indirect samples, %u of %u triangles take part; every triangle (cache_init): "
+           "%llu light, %llu indirect samples\n",
+           (unsigned long long)b.light_samples, (unsigned long long)b.indirect_samples, b.active, boxed->tri_count,
+           (unsigned long long)all.light_samples, (unsigned long long)all.indirect_samples);
+    CHECK(a.active == 12 && b.active == a.active);
+    CHECK(fabs((double)b.light_samples - (double)a.light_samples) <= 0.1 * (double)a.light_samples);
+    CHECK(fabs((double)b.indirect_samples - (double)a.indirect_samples) <= 0.1 * (double)a.indirect_samples);
+    CHECK(a.indirect_samples > 0);
+    CHECK(all.indirect_samples > 10 * a.indirect_samples); /* what the test guards against */
+    if (ca && cb) {
+        double d = largest_difference(ca, cb);
+        printf("largest relative difference of the room's coarse values: %.3g\n", d);
+        CHECK(d <= 1e-6);
+    }
+
+    /* The camera behind the room sees the box from outside: its faces take part
+     * (and what they reach, nothing of the room: it shows its back there), the
+     * sphere inside the closed box does not. */
+    if (cb) {
+        cache_refine_result res;
+        CHECK(cache_refine(cb, &(cache_refine_desc){.pixels = px_behind, .budget = 64}, &res, &err) == LM_OK);
+        cache_stats cs;
+        cache_get_stats(cb, &cs);
+        uint32_t box_seen = 0;
+        for (uint32_t t = 12; t < 24; ++t) box_seen += px_behind[t] > 0;
+        printf("seen from behind: %u box triangles seen, %u triangles take part\n", box_seen, cs.active_triangles);
+        CHECK(box_seen >= 2);
+        CHECK(cs.active_triangles >= 12 + box_seen && cs.active_triangles <= 24);
+        float v[3];
+        uint32_t seen_tri = 12;
+        while (seen_tri < 24 && !px_behind[seen_tri]) seen_tri++;
+        CHECK(seen_tri < 24 && cache_eval_direct(cb, seen_tri, 1.0 / 3, 1.0 / 3, v, &err) == LM_OK);
+    }
+    cache_destroy(ca);
+    cache_destroy(cb);
+    samp_destroy(sa);
+    samp_destroy(sb);
+    free(px_room);
+    free(px_boxed);
+    free(px_behind);
+    glctx_destroy(ctx);
+    scene_destroy(room);
+    scene_destroy(boxed);
+    return test_finish("startup_test");
+}
