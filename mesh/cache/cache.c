@@ -107,6 +107,9 @@ void cache_destroy(cache *c)
     cache_source_free(&c->src);
     cache_sched_free(&c->sched);
     free(c->active);
+    free(c->reach_traced);
+    free(c->part_first);
+    free(c->part_tris);
     free(c);
 }
 
@@ -284,14 +287,18 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
     if (r == LM_OK) r = sample_roots(c, CACHE_KIND_DIRECT, tris, ntris, err);
     if (r == LM_OK && c->specular) r = sample_roots(c, CACHE_KIND_SPECULAR, tris, ntris, err);
     /* Further bounces through E_m in the source, from a transport traced here
-     * (cache_bounces.c) over the active triangles: traced again when more take part. */
-    if (r == LM_OK && c->initialised && c->indirect1) {
-        mesh_qmesh_destroy(c->indirect1);
+     * (cache_bounces.c) over the triangles that take part: traced again when an
+     * eighth more take part (until then the newer ones get no E_m). */
+    if (r == LM_OK && c->indirect1 && c->initialised && c->active_count > c->bounce_active_at + c->bounce_active_at / 8) {
+        mesh_qmesh_destroy(c->indirect1); /* traced again once an eighth more takes part */
         c->indirect1 = NULL;
         cache_bounces_free(&c->bnc);
         r = make_bounce_mesh(c, err);
     }
-    if (r == LM_OK) r = cache_bounces_init(c, err);
+    if (r == LM_OK && c->indirect1 && !c->bnc.hit_first) {
+        r = cache_bounces_init(c, err);
+        c->bounce_active_at = c->active_count;
+    }
     if (r == LM_OK) r = cache_update_radiance_source(c, 1, err);
     if (r == LM_OK) r = root_vertices(c, c->indirect, tris, ntris, &v, &n, err);
     float *E = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E) : NULL;
@@ -306,90 +313,6 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
 lm_result cache_init(cache *c, lm_error *err) { return cache_init_seen(c, NULL, err); }
 
 /* ---- what takes part: seen triangles and what their gathers reach ------------ */
-
-static int keep_unreached(const scene *s, uint32_t t, void *user)
-{
-    const cache *c = user;
-    return !c->active[t] && cache_has_albedo(s, t, NULL);
-}
-
-/* Takes part the triangles seed[0..nseed) and, transitively, every triangle with
- * albedo that CACHE_REACH_RAYS cosine-weighted rays from the direct mesh's root
- * corners of a newly taken triangle meet (a gather there would draw light from
- * it; so would the further bounces from it). *out (malloc'ed) lists the newly
- * taken ones. Rays from a corner on an open edge start inside its triangle, as
- * gathers do (cache_vertex_on_open_edge). */
-static lm_result take_part(cache *c, const uint32_t *seed, uint32_t nseed, uint32_t **out, uint32_t *nout, lm_error *err)
-{
-    enum { BATCH = 16384 };
-    const uint32_t R = CACHE_REACH_RAYS, limit = mesh_vtable_id_limit(c->vt);
-    uint32_t *list = NULL, *vstamp = calloc(limit ? limit : 1, sizeof *vstamp);
-    size_t n = 0, cap = 0;
-    samp_point *pts = malloc(BATCH * sizeof *pts);
-    uint32_t *count = malloc(BATCH * sizeof *count), *hit = malloc((size_t)BATCH * R * sizeof *hit);
-    float *bary = malloc(2 * (size_t)BATCH * R * sizeof *bary);
-    lm_result r = vstamp && pts && count && hit && bary ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
-    for (uint32_t i = 0; r == LM_OK && i < nseed; ++i) {
-        uint32_t t = seed[i];
-        if (c->active[t]) continue;
-        if (!LM_GROW(list, cap, n + 1)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
-        else c->active[t] = 1, list[n++] = t, c->active_count++;
-    }
-    /* Breadth first: the triangles taken in one round are traced from in the next. */
-    size_t from = 0;
-    uint32_t round = 0;
-    while (r == LM_OK && from < n) {
-        const size_t to = n;
-        round++;
-        uint32_t np = 0;
-        for (size_t i = from; r == LM_OK && i <= to; ++i) {
-            if (i < to) {
-                uint32_t root = mesh_qmesh_root(c->direct, list[i]);
-                if (root == MESH_QMESH_NONE) continue;
-                const mesh_qnode *nd = mesh_qmesh_node(c->direct, root);
-                for (int k = 0; k < 3 && np < BATCH; ++k) {
-                    uint32_t vid = nd->v[k];
-                    if (vid >= limit || vstamp[vid] == round) continue;
-                    vstamp[vid] = round;
-                    pts[np] = cache_vertex_point(c, vid);
-                    if (cache_vertex_on_open_edge(c, vid)) samp_point_pull_inside(c->sp, &pts[np]);
-                    np++;
-                }
-            }
-            if (np + 3 > BATCH || (i == to && np)) { /* trace a batch; what it meets is taken */
-                r = samp_surface_hits_trace(c->sp, pts, np, &(samp_surface_hits){.rays = R, .count = count, .tri = hit,
-                                                                                  .bary = bary, .keep = keep_unreached,
-                                                                                  .keep_user = c},
-                                            err);
-                c->reach_rays += (uint64_t)np * R;
-                for (uint32_t p = 0; r == LM_OK && p < np; ++p)
-                    for (uint32_t j = 0; j < count[p]; ++j) {
-                        uint32_t t = hit[(size_t)p * R + j];
-                        if (c->active[t]) continue;
-                        if (!LM_GROW(list, cap, n + 1)) {
-                            r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
-                            break;
-                        }
-                        c->active[t] = 1, list[n++] = t, c->active_count++;
-                    }
-                np = 0;
-            }
-        }
-        from = to;
-    }
-    free(vstamp);
-    free(pts);
-    free(count);
-    free(hit);
-    free(bary);
-    if (r != LM_OK) {
-        free(list);
-        return r;
-    }
-    *out = list;
-    *nout = (uint32_t)n;
-    return LM_OK;
-}
 
 /* The triangles with pixels that do not take part yet: taken, with what they reach. */
 static lm_result take_seen(cache *c, const uint32_t *pixels, uint32_t **out, uint32_t *nout, lm_error *err)
@@ -406,7 +329,7 @@ static lm_result take_seen(cache *c, const uint32_t *pixels, uint32_t **out, uin
         }
         seed[ns++] = t;
     }
-    lm_result r = ns ? take_part(c, seed, ns, out, nout, err) : LM_OK;
+    lm_result r = ns ? cache_reach_take(c, seed, ns, out, nout, err) : LM_OK;
     free(seed);
     return r;
 }
@@ -430,13 +353,19 @@ lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err)
     return r;
 }
 
-/* Triangles a camera move shows that did not take part: taken now, with what
- * they reach; every mesh's leaves scheduled again. */
-static lm_result take_newly_seen(cache *c, const uint32_t *pixels, lm_error *err)
+/* Triangles that did not take part and now must: those a camera move shows
+ * (pixels), and those the gathers made since the last call reach. Taken with
+ * what they reach, sampled, and every mesh's leaves scheduled again. */
+static lm_result take_newly_needed(cache *c, const uint32_t *pixels, lm_error *err)
 {
-    if (!c->active || !pixels) return LM_OK;
+    if (!c->active) return LM_OK;
     uint32_t *tris = NULL, n = 0;
-    lm_result r = take_seen(c, pixels, &tris, &n, err);
+    lm_result r = pixels ? take_seen(c, pixels, &tris, &n, err) : LM_OK;
+    if (r == LM_OK && !n) {
+        free(tris);
+        tris = NULL;
+        r = cache_reach_from_gathers(c, &tris, &n, err);
+    }
     if (r == LM_OK && n) {
         r = sample_coarse(c, tris, n, err);
         cache_sched_requeue(&c->sched, CACHE_KINDS);
@@ -593,7 +522,7 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
 {
     if (!c || !desc) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_refine: missing arguments");
     /* The coarse cache first, here: the scheduler is below this file and cannot ask for it. */
-    lm_result r = c->initialised ? take_newly_seen(c, desc->pixels, err) : cache_init_seen(c, desc->pixels, err);
+    lm_result r = c->initialised ? take_newly_needed(c, desc->pixels, err) : cache_init_seen(c, desc->pixels, err);
     if (r == LM_OK) cache_bounces_see(c, desc->pixels);
     if (r == LM_OK) return cache_sched_refine(c, desc, out, err);
     if (out) *out = (cache_refine_result){0};

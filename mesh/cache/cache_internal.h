@@ -13,6 +13,8 @@
  *   cache_estimate.c  the cache's estimate of its error (cache_estimate_error);
  *                     the values whose noise is still seen
  *   cache_refine.c    the refinement scheduler (§4.3)
+ *   cache_reach.c     which triangles take part: what gathers from the seen ones
+ *                     reach (cache_init_seen)
  *   cache.c           the public face (cache.h): create, init, edits, evaluation,
  *                     statistics, cache_refine()
  * Upward calls go through function pointers only (cache_changed_fn,
@@ -264,6 +266,12 @@ struct cache {
     uint8_t *active;
     uint32_t active_count;
     uint64_t reach_rays;       /* rays traced to find what gathers reach (cache_stats.reach_rays) */
+    uint8_t *reach_traced;     /* per vertex id: its reach was traced (cache_reach_from_gathers) */
+    size_t reach_traced_cap;
+    uint64_t reach_scan_at;    /* indirect samples when the gathers were last looked at */
+    double reach_unit;         /* scene area per reach point (cache_reach.c; 0: not computed yet) */
+    uint32_t bounce_active_at; /* active_count when the bounces' transport was traced */
+    uint32_t *part_first, *part_tris; /* per scene part its triangles (cache_reach.c; NULL until needed) */
     /* The parts. The meshes' values are written by the part that computes them
      * (light meshes, direct and specular: cache_light.c; indirect: cache_source.c)
      * and their trees by cache_refine.c (splits) and cache_light.c (light meshes). */
@@ -458,6 +466,21 @@ float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node
  * the caller frees it. */
 lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t max, uint32_t **out, uint32_t *count,
                                lm_error *err);
+
+/* ---- cache_reach.c: what takes part ------------------------------------------------------- */
+
+/* Takes part the triangles seed[0..nseed) that do not yet, and, transitively,
+ * the part (scene_part) of every triangle with albedo that CACHE_REACH_RAYS cosine-weighted rays from a
+ * newly taken triangle meet: from the corners of its direct-mesh root and, on a
+ * large triangle, from points spread over it (one per 1/CACHE_REACH_POINTS of
+ * the scene's area, at most 256). *out (malloc'ed) lists the newly taken ones. */
+enum { CACHE_REACH_POINTS = 8192 };
+lm_result cache_reach_take(cache *c, const uint32_t *seed, uint32_t nseed, uint32_t **out, uint32_t *nout,
+                           lm_error *err);
+/* The same from the displayed indirect mesh's vertices gathered since it last
+ * looked (when the indirect samples have grown by an eighth): a refined gather
+ * point may see what the root corners did not. *out as cache_reach_take. */
+lm_result cache_reach_from_gathers(cache *c, uint32_t **out, uint32_t *nout, lm_error *err);
 
 /* ---- cache_refine.c: the scheduler ------------------------------------------------------ */
 

@@ -127,6 +127,8 @@ cJSON *app_stats_json(const app_stats_desc *d)
     }
     cJSON_AddNumberToObject(j, "snapshot", (double)snap->generation);
     cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);
+    cJSON_AddNumberToObject(j, "active_triangles", (double)st->active_triangles);
+    cJSON_AddNumberToObject(j, "reach_rays", (double)st->reach_rays);
     cJSON_AddNumberToObject(j, "bytes", (double)st->bytes);
     cJSON_AddItemToObject(j, "sampler", sampler_json(&snap->sampler, &snap->quick_sampler));
     cJSON *bn = cJSON_AddObjectToObject(j, "bounces");
