@@ -683,7 +683,6 @@ static int noise_seen(const cache *c, uint32_t vid, const float e[3], const floa
  * the pilot of a refine round's gather, at most 3·ROUND_LEAVES (192) points, one
  * chunk. The rays are keyed by the point (samp_sources.c), so chunks trace the
  * same rays as one call. */
-
 static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n, lm_error *err)
 {
     cache_source_state *st = &c->src;
