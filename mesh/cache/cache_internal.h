@@ -427,6 +427,9 @@ lm_result cache_regather_all(cache *c, lm_error *err);
  * the cache, valid until the next call), so the scheduler can refine the source
  * where the viewer now depends on it. */
 enum { CACHE_IMPORTANCE_RAYS = 256 };
+/* Gathers trace their pilot this many points at a time; only a gather of at most
+ * this many keeps it for cache_record_importance (cache_source.c, trace_pilot). */
+enum { CACHE_PILOT_CHUNK = 4096 };
 lm_result cache_record_importance(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
                                   const uint32_t **grown, uint32_t *grown_n, lm_error *err);
 /* The importance of a node of the direct mesh: the largest over it and its

@@ -40,6 +40,8 @@
 #include "src/base/vecmath.h"
 
 enum { ROUND_LEAVES = 64 };
+/* A round's gather (3 midpoints a leaf) keeps its pilot for the importance. */
+_Static_assert(3 * ROUND_LEAVES <= CACHE_PILOT_CHUNK, "a refine round's gather must fit one pilot chunk");
 #define INDIRECT_SIZE_FACTOR 16.0f
 
 typedef cache_kind refine_kind;

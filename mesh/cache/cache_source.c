@@ -673,7 +673,16 @@ static int noise_seen(const cache *c, uint32_t vid, const float e[3], const floa
     return tm_delta_e(lab0, lab1) > GATHER_NOISE_JND * c->desc.jnd;
 }
 
-/* The pilot trace of n points into c->src.pilot_* (kept for cache_record_importance). */
+/* The pilot trace of n ≤ CACHE_PILOT_CHUNK points into c->src.pilot_* (kept for
+ * cache_record_importance).
+ *
+ * In chunks, because a pilot holds CACHE_IMPORTANCE_RAYS hits a point (2 KB):
+ * traced whole, the first gather at every root vertex of the 116k-triangle box
+ * (bench/scenes/cornell-bunny-dragon.json) held 200 MB, most of the process's peak
+ * (docs/memory.md), for a pilot nobody reads: cache_record_importance reads only
+ * the pilot of a refine round's gather, at most 3·ROUND_LEAVES (192) points, one
+ * chunk. The rays are keyed by the point (samp_sources.c), so chunks trace the
+ * same rays as one call. */
 static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n, lm_error *err)
 {
     cache_source_state *st = &c->src;
@@ -745,7 +754,6 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
                                   const uint8_t *min_level, float *E, lm_error *err)
 {
     lm_result r = grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
-    if (r == LM_OK) r = trace_pilot(c, vids, pts, n, err);
     if (r != LM_OK) return r;
     const uint32_t rays = samp_indirect_rays(c->sp);
     uint8_t *level = calloc(n ? n : 1, 1);
@@ -756,11 +764,14 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
     float *lE = malloc(3 * (size_t)(n ? n : 1) * sizeof *lE), *lsig = malloc(3 * (size_t)(n ? n : 1) * sizeof *lsig);
     if (!level || !predicted || !likely || !pick || !lpts || !lE || !lsig)
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
-    /* The count: the fewest rays whose predicted error cannot be seen. */
+    /* The count: the fewest rays whose predicted error cannot be seen, from the
+     * pilot traced CACHE_PILOT_CHUNK points at a time (why: trace_pilot). */
     for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+        if (i % CACHE_PILOT_CHUNK == 0) r = trace_pilot(c, vids + i, pts + i, n - i < CACHE_PILOT_CHUNK ? n - i : CACHE_PILOT_CHUNK, err);
+        if (r != LM_OK) break;
         float e[3];
         double var[3], strat[3];
-        pilot_moments(c, i, e, var, strat);
+        pilot_moments(c, i % CACHE_PILOT_CHUNK, e, var, strat);
         for (int lv = 0; lv < GATHER_LEVELS; ++lv) {
             double N = (double)rays * pow(GATHER_SCALE, lv);
             for (int k = 0; k < 3; ++k) {
@@ -801,6 +812,8 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
             c->src.gather_level[vids[i]] = (uint8_t)lv;
         }
     }
+    /* Kept only whole: a pilot of several chunks holds the last one's points. */
+    if (n > CACHE_PILOT_CHUNK) c->src.pilot_n = 0;
     free(level);
     free(predicted);
     free(likely);
