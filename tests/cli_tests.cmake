@@ -135,7 +135,11 @@ lumesh_cli_test(render_bad_accumulate 1 ARGS render -o x.exr --accumulate 9
   ERR "--accumulate wants a whole number from 1 to 8, not '9'")
 lumesh_cli_test(view_width_without_height 1 ARGS view --sampler embree --gl osmesa --width 640
   ERR "give both --width and --height")
+lumesh_cli_test(view_camera_and_width 1 ARGS view --camera main --width 640 ERR "give both --width and --height")
 # A bad script fails before any window opens, naming the file and line.
 file(WRITE ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt "wait 1\njump 3\n")
 lumesh_cli_test(view_bad_script 2 ARGS view --script ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt ONE_ERR_LINE
   ERR "view-bad-script\\.txt:2: unknown command 'jump'")
+# --width and --height together are accepted (the script is checked after them).
+lumesh_cli_test(view_width_and_height 2 ARGS view --width 64 --height 48 --script ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt
+  ONE_ERR_LINE ERR "view-bad-script\\.txt:2: unknown command 'jump'")

@@ -95,6 +95,12 @@ typedef struct cache_desc {
                                  a square; 0 = CACHE_BOUNCE_RAYS_DEFAULT */
     float min_leaf_pixels;    /* size criterion: leaves above this many pixels split anyway; 0 = 16 */
     uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
+    uint32_t coarse_gathers;  /* the first image's budget (docs/cache.md "Start-up bounded by what is
+                                 seen"): the coarse cache gathers indirect light at no more root
+                                 corners than this, spread over the scene, and the other corners
+                                 borrow from the gathered ones near them, until the first
+                                 cache_regather_indirect or cache_set_bounces gathers every value
+                                 (from then on every corner is gathered); 0 = every corner */
     cache_scheduler scheduler;
     uint32_t seed;            /* the random scheduler's picks */
     int single_mesh;          /* ablation: one combined radiance mesh (Tole et al. 2002): no

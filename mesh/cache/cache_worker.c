@@ -246,6 +246,9 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
         cd.scene = w->s;
         cd.sampler = first;
         if (later_bounces) cd.bounces = 1;
+        /* The first image from a fixed budget of gathers; every value is gathered
+         * right after it (cache_regather_indirect or cache_set_bounces, below). */
+        if (!w->desc.no_quick_start) cd.coarse_gathers = CACHE_WORKER_FIRST_GATHERS;
         r = cache_create(&cd, c, err);
     }
     /* Only what the camera sees and what gathers from it reach (issue 16). */

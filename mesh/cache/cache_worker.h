@@ -42,7 +42,8 @@ extern "C" {
 #endif
 
 enum {
-    CACHE_WORKER_QUICK_RAYS = 64 /* gather rays per coarse vertex for the first snapshot (then gathered again) */
+    CACHE_WORKER_QUICK_RAYS = 64, /* gather rays per coarse vertex for the first snapshot (then gathered again) */
+    CACHE_WORKER_FIRST_GATHERS = 4096 /* most indirect gathers before the first snapshot (cache_desc.coarse_gathers) */
 };
 
 typedef struct cache_worker_desc {

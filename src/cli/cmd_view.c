@@ -91,6 +91,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     const char *sampler = NULL, *gl_name = NULL, *bounces = NULL, *script = NULL, *stats = NULL, *camera = NULL;
     long width = 0, height = 0;
     double max_fps = VIEW_APP_DEFAULT_FPS;
+    enum { OPT_WIDTH = 6, OPT_HEIGHT = 7 }; /* their places below */
     app_opt opts[] = {
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
         {"--bounces", NULL, APP_OPT_STRING, &bounces},
@@ -98,15 +99,15 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
         {"--script", NULL, APP_OPT_STRING, &script},
         {"--stats", NULL, APP_OPT_STRING, &stats},
         {"--camera", NULL, APP_OPT_STRING, &camera},
-        {"--width", NULL, APP_OPT_INT, &width, 1, 16384},
-        {"--height", NULL, APP_OPT_INT, &height, 1, 16384},
+        [OPT_WIDTH] = {"--width", NULL, APP_OPT_INT, &width, 1, 16384},
+        [OPT_HEIGHT] = {"--height", NULL, APP_OPT_INT, &height, 1, 16384},
         {"--max-fps", NULL, APP_OPT_DOUBLE, &max_fps, 0, 1000},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
     if (rc < 0) return APP_EXIT_OK;
     if (rc) return rc;
-    if (opts[5].seen != opts[6].seen) return app_usage_error(cmd, "give both --width and --height");
+    if (opts[OPT_WIDTH].seen != opts[OPT_HEIGHT].seen) return app_usage_error(cmd, "give both --width and --height");
     /* As render: the 2% tolerance (rend_session_desc_defaults), the sampler chosen by
      * --sampler (auto by default). */
     rend_session_desc sd = {0};
