@@ -236,6 +236,10 @@ typedef struct cache_sched {
      * such corners shrinks with each (source_priority). */
     uint8_t *dark_gen;
     size_t dark_gen_cap;
+    /* Per scene vertex, the triangles around it (vt_first[v] .. vt_first[v + 1] of
+     * vt_tris; built on first use): where a changed cache vertex's leaves can be. */
+    uint32_t *vt_first, *vt_tris;
+    uint32_t *tri_stamp, stamp;  /* per scene triangle: visited in this pass */
 } cache_sched;
 
 struct cache {
@@ -410,8 +414,11 @@ lm_result cache_update_radiance_source(cache *c, int force, lm_error *err);
 lm_result cache_settle_source(cache *c, lm_error *err);
 /* Gathers again, in batches, the indirect values the source's rebuilds may have
  * moved by more than the JND (flagged by cache_update_radiance_source); calls
- * `changed` (regions NULL) with the vertices whose value changed. */
-lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, lm_error *err);
+ * `changed` (regions NULL) with the vertices whose value changed. allowance
+ * (NULL: none): at most about that many gathers (a batch may pass it), taken
+ * off it; what is left stays flagged (c->src.outdated_n) for the next call. */
+lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance,
+                                  lm_error *err);
 /* Gathers every value of the indirect mesh(es) again from rebuilt sources (a light
  * edit, a better sampler); nothing is outdated afterwards. */
 lm_result cache_regather_all(cache *c, lm_error *err);

@@ -234,7 +234,8 @@ lm_result cache_reach_from_gathers(cache *c, uint32_t **out, uint32_t *nout, lm_
     *out = NULL;
     *nout = 0;
     const uint64_t samples = c->src.indirect_stats.samples;
-    if (!c->active || samples < c->reach_scan_at + c->reach_scan_at / 8 + 1) return LM_OK;
+    if (!c->active || c->active_count == c->s->tri_count || samples < c->reach_scan_at + c->reach_scan_at / 8 + 1)
+        return LM_OK; /* everything takes part already, or too little new to look at */
     c->reach_scan_at = samples;
     const uint32_t limit = mesh_vtable_id_limit(c->vt);
     if (limit > c->reach_traced_cap) {

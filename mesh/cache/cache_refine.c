@@ -658,6 +658,41 @@ static lm_result requeue_visit(const mesh_qmesh *m, uint32_t node, const mesh_qn
     return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, node, n, q->pixels), err);
 }
 
+/* The triangles around each scene vertex (cache_sched.vt_first, vt_tris), and a
+ * stamp per triangle; 0 when memory runs out (the caller walks every tree). */
+static int around_ready(cache *c, lm_error *err)
+{
+    (void)err;
+    cache_sched *st = &c->sched;
+    if (st->vt_first) return 1;
+    const scene *s = c->s;
+    uint32_t *first = calloc((size_t)s->vertex_count + 1, sizeof *first);
+    uint32_t *tris = malloc(3 * (size_t)(s->tri_count ? s->tri_count : 1) * sizeof *tris);
+    uint32_t *fill = calloc((size_t)s->vertex_count + 1, sizeof *fill);
+    uint32_t *stamp = calloc(s->tri_count ? s->tri_count : 1, sizeof *stamp);
+    if (!first || !tris || !fill || !stamp) {
+        free(first);
+        free(tris);
+        free(fill);
+        free(stamp);
+        return 0;
+    }
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (int k = 0; k < 3; ++k) first[s->tris[t].v[k] + 1]++;
+    for (uint32_t v = 0; v < s->vertex_count; ++v) first[v + 1] += first[v];
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (int k = 0; k < 3; ++k) {
+            uint32_t v = s->tris[t].v[k];
+            tris[first[v] + fill[v]++] = t;
+        }
+    free(fill);
+    st->vt_first = first;
+    st->vt_tris = tris;
+    st->tri_stamp = stamp;
+    st->stamp = 0;
+    return 1;
+}
+
 /* regions NULL: anywhere in the mesh. The single-mesh ablation schedules the
  * combined (direct) mesh only. */
 static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
@@ -668,6 +703,30 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
     const mesh_qmesh *m = cache_kind_mesh(c, kind);
     lm_result r = LM_OK;
     for (uint32_t i = 0; r == LM_OK && i < region_count; ++i) r = cache_region_walk(m, &regions[i], requeue_visit, &q, err);
+    if (!regions && (uint64_t)n * 32 < c->s->tri_count && around_ready(c, err)) {
+        /* Few changed: only the trees of the triangles around their triangles'
+         * corners (a cache vertex lies inside its triangle, on one of its edges or
+         * at one of its corners), not every tree of a big scene for each batch of
+         * regathered values. */
+        cache_sched *st = &c->sched;
+        if (++st->stamp == 0) {
+            memset(st->tri_stamp, 0, c->s->tri_count * sizeof *st->tri_stamp);
+            st->stamp = 1;
+        }
+        for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+            const uint32_t *corner = c->s->tris[mesh_vtable_vertex(c->vt, vids[i])->tri].v;
+            for (int k = 0; r == LM_OK && k < 3; ++k)
+                for (uint32_t j = st->vt_first[corner[k]]; r == LM_OK && j < st->vt_first[corner[k] + 1]; ++j) {
+                    uint32_t t = st->vt_tris[j];
+                    if (st->tri_stamp[t] == st->stamp) continue;
+                    st->tri_stamp[t] = st->stamp;
+                    if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue;
+                    const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
+                    r = cache_region_walk(m, &whole, requeue_visit, &q, err);
+                }
+        }
+        return r;
+    }
     for (uint32_t t = 0; r == LM_OK && !regions && t < c->s->tri_count; ++t) {
         if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue;
         const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
@@ -679,10 +738,12 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
 /* What changed under the refinement's feet: values inside falsified light leaves
  * (cache_light.c) and indirect values the source has moved (cache_source.c); their leaves are tested
  * again. */
-static lm_result revise(cache *c, const uint32_t *pixels, lm_error *err)
+enum { REGATHER_PER_LEAF = 8 };
+
+static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, lm_error *err)
 {
     lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
-    return r == LM_OK ? cache_regather_outdated(c, requeue_changed, (void *)pixels, err) : r;
+    return r == LM_OK ? cache_regather_outdated(c, requeue_changed, (void *)pixels, allowance, err) : r;
 }
 
 /* Gathers again with more rays (cache_regather_finer) the indirect values whose
@@ -761,10 +822,16 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     uint32_t fifth = budget / 5 ? budget / 5 : 1;
     uint32_t left[CACHE_KINDS] = {0, fifth, c->specular ? fifth : 0};
     left[KIND_DIRECT] = budget > left[1] + left[2] ? budget - left[1] - left[2] : 1;
+    /* Values a rebuilt source moved are gathered again, at most REGATHER_PER_LEAF
+     * per leaf of the budget in one call: a big scene's first rebuild can flag
+     * most of its hundreds of thousands of values, and one call is one step of the
+     * worker (the first image waits for the first). What is left waits for the
+     * next call, which does nothing else until it is done. */
+    uint64_t allowance = (uint64_t)REGATHER_PER_LEAF * budget;
     /* Changes made outside refinement (coarse cache, a camera move). */
-    if (r == LM_OK) r = revise(c, desc->pixels, err);
+    if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
     int settled = 0, finer = 0;
-    while (r == LM_OK) {
+    while (r == LM_OK && !c->src.outdated_n) {
         int kind = -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
             if (left[k] && c->sched.waiting[k]) kind = k;
@@ -778,7 +845,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
             if (!settled) {
                 settled = 1;
                 r = cache_settle_source(c, err);
-                if (r == LM_OK) r = revise(c, desc->pixels, err);
+                if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
                 continue;
             }
             if (finer) break;
@@ -791,11 +858,12 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
         /* The round's light fetches may have found uniform light leaves that were
          * not, and its gathers a rebuilt source that moved older indirect values:
          * recompute those values (cache_light.c) and test their leaves again. */
-        if (r == LM_OK) r = revise(c, desc->pixels, err);
+        if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
         uint32_t used = res.tested - before;
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
     }
-    res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2]);
+    /* Values still waiting to be gathered again count as work left. */
+    res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] + c->src.outdated_n);
     if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0) {
         r = cache_estimate_error(c, desc->pixels, &res.estimate, err);
         res.estimated = r == LM_OK;
@@ -825,6 +893,9 @@ void cache_sched_free(cache_sched *st)
         free(st->resid[k]);
     }
     free(st->dark_gen);
+    free(st->vt_first);
+    free(st->vt_tris);
+    free(st->tri_stamp);
     memset(st, 0, sizeof *st);
 }
 

@@ -899,14 +899,16 @@ static int cmp_vid(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, lm_error *err)
+lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance,
+                                  lm_error *err)
 {
     enum { BATCH = 1024 };
     lm_result r = LM_OK;
     uint32_t *ids = NULL, *moved = NULL;
     float *E = NULL;
-    /* Gathering may rebuild the source and flag more: until none is left. */
-    while (r == LM_OK && c->src.outdated_n) {
+    /* Gathering may rebuild the source and flag more: until none is left, or the
+     * allowance is spent. */
+    while (r == LM_OK && c->src.outdated_n && (!allowance || *allowance > 0)) {
         uint32_t n = 0;
         if (!ids) {
             ids = malloc(BATCH * sizeof *ids);
@@ -927,6 +929,7 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
         }
         if (n == 0) continue;
         r = cache_sample_indirect(c, ids, n, E, err);
+        if (allowance) *allowance = *allowance > n ? *allowance - n : 0;
         uint32_t nm = 0;
         for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
             float old[3];
