@@ -75,16 +75,16 @@ static lm_result part_index(cache *c, lm_error *err)
     const scene *s = c->s;
     c->part_first = calloc((size_t)s->part_count + 1, sizeof *c->part_first);
     c->part_tris = malloc((s->tri_count ? s->tri_count : 1) * sizeof *c->part_tris);
-    if (!c->part_first || !c->part_tris) {
+    uint32_t *fill = calloc((size_t)s->part_count + 1, sizeof *fill);
+    if (!c->part_first || !c->part_tris || !fill) {
         free(c->part_first);
         free(c->part_tris);
+        free(fill);
         c->part_first = c->part_tris = NULL;
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
     }
     for (uint32_t t = 0; t < s->tri_count; ++t) c->part_first[s->tris[t].part + 1]++;
     for (uint32_t p = 0; p < s->part_count; ++p) c->part_first[p + 1] += c->part_first[p];
-    uint32_t *fill = calloc((size_t)s->part_count + 1, sizeof *fill);
-    if (!fill) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         uint32_t p = s->tris[t].part;
         c->part_tris[c->part_first[p] + fill[p]++] = t;
@@ -210,6 +210,19 @@ static lm_result close_reach(reach *x, size_t from, lm_error *err)
     return r;
 }
 
+/* Frees the tracer; hands over its list of newly taken triangles when r is LM_OK. */
+static lm_result reach_finish(reach *x, lm_result r, uint32_t **out, uint32_t *nout)
+{
+    reach_close(x);
+    if (r != LM_OK) {
+        free(x->list);
+        return r;
+    }
+    *out = x->list;
+    *nout = (uint32_t)x->n;
+    return LM_OK;
+}
+
 lm_result cache_reach_take(cache *c, const uint32_t *seed, uint32_t nseed, uint32_t **out, uint32_t *nout,
                            lm_error *err)
 {
@@ -219,14 +232,7 @@ lm_result cache_reach_take(cache *c, const uint32_t *seed, uint32_t nseed, uint3
     lm_result r = reach_open(&x, c, err);
     for (uint32_t i = 0; r == LM_OK && i < nseed; ++i) r = take(&x, seed[i], err);
     if (r == LM_OK) r = close_reach(&x, 0, err);
-    reach_close(&x);
-    if (r != LM_OK) {
-        free(x.list);
-        return r;
-    }
-    *out = x.list;
-    *nout = (uint32_t)x.n;
-    return LM_OK;
+    return reach_finish(&x, r, out, nout);
 }
 
 lm_result cache_reach_from_gathers(cache *c, uint32_t **out, uint32_t *nout, lm_error *err)
@@ -254,12 +260,5 @@ lm_result cache_reach_from_gathers(cache *c, uint32_t **out, uint32_t *nout, lm_
     }
     if (r == LM_OK) r = flush(&x, err);
     if (r == LM_OK) r = close_reach(&x, 0, err);
-    reach_close(&x);
-    if (r != LM_OK) {
-        free(x.list);
-        return r;
-    }
-    *out = x.list;
-    *nout = (uint32_t)x.n;
-    return LM_OK;
+    return reach_finish(&x, r, out, nout);
 }

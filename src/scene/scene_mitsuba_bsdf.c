@@ -634,13 +634,30 @@ static lm_result translate(mts_ctx *c, const mts_node *bsdf, int depth, phong *p
     return LM_OK;
 }
 
-lm_result mts_material(mts_ctx *c, const mts_node *bsdf, uint32_t *out_index, lm_error *err)
+/* The builder material already made for a BSDF element (NULL: the default one). */
+static int recall(const mts_ctx *c, const mts_node *bsdf, uint32_t *out_index)
 {
     for (size_t i = 0; i < c->material_count; ++i)
         if (c->materials[i].bsdf == bsdf) {
             *out_index = c->materials[i].index;
-            return LM_OK;
+            return 1;
         }
+    return 0;
+}
+
+static lm_result remember(mts_ctx *c, const mts_node *bsdf, uint32_t index, lm_error *err)
+{
+    if (!LM_GROW(c->materials, c->material_cap, c->material_count + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (materials)", c->path);
+    c->materials[c->material_count].bsdf = bsdf;
+    c->materials[c->material_count].index = index;
+    c->material_count++;
+    return LM_OK;
+}
+
+lm_result mts_material(mts_ctx *c, const mts_node *bsdf, uint32_t *out_index, lm_error *err)
+{
+    if (recall(c, bsdf, out_index)) return LM_OK;
     phong p;
     memset(&p, 0, sizeof p);
     p.n = 1.0f;
@@ -662,29 +679,14 @@ lm_result mts_material(mts_ctx *c, const mts_node *bsdf, uint32_t *out_index, lm
                            c->path, bsdf->line, p.note, m.kd[0], m.kd[1], m.kd[2], m.ks[0], m.ks[1], m.ks[2], m.n);
     }
     if ((r = scene_builder_add_material(c->b, &m, out_index, err)) != LM_OK) return r;
-    if (!LM_GROW(c->materials, c->material_cap, c->material_count + 1))
-        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (materials)", c->path);
-    c->materials[c->material_count].bsdf = bsdf;
-    c->materials[c->material_count].index = *out_index;
-    c->material_count++;
-    return LM_OK;
+    return remember(c, bsdf, *out_index, err);
 }
 
 lm_result mts_default_material(mts_ctx *c, uint32_t *out_index, lm_error *err)
 {
-    for (size_t i = 0; i < c->material_count; ++i)
-        if (c->materials[i].bsdf == NULL) {
-            *out_index = c->materials[i].index;
-            return LM_OK;
-        }
+    if (recall(c, NULL, out_index)) return LM_OK;
     scene_material m = scene_material_default("mitsuba-default");
     m.kd[0] = m.kd[1] = m.kd[2] = 0.5f;
     lm_result r = scene_builder_add_material(c->b, &m, out_index, err);
-    if (r != LM_OK) return r;
-    if (!LM_GROW(c->materials, c->material_cap, c->material_count + 1))
-        return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory (materials)", c->path);
-    c->materials[c->material_count].bsdf = NULL;
-    c->materials[c->material_count].index = *out_index;
-    c->material_count++;
-    return LM_OK;
+    return r == LM_OK ? remember(c, NULL, *out_index, err) : r;
 }
