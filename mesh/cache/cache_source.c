@@ -591,8 +591,11 @@ static lm_result build_source(cache *c, int track, lm_error *err)
                                     .radiance = c->src.rm_rad};
     c->src.built_at = cache_direct_changes(c);
     c->src.built_nodes = mesh_qmesh_node_count(c->direct);
-    /* The single-mesh ablation keeps what it gathered. */
-    if (track && !c->desc.single_mesh && c->initialised && c->src.rp_valid) r = mark_outdated(c, err);
+    /* The single-mesh ablation keeps what it gathered. Before the first image
+     * (cache_desc.coarse_gathers set) nothing is flagged: every value is gathered
+     * again right after it. */
+    if (track && !c->desc.single_mesh && c->initialised && c->src.rp_valid && !c->desc.coarse_gathers)
+        r = mark_outdated(c, err);
     return r == LM_OK ? keep_previous(c, err) : r;
 }
 
