@@ -554,11 +554,22 @@ const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light)
 
 void cache_set_sampler(cache *c, samp_sampler *sp) { c->sp = sp; }
 
+/* Every indirect value gathered again: now, or, after the first image's budget
+ * of gathers (coarse_gathers, the worker's quick start), by cache_refine, a
+ * bounded number a call (cache_outdate_all): on a big scene that is hundreds of
+ * thousands of gathers, and the worker must stay able to stop, publish and
+ * meet a time limit meanwhile. From then on every corner is gathered. */
+static lm_result regather_every_value(cache *c, lm_error *err)
+{
+    if (!c->desc.coarse_gathers) return cache_regather_all(c, err);
+    c->desc.coarse_gathers = 0;
+    return cache_outdate_all(c, err);
+}
+
 lm_result cache_regather_indirect(cache *c, lm_error *err)
 {
     if (!c->initialised) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_regather_indirect: cache_init first");
-    c->desc.coarse_gathers = 0; /* every value gathered from here on */
-    lm_result r = cache_regather_all(c, err);
+    lm_result r = regather_every_value(c, err);
     cache_sched_requeue(&c->sched, CACHE_KINDS);
     return r;
 }
@@ -569,7 +580,6 @@ lm_result cache_set_bounces(cache *c, int bounces, lm_error *err)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_bounces: 1..%d or auto, not %d", CACHE_BOUNCES_MAX, bounces);
     if (bounces == c->desc.bounces) return LM_OK;
     c->desc.bounces = bounces;
-    c->desc.coarse_gathers = 0; /* every value is gathered again below */
     lm_result r = LM_OK;
     if (bounces == 1) {
         mesh_qmesh_destroy(c->indirect1);
@@ -580,7 +590,7 @@ lm_result cache_set_bounces(cache *c, int bounces, lm_error *err)
         if (r == LM_OK && c->initialised) r = cache_bounces_init(c, err);
     }
     cache_bounces_touch(c);
-    if (r == LM_OK && c->initialised) r = cache_regather_all(c, err);
+    if (r == LM_OK && c->initialised) r = regather_every_value(c, err);
     cache_sched_requeue(&c->sched, CACHE_KINDS);
     return r;
 }

@@ -99,8 +99,10 @@ typedef struct cache_desc {
                                  seen"): the coarse cache gathers indirect light at no more root
                                  corners than this, spread over the scene, and the other corners
                                  borrow from the gathered ones near them, until the first
-                                 cache_regather_indirect or cache_set_bounces gathers every value
-                                 (from then on every corner is gathered); 0 = every corner */
+                                 cache_regather_indirect or cache_set_bounces: that flags every
+                                 value, and cache_refine gathers them again, a bounded number a
+                                 call, before it refines (from then on every corner is gathered
+                                 at once); 0 = every corner */
     cache_scheduler scheduler;
     uint32_t seed;            /* the random scheduler's picks */
     int single_mesh;          /* ablation: one combined radiance mesh (Tole et al. 2002): no
@@ -192,7 +194,9 @@ lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err);
  * worker makes the coarse cache with a quick sampler and then switches. */
 void cache_set_sampler(cache *c, samp_sampler *sp);
 /* Gathers every vertex of the indirect mesh(es) again with the current sampler
- * (after cache_set_sampler: the coarse cache's quick gathers replaced). */
+ * (after cache_set_sampler: the coarse cache's quick gathers replaced): at once,
+ * or, after a first image made with cache_desc.coarse_gathers, by the next
+ * cache_refine calls (see coarse_gathers). */
 lm_result cache_regather_indirect(cache *c, lm_error *err);
 /* The pixel counts given to cache_refine changed (a new view): every mesh's
  * leaves are scheduled again by the new priorities at the next cache_refine. */

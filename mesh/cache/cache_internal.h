@@ -415,13 +415,18 @@ lm_result cache_settle_source(cache *c, lm_error *err);
 /* Gathers again, in batches, the indirect values the source's rebuilds may have
  * moved by more than the JND (flagged by cache_update_radiance_source); calls
  * `changed` (regions NULL) with the vertices whose value changed. allowance
- * (NULL: none): at most about that many gathers (a batch may pass it), taken
- * off it; what is left stays flagged (c->src.outdated_n) for the next call. */
+ * (NULL: none): at most that many gathers, taken off it; what is left stays
+ * flagged (c->src.outdated_n) for the next call. */
 lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance,
                                   lm_error *err);
 /* Gathers every value of the indirect mesh(es) again from rebuilt sources (a light
  * edit, a better sampler); nothing is outdated afterwards. */
 lm_result cache_regather_all(cache *c, lm_error *err);
+/* The same, later: the source rebuilt now, every displayed indirect value flagged
+ * outdated, for cache_regather_outdated to gather a bounded number a refine call
+ * (a big scene's hundreds of thousands of values are not one uninterruptible
+ * call of the worker). */
+lm_result cache_outdate_all(cache *c, lm_error *err);
 
 /* Importance (Smits et al. 1992, "An importance-driven radiosity algorithm"):
  * after the displayed indirect was gathered at the sites (pixels: per scene

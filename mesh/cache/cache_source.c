@@ -922,8 +922,10 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
                 break;
             }
         }
-        /* Take up to a batch from the end of the list (still flagged, still in the mesh). */
-        while (n < BATCH && c->src.outdated_n) {
+        /* Take up to a batch (and no more than the allowance) from the end of the
+         * list (still flagged, still in the mesh). */
+        const uint32_t most = allowance && *allowance < BATCH ? (uint32_t)*allowance : BATCH;
+        while (n < most && c->src.outdated_n) {
             uint32_t vid = c->src.outdated_list[--c->src.outdated_n];
             float tmp[3];
             if (!c->src.outdated[vid]) continue; /* gathered meanwhile */
@@ -932,7 +934,7 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
         }
         if (n == 0) continue;
         r = cache_sample_indirect(c, ids, n, E, err);
-        if (allowance) *allowance = *allowance > n ? *allowance - n : 0;
+        if (allowance) *allowance -= n;
         uint32_t nm = 0;
         for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
             float old[3];
@@ -980,6 +982,16 @@ static lm_result regather_mesh(cache *c, mesh_qmesh *m, lm_error *err)
     }
     free(ids);
     free(E);
+    return r;
+}
+
+lm_result cache_outdate_all(cache *c, lm_error *err)
+{
+    const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
+    lm_result r = build_source(c, 0, err);
+    if (r == LM_OK) r = grow_drift(&c->src, id_limit, err);
+    for (uint32_t vid = 0; r == LM_OK && vid < id_limit; ++vid)
+        if (mesh_qmesh_get_value(c->indirect, vid, NULL) == 1) r = push_outdated(&c->src, vid, err);
     return r;
 }
 
