@@ -19,8 +19,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     static int ready;
     char path[1024];
     if (!ready) {
-        static const char quad[] = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 4 3\nf 1 3 2\n";
-        if (!fuzz_write("a.obj", (const uint8_t *)quad, sizeof quad - 1, path, sizeof path)) return 0;
+        if (!fuzz_write_quad()) return 0;
         ready = 1;
     }
     if (!fuzz_write("scene.json", data, size, path, sizeof path)) return 0;

@@ -21,8 +21,7 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     static int ready;
     char path[1024];
     if (!ready) {
-        static const char quad[] = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 4 3\nf 1 3 2\n";
-        if (!fuzz_write("a.obj", (const uint8_t *)quad, sizeof quad - 1, path, sizeof path)) return 0;
+        if (!fuzz_write_quad()) return 0;
         snprintf(path, sizeof path, "%s/t.png", fuzz_dir());
         static const uint8_t px[6] = {255, 0, 0, 0, 0, 255};
         img_write_desc d = {.path = path, .width = 2, .height = 1, .channels = 3, .pixels8 = px};

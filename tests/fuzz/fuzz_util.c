@@ -33,6 +33,13 @@ int fuzz_write(const char *name, const uint8_t *data, size_t size, char *out, si
     return fclose(f) == 0 && ok;
 }
 
+int fuzz_write_quad(void)
+{
+    static const char quad[] = "v 0 0 0\nv 1 0 0\nv 1 0 1\nv 0 0 1\nf 1 4 3\nf 1 3 2\n";
+    char path[1024];
+    return fuzz_write("a.obj", (const uint8_t *)quad, sizeof quad - 1, path, sizeof path);
+}
+
 const char *fuzz_ext(const char *fallback)
 {
     const char *e = getenv("LUMESH_FUZZ_EXT");

@@ -17,6 +17,10 @@ const char *fuzz_dir(void);
  * 0 when the file cannot be written (the input is then skipped). */
 int fuzz_write(const char *name, const uint8_t *data, size_t size, char *out, size_t out_size);
 
+/* Writes fuzz_dir()/a.obj, a unit quad in y = 0 that scene descriptions under
+ * test may name. 0 when it cannot be written. */
+int fuzz_write_quad(void);
+
 /* Loads path as `lumesh` does; a failure must be one line (else a trap: a
  * finding). */
 void fuzz_load_scene(const char *path);
