@@ -261,8 +261,9 @@ struct cache {
                                   an emitter the viewer sees (cache_sees_front) */
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
     int initialised;
-    /* Which scene triangles take part (cache.c: cache_init_seen, and cache_refine
-     * for triangles its pixels see later): an
+    /* Which scene triangles take part (allocated by cache.c's cache_init_seen;
+     * these fields up to part_tris written by cache_reach.c, which takes
+     * triangles part, bounce_active_at by cache.c; read by every file): an
      * active triangle's roots are sampled in every mesh, scheduled, and send
      * light in the indirect source and the bounces' transport; an inactive one
      * keeps unsampled roots and sends nothing, until a pixel sees it or a gather
