@@ -192,7 +192,8 @@ static lm_result close_reach(reach *x, size_t from, lm_error *err)
     const uint32_t limit = mesh_vtable_id_limit(x->c->vt);
     uint32_t *stamp = calloc(limit ? limit : 1, sizeof *stamp), round = 0;
     lm_result r = stamp ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding what gathers reach");
-    while (r == LM_OK && from < x->n) {
+    /* (Once every triangle takes part there is nothing left to find.) */
+    while (r == LM_OK && from < x->n && x->c->active_count < x->c->s->tri_count) {
         const size_t to = x->n;
         round++;
         for (size_t i = from; r == LM_OK && i < to; ++i) {
