@@ -444,7 +444,9 @@ lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err)
  * what they reach, sampled, and every mesh's leaves scheduled again. */
 static lm_result take_newly_needed(cache *c, const uint32_t *pixels, lm_error *err)
 {
-    if (!c->active) return LM_OK;
+    /* Every refine call comes here: once every triangle takes part (most
+     * scenes, right away) it costs nothing, not a pass over a million pixels. */
+    if (!c->active || c->active_count == c->s->tri_count) return LM_OK;
     uint32_t *tris = NULL, n = 0;
     lm_result r = pixels ? take_seen(c, pixels, &tris, &n, err) : LM_OK;
     if (r == LM_OK && !n) {
