@@ -3,7 +3,7 @@ set(RUN_CLI ${CMAKE_CURRENT_SOURCE_DIR}/run_cli.cmake)
 set(LUMESH_EXE $<TARGET_FILE:lumesh_cli>)
 
 function(lumesh_cli_test name exit)
-  cmake_parse_arguments(A "ONE_ERR_LINE" "OUT;ERR" "ARGS;FILES" ${ARGN})
+  cmake_parse_arguments(A "ONE_ERR_LINE" "OUT;ERR;ENV" "ARGS;FILES;NO_FILES" ${ARGN})
   set(defs -DEXPECT_EXIT=${exit})
   if(A_OUT)
     list(APPEND defs "-DEXPECT_OUT=${A_OUT}")
@@ -18,8 +18,16 @@ function(lumesh_cli_test name exit)
     string(REPLACE ";" "|" files "${A_FILES}")
     list(APPEND defs "-DEXPECT_FILES=${files}")
   endif()
+  if(A_NO_FILES)
+    string(REPLACE ";" "|" files "${A_NO_FILES}")
+    list(APPEND defs "-DEXPECT_NO_FILES=${files}")
+  endif()
+  set(env "")
+  if(A_ENV)  # one NAME=VALUE for the command's environment
+    set(env ${CMAKE_COMMAND} -E env ${A_ENV})
+  endif()
   string(REPLACE ";" "|" cmd "${LUMESH_EXE};${A_ARGS}")
-  add_test(NAME cli_${name} COMMAND ${CMAKE_COMMAND} "-DCMD=${cmd}" ${defs} -P ${RUN_CLI})
+  add_test(NAME cli_${name} COMMAND ${env} ${CMAKE_COMMAND} "-DCMD=${cmd}" ${defs} -P ${RUN_CLI})
 endfunction()
 
 lumesh_cli_test(version 0 ARGS --version OUT "^lumesh [0-9]+\\.[0-9]+\\.[0-9]+\n$")
@@ -54,6 +62,18 @@ lumesh_cli_test(render_debug_meshes 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}
   OUT "wrote .*light0-leaves\\.png: [0-9]+ of [0-9]+ leaf edges shown.*light0-samples\\.png: [0-9]+ samples shown.*direct-leaves.*direct-samples.*indirect-leaves.*indirect-samples"
   FILES ${DBG}/light0-leaves.png ${DBG}/light0-samples.png ${DBG}/direct-leaves.png ${DBG}/direct-samples.png
         ${DBG}/indirect-leaves.png ${DBG}/indirect-samples.png)
+# The image module (OpenImageIO, src/image/image_internal.h) is opened when the image
+# is written: a broken one is one line naming it, and no file is left behind.
+set(BAD_MODULE_DIR ${CMAKE_CURRENT_BINARY_DIR}/bad_image_module)
+file(WRITE ${BAD_MODULE_DIR}/lumesh_oiio.so "not a shared object\n")
+lumesh_cli_test(render_broken_image_module 3 ENV LUMESH_MODULE_DIR=${BAD_MODULE_DIR}
+  ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/no-module.png --width 32 --height 32 --samples 50
+  ONE_ERR_LINE ERR "no-module\\.png: the image module .*bad_image_module/lumesh_oiio\\.so cannot be used: .*"
+  NO_FILES ${CMAKE_CURRENT_BINARY_DIR}/no-module.png)
+# An empty LUMESH_MODULE_DIR (no module there) falls through to the program's own folder.
+lumesh_cli_test(render_module_dir_without_module 0 ENV LUMESH_MODULE_DIR=${CMAKE_CURRENT_BINARY_DIR}
+  ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/module-fallback.png --width 32 --height 32 --samples 50
+  OUT "^wrote .*module-fallback\\.png: 32x32" FILES ${CMAKE_CURRENT_BINARY_DIR}/module-fallback.png)
 lumesh_cli_test(render_unknown_camera 2 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/x.png --camera nope ONE_ERR_LINE ERR "no camera named 'nope'")
 
 set(CB ${LUMESH_SCENES}/cornell-box)
@@ -143,3 +163,9 @@ lumesh_cli_test(view_bad_script 2 ARGS view --script ${CMAKE_CURRENT_BINARY_DIR}
 # --width and --height together are accepted (the script is checked after them).
 lumesh_cli_test(view_width_and_height 2 ARGS view --width 64 --height 48 --script ${CMAKE_CURRENT_BINARY_DIR}/view-bad-script.txt
   ONE_ERR_LINE ERR "view-bad-script\\.txt:2: unknown command 'jump'")
+
+# OpenImageIO (and its ~260 libraries) is not loaded with the program, only with
+# the image module when an image is read or written (docs/memory.md).
+add_test(NAME program_loads_no_openimageio
+  COMMAND sh -c "ldd \"$1\" > \"$2\" && grep -q libembree \"$2\" && ! grep -q OpenImageIO \"$2\"" sh
+          ${LUMESH_EXE} ${CMAKE_CURRENT_BINARY_DIR}/lumesh-ldd.txt)

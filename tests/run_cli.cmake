@@ -2,9 +2,11 @@
 #   -DCMD="lumesh|info|x.obj" ("|" separates arguments: a ";" would not survive add_test)  -DEXPECT_EXIT=2  [-DEXPECT_OUT=regex] [-DEXPECT_ERR=regex]
 #   [-DONE_ERR_LINE=1]: stderr must be exactly one line.
 #   [-DEXPECT_FILES="a.png|b.png"]: removed before the run, must exist (non-empty) after it.
+#   [-DEXPECT_NO_FILES="a.png|b.png"]: removed before the run, must not exist after it.
 string(REPLACE "|" ";" CMD "${CMD}")
 string(REPLACE "|" ";" EXPECT_FILES "${EXPECT_FILES}")
-foreach(f IN LISTS EXPECT_FILES)
+string(REPLACE "|" ";" EXPECT_NO_FILES "${EXPECT_NO_FILES}")
+foreach(f IN LISTS EXPECT_FILES EXPECT_NO_FILES)
   file(REMOVE "${f}")
 endforeach()
 execute_process(COMMAND ${CMD} RESULT_VARIABLE rc OUTPUT_VARIABLE out ERROR_VARIABLE err
@@ -26,6 +28,11 @@ foreach(f IN LISTS EXPECT_FILES)
   endif()
   if(size EQUAL 0)
     string(APPEND fail "${f} was not written\n")
+  endif()
+endforeach()
+foreach(f IN LISTS EXPECT_NO_FILES)
+  if(EXISTS "${f}")
+    string(APPEND fail "${f} was written, expected none\n")
   endif()
 endforeach()
 if(ONE_ERR_LINE)

@@ -199,6 +199,39 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         if (r == LM_OK) rend_frame_set_components(final, mask);
     }
     if (r == LM_OK) r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, &cam, (int)accumulate, rgb, &err);
+    double elapsed = lm_now_seconds() - t0;
+    if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, rs, rgb, snap, &err);
+    /* What the statistics and the summary need is taken from the session, which is
+     * then destroyed before the image is written: the image module (OpenImageIO,
+     * 131 MB) is loaded only after the cache and the GL images are gone, so it does
+     * not add to the peak (docs/memory.md). */
+    cJSON *json = NULL;
+    if (r == LM_OK && stats) {
+        rend_session_info in;
+        rend_session_get_info(rs, &in);
+        json = app_stats_json(&(app_stats_desc){.command = "render", .scene = s->source, .width = w, .height = h,
+                                                .supersample = (int)supersample, .seconds = elapsed,
+                                                .first_image_seconds = -1, .snap = snap, .id_seconds = in.id_seconds,
+                                                .frame = &in.times[REND_SESSION_FINAL], .frames = 1});
+        if (!json) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for the statistics");
+    }
+    char summary[1024] = "";
+    if (r == LM_OK) {
+        const cache_stats *st = &snap->stats;
+        uint64_t light = 0;
+        for (uint32_t l = 0; l < st->light_count; ++l) light += st->lights[l].samples;
+        snprintf(summary, sizeof summary,
+                 "%dx%d, %.2f s, %s after %llu leaves tested; samples: %llu light, %llu indirect; %u direct, "
+                 "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND it "
+                 "refines to (dE %.3g), %.1f%% untested%s",
+                 w, h, elapsed, snap->converged ? "converged" : "stopped", (unsigned long long)snap->tested,
+                 (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
+                 snap->indirect.triangle_count, snap->specular.triangle_count, snap->estimate.mean,
+                 100.0 * snap->estimate.above_jnd, (double)snap->jnd, 100.0 * snap->estimate.untested,
+                 snap->finished && !snap->converged && !snap->failed ? " (nothing left it can improve)" : "");
+    }
+    rend_session_destroy(rs);
+    snap = NULL;
     if (r == LM_OK) {
         img_write_desc d = {.path = out, .width = w, .height = h, .channels = 3};
         if (ext_is(out, "png")) {
@@ -212,34 +245,11 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         }
         if (r == LM_OK) r = img_write(&d, &err);
     }
-    double elapsed = lm_now_seconds() - t0;
-    if (r == LM_OK && stats) {
-        rend_session_info in;
-        rend_session_get_info(rs, &in);
-        cJSON *j = app_stats_json(&(app_stats_desc){.command = "render", .scene = s->source, .width = w, .height = h,
-                                                   .supersample = (int)supersample, .seconds = elapsed,
-                                                   .first_image_seconds = -1, .snap = snap, .id_seconds = in.id_seconds,
-                                                   .frame = &in.times[REND_SESSION_FINAL], .frames = 1});
-        r = app_write_json(stats, j, &err);
-        cJSON_Delete(j);
-    }
-    if (r == LM_OK) {
-        const cache_stats *st = &snap->stats;
-        uint64_t light = 0;
-        for (uint32_t l = 0; l < st->light_count; ++l) light += st->lights[l].samples;
-        printf("wrote %s: %dx%d, %.2f s, %s after %llu leaves tested; samples: %llu light, %llu indirect; %u direct, "
-               "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND it refines to (dE %.3g), "
-               "%.1f%% untested%s\n",
-               out, w, h, elapsed, snap->converged ? "converged" : "stopped", (unsigned long long)snap->tested,
-               (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
-               snap->indirect.triangle_count, snap->specular.triangle_count, snap->estimate.mean,
-               100.0 * snap->estimate.above_jnd, (double)snap->jnd, 100.0 * snap->estimate.untested,
-               snap->finished && !snap->converged && !snap->failed ? " (nothing left it can improve)" : "");
-    }
-    if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, rs, rgb, snap, &err);
+    if (r == LM_OK && json) r = app_write_json(stats, json, &err);
+    cJSON_Delete(json);
+    if (r == LM_OK) printf("wrote %s: %s\n", out, summary);
     free(png);
     free(rgb);
-    rend_session_destroy(rs);
     scene_destroy(s);
     return r == LM_OK ? APP_EXIT_OK : app_report(r, &err);
 }

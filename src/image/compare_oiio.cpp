@@ -1,5 +1,6 @@
-/* compare_oiio.cpp — cmp_oiio_compare: OpenImageIO's ImageBufAlgo::compare on
- * the R, G, B of two files, as an independent check on cmp_compare (compare.c).
+/* compare_oiio.cpp — cmp_oiio_compare, in the lumesh_oiio.so module (image_internal.h):
+ * OpenImageIO's ImageBufAlgo::compare on the R, G, B of two files, as an
+ * independent check on cmp_compare (compare.c).
  *
  * OpenImageIO reads the files itself (not through img_read), the three
  * channels are shuffled out with ImageBufAlgo::channels by the rule of
@@ -7,6 +8,7 @@
  * exception stops here and becomes an lm_result.
  */
 #include "src/image/compare.h"
+#include "src/image/image_internal.h"
 
 #include <OpenImageIO/imagebuf.h>
 #include <OpenImageIO/imagebufalgo.h>
@@ -144,8 +146,8 @@ lm_result compare_impl(const char *path_a, const char *path_b, cmp_oiio_result *
 
 } // namespace
 
-extern "C" lm_result cmp_oiio_compare(const char *path_a, const char *path_b,
-                                      cmp_oiio_result *out, lm_error *err)
+extern "C" lm_result img_oiio_compare(const char *path_a, const char *path_b, cmp_oiio_result *out,
+                                      lm_error *err)
 {
     if (!out) return lm_fail(err, LM_ERR_INVALID_ARG, "cmp_oiio_compare: no result");
     *out = cmp_oiio_result{};

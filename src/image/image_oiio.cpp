@@ -1,4 +1,5 @@
-/* image_oiio.cpp — image.h on top of OpenImageIO 2.4.
+/* image_oiio.cpp — image.h on top of OpenImageIO 2.4, in the lumesh_oiio.so module
+ * (image_internal.h says why a module; image_module.c opens it).
  *
  * Writing: the descriptor is validated, the pixels are put into the file's
  * type (float for EXR, 8-bit for PNG) and OpenImageIO encodes the file into
@@ -489,7 +490,7 @@ lm_result read_impl(const char *path, img_image *out, lm_error *err)
 
 } // namespace
 
-extern "C" lm_result img_write(const img_write_desc *desc, lm_error *err)
+extern "C" lm_result img_oiio_write(const img_write_desc *desc, lm_error *err)
 {
     const char *path = desc && desc->path ? desc->path : "(no path)";
     try {
@@ -503,7 +504,7 @@ extern "C" lm_result img_write(const img_write_desc *desc, lm_error *err)
     }
 }
 
-extern "C" lm_result img_read(const char *path, img_image *out, lm_error *err)
+extern "C" lm_result img_oiio_read(const char *path, img_image *out, lm_error *err)
 {
     if (!out) return lm_fail(err, LM_ERR_INVALID_ARG, "img_read: no output image");
     *out = img_image{};
@@ -519,17 +520,10 @@ extern "C" lm_result img_read(const char *path, img_image *out, lm_error *err)
     }
 }
 
-extern "C" const char *img_attribute(const img_image *img, const char *name)
+/* The module's entry point (image_internal.h): the one symbol it exports. */
+extern "C" __attribute__((visibility("default"))) const img_oiio_api *lumesh_oiio_api(void)
 {
-    for (int i = 0; img && name && i < img->attribute_count; ++i)
-        if (std::strcmp(img->attributes[i][0], name) == 0) return img->attributes[i][1];
-    return nullptr;
-}
-
-extern "C" void img_free(img_image *img)
-{
-    if (!img) return;
-    std::free(img->pixels);
-    std::free(img->channel_names);
-    *img = img_image{};
+    static const img_oiio_api api = {IMG_OIIO_API_VERSION, IMG_OIIO_API_SIZES, img_oiio_write, img_oiio_read,
+                                     img_oiio_compare};
+    return &api;
 }
