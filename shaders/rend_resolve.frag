@@ -5,10 +5,12 @@
 // the SS×SS samples of each pixel into an output-sized image. The composite is
 // linear in the terms, so resolving each term as soon as it is drawn lets the
 // three terms share one sample-sized radiance image (rend_frame.c says why).
-// The product is taken per sample, then averaged: averaging kd and L separately
-// would be wrong at every edge between materials. The mean is
-// c0 + Σ(cᵢ − c0)/SS², so a pixel whose samples are equal gets exactly that
-// value (the same bits as SS = 1 gives for it).
+// Where the pixel's samples see more than one material the product is taken per
+// sample, then averaged: averaging kd and L separately would be wrong at every
+// edge between materials. Where they see one (most pixels) it is coef times the
+// mean of L, the same value with SS² − 1 fewer material look-ups. A mean is
+// c0 + Σ(cᵢ − c0)/SS², so a pixel whose samples are equal gets exactly their
+// value (the same bits as SS = 1 gives for it). Compiled for SS > 1 only.
 layout(binding = 0) uniform usampler2D u_code;  // rend_material.frag; 0: no surface
 layout(binding = 1) uniform sampler2D u_value;  // the term's radiance image (rend_value.frag)
 struct material {
@@ -18,12 +20,10 @@ layout(std430, binding = 0) readonly buffer Materials { material u_materials[]; 
 uniform uint u_term; // 0: L_dd (× kd), 1: E_i (× kd/π), 2: L_ds (× ks)
 layout(location = 0) out vec4 o_rgb;
 
-vec3 shade(ivec2 q)
+// coef·L at sample q of material code `code` (not 0).
+vec3 shade(uint code, vec3 l)
 {
-    uint code = texelFetch(u_code, q, 0).r;
-    if (code == 0u) return vec3(0.0);
     material m = u_materials[(code >> 1) - 1u];
-    vec3 l = texelFetch(u_value, q, 0).rgb;
     if (u_term == 2u) return m.ks.rgb * l;
     return m.kd.rgb * (u_term == 1u ? l * 0.31830988618379067 : l);
 }
@@ -31,13 +31,27 @@ vec3 shade(ivec2 q)
 void main()
 {
     ivec2 p = ivec2(gl_FragCoord.xy) * SS;
-    vec3 c0 = shade(p);
-#if SS > 1
-    vec3 d = vec3(0.0);
-    for (int j = 0; j < SS; ++j)
-        for (int i = 0; i < SS; ++i)
-            if (i + j > 0) d += shade(p + ivec2(i, j)) - c0;
-    c0 += d * (1.0 / float(SS * SS));
-#endif
+    uint codes[SS * SS];
+    bool one = true; // one material over the pixel (most pixels): coef once, times the mean of L
+    for (int k = 0; k < SS * SS; ++k) {
+        codes[k] = texelFetch(u_code, p + ivec2(k % SS, k / SS), 0).r;
+        one = one && codes[k] == codes[0];
+    }
+    vec3 c0, d = vec3(0.0);
+    if (one) {
+        if (codes[0] == 0u) {
+            o_rgb = vec4(0.0, 0.0, 0.0, 1.0);
+            return;
+        }
+        c0 = texelFetch(u_value, p, 0).rgb;
+        for (int k = 1; k < SS * SS; ++k) d += texelFetch(u_value, p + ivec2(k % SS, k / SS), 0).rgb - c0;
+        c0 = shade(codes[0], c0 + d * (1.0 / float(SS * SS)));
+    } else {
+        c0 = codes[0] != 0u ? shade(codes[0], texelFetch(u_value, p, 0).rgb) : vec3(0.0);
+        for (int k = 1; k < SS * SS; ++k)
+            if (codes[k] != 0u) d += shade(codes[k], texelFetch(u_value, p + ivec2(k % SS, k / SS), 0).rgb) - c0;
+            else d -= c0;
+        c0 += d * (1.0 / float(SS * SS));
+    }
     o_rgb = vec4(c0, 1.0);
 }

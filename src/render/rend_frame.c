@@ -29,17 +29,19 @@ typedef struct rect {
 } rect;
 
 /* One radiance term: its snapshot mesh on the GPU, a CPU copy of it (to find
- * what the next snapshot changed) and its resolved image (output-sized: coef·L
- * box-filtered over each pixel's samples, rend_resolve.frag). */
+ * what the next snapshot changed) and its image for the composite, output-sized:
+ * at s = 1 its radiance image, drawn into directly (with the shared depth); at
+ * s > 1 its resolved image (coef·L box-filtered over each pixel's samples,
+ * rend_resolve.frag), the radiance drawn into the shared val_tex first. */
 typedef struct term_state {
-    GLuint vbo, vao, res_fbo, res_tex;
+    GLuint vbo, vao, fbo, tex;
     size_t vbo_cap;                /* bytes allocated in vbo */
     cache_snapshot_vertex *copy;   /* what vbo holds, 3 per triangle */
     uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
     uint32_t tris, copy_cap;       /* triangles in vbo and copy; allocated in copy and hash */
     int hash_valid;
     const cache_snapshot_vertex *src; /* the snapshot array it came from */
-    int drawn;                     /* res_tex holds the copy drawn and resolved with val_vp */
+    int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
 } term_state;
 
 struct rend_frame {
@@ -56,11 +58,14 @@ struct rend_frame {
     unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
     /* Sample images (s·width × s·height). Only the material codes are kept
      * between draws; the depth is every pass's (each clears it where it draws)
-     * and the radiance image each term's in turn, resolved before the next term
-     * is drawn into it: 24 bytes a sample instead of 68 (docs/memory.md). */
+     * and, at s > 1, the radiance image each term's in turn, resolved before the
+     * next term is drawn into it: 24 bytes a sample and 64 a pixel instead of 68
+     * a sample (docs/memory.md). At s = 1 a resolved image would be as large as
+     * the radiance image and cost a pass: each term keeps its own (56 bytes a
+     * pixel). */
     GLuint mat_fbo, mat_tex;         /* R32UI material codes, with depth */
-    GLuint val_fbo, val_tex;         /* RGBA32F radiance of the term being drawn, with depth */
-    GLuint depth;                    /* DEPTH_COMPONENT32F, attached to both */
+    GLuint val_fbo, val_tex;         /* s > 1: RGBA32F radiance of the term being drawn, with depth; else 0 */
+    GLuint depth;                    /* DEPTH_COMPONENT32F, attached to all that draw */
     GLuint out_fbo, out_tex;
     GLuint empty_vao;
     term_state term[TERMS];          /* L_dd, E_i, L_ds */
@@ -104,8 +109,8 @@ void rend_frame_destroy(rend_frame *f)
             term_state *ts = &f->term[t];
             gl->DeleteBuffers(1, &ts->vbo);
             gl->DeleteVertexArrays(1, &ts->vao);
-            gl->DeleteTextures(1, &ts->res_tex);
-            gl->DeleteFramebuffers(1, &ts->res_fbo);
+            gl->DeleteTextures(1, &ts->tex);
+            gl->DeleteFramebuffers(1, &ts->fbo);
         }
     }
     for (int t = 0; t < TERMS; ++t) {
@@ -217,7 +222,7 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     lm_result r = f->readback ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
     if (r == LM_OK) r = glprog_build(gl, "renderer", material_names, "", &f->prog_material, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, "", &f->prog_value, err);
-    if (r == LM_OK) r = glprog_build(gl, "renderer", resolve_names, defines, &f->prog_resolve, err);
+    if (r == LM_OK && ss > 1) r = glprog_build(gl, "renderer", resolve_names, defines, &f->prog_resolve, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", composite_names, defines, &f->prog_composite, err);
     if (r == LM_OK) r = upload_scene(f, err);
     if (r != LM_OK) {
@@ -226,7 +231,7 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     }
     f->loc_mat_vp = gl->GetUniformLocation(f->prog_material, "u_viewproj");
     f->loc_val_vp = gl->GetUniformLocation(f->prog_value, "u_viewproj");
-    f->loc_res_term = gl->GetUniformLocation(f->prog_resolve, "u_term");
+    if (ss > 1) f->loc_res_term = gl->GetUniformLocation(f->prog_resolve, "u_term");
     f->loc_comp_terms = gl->GetUniformLocation(f->prog_composite, "u_terms");
     gl->CreateVertexArrays(1, &f->empty_vao);
 
@@ -237,26 +242,28 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     gl->NamedFramebufferRenderbuffer(f->mat_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
     /* RGBA32F: an RGBA16F image was no faster to draw on llvmpipe (the cost
      * is per triangle) and would overflow above 65504 (docs/renderer.md). */
-    gl->CreateFramebuffers(1, &f->val_fbo);
-    f->val_tex = color_target(gl, GL_RGBA32F, f->sw, f->sh);
-    gl->NamedFramebufferTexture(f->val_fbo, GL_COLOR_ATTACHMENT0, f->val_tex, 0);
-    gl->NamedFramebufferRenderbuffer(f->val_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
-
+    if (ss > 1) {
+        gl->CreateFramebuffers(1, &f->val_fbo);
+        f->val_tex = color_target(gl, GL_RGBA32F, f->sw, f->sh);
+        gl->NamedFramebufferTexture(f->val_fbo, GL_COLOR_ATTACHMENT0, f->val_tex, 0);
+        gl->NamedFramebufferRenderbuffer(f->val_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
+    }
     for (int t = 0; t < TERMS; ++t) {
         term_state *ts = &f->term[t];
         gl->CreateVertexArrays(1, &ts->vao);
-        gl->CreateFramebuffers(1, &ts->res_fbo);
-        ts->res_tex = color_target(gl, GL_RGBA32F, w, h);
-        gl->NamedFramebufferTexture(ts->res_fbo, GL_COLOR_ATTACHMENT0, ts->res_tex, 0);
+        gl->CreateFramebuffers(1, &ts->fbo);
+        ts->tex = color_target(gl, GL_RGBA32F, w, h);
+        gl->NamedFramebufferTexture(ts->fbo, GL_COLOR_ATTACHMENT0, ts->tex, 0);
+        if (ss == 1) gl->NamedFramebufferRenderbuffer(ts->fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
     }
 
     gl->CreateFramebuffers(1, &f->out_fbo);
     f->out_tex = color_target(gl, GL_RGBA32F, w, h);
     gl->NamedFramebufferTexture(f->out_fbo, GL_COLOR_ATTACHMENT0, f->out_tex, 0);
 
-    GLuint fbos[3 + TERMS] = {f->mat_fbo, f->val_fbo, f->out_fbo, f->term[0].res_fbo, f->term[1].res_fbo,
-                              f->term[2].res_fbo};
-    for (int i = 0; i < 3 + TERMS; ++i)
+    GLuint fbos[3 + TERMS] = {f->mat_fbo, f->out_fbo, f->term[0].fbo, f->term[1].fbo, f->term[2].fbo,
+                              f->val_fbo};
+    for (int i = 0; i < 2 + TERMS + (ss > 1); ++i)
         if (gl->CheckNamedFramebufferStatus(fbos[i], GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
             rend_frame_destroy(f);
             return lm_fail(err, LM_ERR_RUNTIME, "renderer: a %dx%d framebuffer is not complete on this GL", f->sw,
@@ -551,11 +558,11 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
 
     /* Radiance: each term where it changed (all of it when the camera moved),
      * cleared and redrawn with every triangle of its mesh inside the dirty
-     * rectangle, so the image equals a full redraw there; then resolved into
-     * the term's output-sized image over the same pixels (the rectangle is
-     * widened to whole pixels), before the next term draws into the shared
-     * radiance image. An empty mesh is neither cleared nor drawn: the
-     * composite takes its term as 0. */
+     * rectangle, so the image equals a full redraw there; at s > 1 then
+     * resolved into the term's output-sized image over the same pixels (the
+     * rectangle is widened to whole pixels), before the next term draws into
+     * the shared radiance image. An empty mesh is neither cleared nor drawn:
+     * the composite takes its term as 0. */
     unsigned terms = 0;
     double redrawn = 0.0, present = 0.0;
     int drew = 0;
@@ -581,18 +588,26 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
             gl->Enable(GL_SCISSOR_TEST);
             gl->Scissor(d.x0, d.y0, d.x1 - d.x0, d.y1 - d.y0);
         }
-        gl->ClearNamedFramebufferfv(f->val_fbo, GL_COLOR, 0, zero);
-        gl->ClearNamedFramebufferfv(f->val_fbo, GL_DEPTH, 0, &far_depth);
-        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->val_fbo);
+        GLuint target = f->val_fbo ? f->val_fbo : ts->fbo;
+        gl->ClearNamedFramebufferfv(target, GL_COLOR, 0, zero);
+        gl->ClearNamedFramebufferfv(target, GL_DEPTH, 0, &far_depth);
+        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
         gl->UseProgram(f->prog_value);
         gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
         gl->BindVertexArray(ts->vao);
         gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * ts->tris));
+        ts->drawn = 1;
+        drew = 1;
+        redrawn += (double)(d.x1 - d.x0) * (double)(d.y1 - d.y0) / ((double)f->sw * (double)f->sh);
+        if (!f->val_fbo) {
+            if (part) gl->Disable(GL_SCISSOR_TEST);
+            continue;
+        }
         /* Resolve: one full-screen triangle over the term's pixels of the output. */
         gl->Disable(GL_DEPTH_TEST);
         gl->Viewport(0, 0, w, h);
         if (part) gl->Scissor(d.x0 / ss, d.y0 / ss, (d.x1 - d.x0) / ss, (d.y1 - d.y0) / ss);
-        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->res_fbo);
+        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->fbo);
         gl->UseProgram(f->prog_resolve);
         gl->Uniform1ui(f->loc_res_term, (GLuint)t);
         GLuint inputs[2] = {f->mat_tex, f->val_tex};
@@ -603,9 +618,6 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
         gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
         gl->BindTextures(0, 2, NULL);
         if (part) gl->Disable(GL_SCISSOR_TEST);
-        ts->drawn = 1;
-        drew = 1;
-        redrawn += (double)(d.x1 - d.x0) * (double)(d.y1 - d.y0) / ((double)f->sw * (double)f->sh);
     }
     if (r == LM_OK) {
         memcpy(f->val_vp, vp, sizeof vp);
@@ -630,7 +642,7 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
         gl->UseProgram(f->prog_composite);
         /* Bits 0..2: the radiance images drawn and shown; bit 3: emission shown. */
         gl->Uniform1ui(f->loc_comp_terms, comp_terms);
-        GLuint inputs[1 + TERMS] = {f->mat_tex, f->term[0].res_tex, f->term[1].res_tex, f->term[2].res_tex};
+        GLuint inputs[1 + TERMS] = {f->mat_tex, f->term[0].tex, f->term[1].tex, f->term[2].tex};
         gl->BindTextures(0, 1 + TERMS, inputs);
         gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
         gl->BindVertexArray(f->empty_vao);
