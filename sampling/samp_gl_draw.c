@@ -11,7 +11,13 @@
 
 #include "sampling/samp_gl_internal.h"
 
-enum { ATLAS_SIDE = 2048 };
+/* An atlas's side, pixels: how many views one draw batches (at the default 64-pixel
+ * views, 256 direct tiles or 80 indirect hemicubes). 2048 held 129 MB of GL images
+ * per GL sampler (direct: two R32F and a depth, 50 MB; indirect: RGBA32F and a
+ * depth, 79 MB); 1024 holds a quarter, with the same errors and no slower
+ * (bench_sampling: direct 73 → 59 µs a sample on the Cornell box, indirect within
+ * the runs' spread; docs/memory.md). */
+enum { ATLAS_SIDE = 1024 };
 
 lm_result samp_gl_reserve(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem, lm_error *err)
 {

@@ -1,45 +1,55 @@
 #version 450 core
-// Composite (paper §6): Le + kd·(L_dd + E_i/π) + ks·L_ds per sample, linear,
-// box-filtered over the SS×SS samples of each pixel (SS is defined by
-// rend_frame.c; the material and radiance images are SS times the output's
-// size). The product is taken per sample, then averaged: averaging kd and the
-// radiance images separately would be wrong at every edge between materials.
-// The mean is c0 + Σ(cᵢ − c0)/SS², so a pixel whose samples are equal gets
-// exactly that value (the same bits as SS = 1 gives for it).
-layout(binding = 0) uniform usampler2D u_code;    // rend_material.frag; 0: no surface
-layout(binding = 1) uniform sampler2D u_direct;   // L_dd per unit albedo
-layout(binding = 2) uniform sampler2D u_indirect; // E_i, W·m⁻²
-layout(binding = 3) uniform sampler2D u_specular; // L_ds per unit ks
+// Composite (paper §6): Le + kd·L_dd + kd·E_i/π + ks·L_ds per pixel, linear,
+// added in that order at every s, so a pixel whose samples are equal gets the
+// same bits at every s (rend_frame_test).
+// SS = 1: the term images are the radiance images; the products are taken here.
+// SS > 1: the term images arrive resolved (rend_resolve.frag: coef·L per sample,
+// box-filtered over the pixel's SS×SS samples); Le is box-filtered here from the
+// material codes the same way (c0 + Σ(cᵢ − c0)/SS²), because a light edit changes
+// it without a redraw (rend_frame_set_emission).
+layout(binding = 0) uniform usampler2D u_code;     // rend_material.frag, SS× the output's size; 0: no surface
+layout(binding = 1) uniform sampler2D u_direct;    // SS = 1: L_dd; SS > 1: kd·L_dd, resolved
+layout(binding = 2) uniform sampler2D u_indirect;  // SS = 1: E_i;  SS > 1: kd·E_i/π, resolved
+layout(binding = 3) uniform sampler2D u_specular;  // SS = 1: L_ds; SS > 1: ks·L_ds, resolved
 struct material {
     vec4 kd, ks, le; // .rgb; le: W·m⁻²·sr⁻¹
 };
 layout(std430, binding = 0) readonly buffer Materials { material u_materials[]; };
-uniform uint u_terms; // bit t < 3: radiance image t was drawn and is shown (else it is 0 and not read);
+uniform uint u_terms; // bit t < 3: term image t was drawn and is shown (else it is 0 and not read);
                       // bit 3: emission is shown (rend_frame_set_components)
 layout(location = 0) out vec4 o_rgb;
 
-vec3 shade(ivec2 q)
+vec3 emitted(uint code)
 {
-    uint code = texelFetch(u_code, q, 0).r;
-    if (code == 0u) return vec3(0.0);
-    material m = u_materials[(code >> 1) - 1u];
-    vec3 le = (code & 1u) != 0u && (u_terms & 8u) != 0u ? m.le.rgb : vec3(0.0);
-    vec3 ldd = (u_terms & 1u) != 0u ? texelFetch(u_direct, q, 0).rgb : vec3(0.0);
-    vec3 ei = (u_terms & 2u) != 0u ? texelFetch(u_indirect, q, 0).rgb : vec3(0.0);
-    vec3 lds = (u_terms & 4u) != 0u ? texelFetch(u_specular, q, 0).rgb : vec3(0.0);
-    return le + m.kd.rgb * (ldd + ei * 0.31830988618379067) + m.ks.rgb * lds;
+    return (code & 1u) != 0u ? u_materials[(code >> 1) - 1u].le.rgb : vec3(0.0); // front side only
 }
 
 void main()
 {
-    ivec2 p = ivec2(gl_FragCoord.xy) * SS;
-    vec3 c0 = shade(p);
-#if SS > 1
-    vec3 d = vec3(0.0);
-    for (int j = 0; j < SS; ++j)
-        for (int i = 0; i < SS; ++i)
-            if (i + j > 0) d += shade(p + ivec2(i, j)) - c0;
-    c0 += d * (1.0 / float(SS * SS));
+    ivec2 o = ivec2(gl_FragCoord.xy);
+    vec3 c = vec3(0.0);
+#if SS == 1
+    uint code = texelFetch(u_code, o, 0).r;
+    if (code != 0u) {
+        material m = u_materials[(code >> 1) - 1u];
+        if ((u_terms & 8u) != 0u) c = emitted(code);
+        if ((u_terms & 1u) != 0u) c += m.kd.rgb * texelFetch(u_direct, o, 0).rgb;
+        if ((u_terms & 2u) != 0u) c += m.kd.rgb * (texelFetch(u_indirect, o, 0).rgb * 0.31830988618379067);
+        if ((u_terms & 4u) != 0u) c += m.ks.rgb * texelFetch(u_specular, o, 0).rgb;
+    }
+#else
+    if ((u_terms & 8u) != 0u) {
+        ivec2 p = o * SS;
+        c = emitted(texelFetch(u_code, p, 0).r);
+        vec3 d = vec3(0.0);
+        for (int j = 0; j < SS; ++j)
+            for (int i = 0; i < SS; ++i)
+                if (i + j > 0) d += emitted(texelFetch(u_code, p + ivec2(i, j), 0).r) - c;
+        c += d * (1.0 / float(SS * SS));
+    }
+    if ((u_terms & 1u) != 0u) c += texelFetch(u_direct, o, 0).rgb;
+    if ((u_terms & 2u) != 0u) c += texelFetch(u_indirect, o, 0).rgb;
+    if ((u_terms & 4u) != 0u) c += texelFetch(u_specular, o, 0).rgb;
 #endif
-    o_rgb = vec4(c0, 1.0);
+    o_rgb = vec4(c, 1.0);
 }

@@ -29,31 +29,43 @@ typedef struct rect {
 } rect;
 
 /* One radiance term: its snapshot mesh on the GPU, a CPU copy of it (to find
- * what the next snapshot changed) and its image with its own depth. */
+ * what the next snapshot changed) and its image for the composite, output-sized:
+ * at s = 1 its radiance image, drawn into directly (with the shared depth); at
+ * s > 1 its resolved image (coef·L box-filtered over each pixel's samples,
+ * rend_resolve.frag), the radiance drawn into the shared val_tex first. */
 typedef struct term_state {
-    GLuint vbo, vao, fbo, tex, depth;
+    GLuint vbo, vao, fbo, tex;
     size_t vbo_cap;                /* bytes allocated in vbo */
     cache_snapshot_vertex *copy;   /* what vbo holds, 3 per triangle */
     uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
     uint32_t tris, copy_cap;       /* triangles in vbo and copy; allocated in copy and hash */
     int hash_valid;
     const cache_snapshot_vertex *src; /* the snapshot array it came from */
-    int drawn;                     /* tex and depth hold the copy drawn with val_vp */
+    int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
 } term_state;
 
 struct rend_frame {
     rend_frame_desc desc;            /* supersample resolved */
     const GladGLContext *gl;
     int sw, sh;                      /* sample images: s·width × s·height */
-    GLuint prog_material, prog_value, prog_composite;
-    GLint loc_mat_vp, loc_val_vp, loc_comp_terms;
+    GLuint prog_material, prog_value, prog_resolve, prog_composite;
+    GLint loc_mat_vp, loc_val_vp, loc_res_term, loc_comp_terms;
     GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
     GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
     unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
     float jitter[2];                 /* rend_frame_set_jitter: output pixels, right and down */
     int comp_valid;                  /* the output holds the composite of the current inputs ... */
     unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
-    GLuint mat_fbo, mat_tex, mat_depth; /* R32UI material codes */
+    /* Sample images (s·width × s·height). Only the material codes are kept
+     * between draws; the depth is every pass's (each clears it where it draws)
+     * and, at s > 1, the radiance image each term's in turn, resolved before the
+     * next term is drawn into it: 24 bytes a sample and 64 a pixel instead of 68
+     * a sample (docs/memory.md). At s = 1 a resolved image would be as large as
+     * the radiance image and cost a pass: each term keeps its own (56 bytes a
+     * pixel). */
+    GLuint mat_fbo, mat_tex;         /* R32UI material codes, with depth */
+    GLuint val_fbo, val_tex;         /* s > 1: RGBA32F radiance of the term being drawn, with depth; else 0 */
+    GLuint depth;                    /* DEPTH_COMPONENT32F, attached to all that draw */
     GLuint out_fbo, out_tex;
     GLuint empty_vao;
     term_state term[TERMS];          /* L_dd, E_i, L_ds */
@@ -75,6 +87,7 @@ struct rend_frame {
 
 static const char *const material_names[] = {"rend_material.vert", "rend_material.frag", NULL};
 static const char *const value_names[] = {"rend_value.vert", "rend_value.frag", NULL};
+static const char *const resolve_names[] = {"rend_composite.vert", "rend_resolve.frag", NULL};
 static const char *const composite_names[] = {"rend_composite.vert", "rend_composite.frag", NULL};
 
 void rend_frame_destroy(rend_frame *f)
@@ -82,22 +95,21 @@ void rend_frame_destroy(rend_frame *f)
     if (!f) return;
     const GladGLContext *gl = f->gl;
     if (gl) {
-        GLuint progs[3] = {f->prog_material, f->prog_value, f->prog_composite};
-        for (int i = 0; i < 3; ++i)
+        GLuint progs[4] = {f->prog_material, f->prog_value, f->prog_resolve, f->prog_composite};
+        for (int i = 0; i < 4; ++i)
             if (progs[i]) gl->DeleteProgram(progs[i]);
         GLuint bufs[2] = {f->scene_vbo, f->material_ssbo}, vaos[2] = {f->scene_vao, f->empty_vao};
-        GLuint texs[2] = {f->mat_tex, f->out_tex}, fbos[2] = {f->mat_fbo, f->out_fbo};
+        GLuint texs[3] = {f->mat_tex, f->val_tex, f->out_tex}, fbos[3] = {f->mat_fbo, f->val_fbo, f->out_fbo};
         gl->DeleteBuffers(2, bufs);
         gl->DeleteVertexArrays(2, vaos);
-        gl->DeleteTextures(2, texs);
-        gl->DeleteRenderbuffers(1, &f->mat_depth);
-        gl->DeleteFramebuffers(2, fbos);
+        gl->DeleteTextures(3, texs);
+        gl->DeleteRenderbuffers(1, &f->depth);
+        gl->DeleteFramebuffers(3, fbos);
         for (int t = 0; t < TERMS; ++t) {
             term_state *ts = &f->term[t];
             gl->DeleteBuffers(1, &ts->vbo);
             gl->DeleteVertexArrays(1, &ts->vao);
             gl->DeleteTextures(1, &ts->tex);
-            gl->DeleteRenderbuffers(1, &ts->depth);
             gl->DeleteFramebuffers(1, &ts->fbo);
         }
     }
@@ -210,6 +222,7 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     lm_result r = f->readback ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
     if (r == LM_OK) r = glprog_build(gl, "renderer", material_names, "", &f->prog_material, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, "", &f->prog_value, err);
+    if (r == LM_OK && ss > 1) r = glprog_build(gl, "renderer", resolve_names, defines, &f->prog_resolve, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", composite_names, defines, &f->prog_composite, err);
     if (r == LM_OK) r = upload_scene(f, err);
     if (r != LM_OK) {
@@ -218,33 +231,39 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     }
     f->loc_mat_vp = gl->GetUniformLocation(f->prog_material, "u_viewproj");
     f->loc_val_vp = gl->GetUniformLocation(f->prog_value, "u_viewproj");
+    if (ss > 1) f->loc_res_term = gl->GetUniformLocation(f->prog_resolve, "u_term");
     f->loc_comp_terms = gl->GetUniformLocation(f->prog_composite, "u_terms");
     gl->CreateVertexArrays(1, &f->empty_vao);
 
+    f->depth = depth_target(gl, f->sw, f->sh);
     gl->CreateFramebuffers(1, &f->mat_fbo);
     f->mat_tex = color_target(gl, GL_R32UI, f->sw, f->sh);
-    f->mat_depth = depth_target(gl, f->sw, f->sh);
     gl->NamedFramebufferTexture(f->mat_fbo, GL_COLOR_ATTACHMENT0, f->mat_tex, 0);
-    gl->NamedFramebufferRenderbuffer(f->mat_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->mat_depth);
-
+    gl->NamedFramebufferRenderbuffer(f->mat_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
     /* RGBA32F: an RGBA16F image was no faster to draw on llvmpipe (the cost
      * is per triangle) and would overflow above 65504 (docs/renderer.md). */
+    if (ss > 1) {
+        gl->CreateFramebuffers(1, &f->val_fbo);
+        f->val_tex = color_target(gl, GL_RGBA32F, f->sw, f->sh);
+        gl->NamedFramebufferTexture(f->val_fbo, GL_COLOR_ATTACHMENT0, f->val_tex, 0);
+        gl->NamedFramebufferRenderbuffer(f->val_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
+    }
     for (int t = 0; t < TERMS; ++t) {
         term_state *ts = &f->term[t];
         gl->CreateVertexArrays(1, &ts->vao);
         gl->CreateFramebuffers(1, &ts->fbo);
-        ts->tex = color_target(gl, GL_RGBA32F, f->sw, f->sh);
-        ts->depth = depth_target(gl, f->sw, f->sh);
+        ts->tex = color_target(gl, GL_RGBA32F, w, h);
         gl->NamedFramebufferTexture(ts->fbo, GL_COLOR_ATTACHMENT0, ts->tex, 0);
-        gl->NamedFramebufferRenderbuffer(ts->fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, ts->depth);
+        if (ss == 1) gl->NamedFramebufferRenderbuffer(ts->fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
     }
 
     gl->CreateFramebuffers(1, &f->out_fbo);
     f->out_tex = color_target(gl, GL_RGBA32F, w, h);
     gl->NamedFramebufferTexture(f->out_fbo, GL_COLOR_ATTACHMENT0, f->out_tex, 0);
 
-    GLuint fbos[2 + TERMS] = {f->mat_fbo, f->out_fbo, f->term[0].fbo, f->term[1].fbo, f->term[2].fbo};
-    for (int i = 0; i < 2 + TERMS; ++i)
+    GLuint fbos[3 + TERMS] = {f->mat_fbo, f->out_fbo, f->term[0].fbo, f->term[1].fbo, f->term[2].fbo,
+                              f->val_fbo};
+    for (int i = 0; i < 2 + TERMS + (ss > 1); ++i)
         if (gl->CheckNamedFramebufferStatus(fbos[i], GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
             rend_frame_destroy(f);
             return lm_fail(err, LM_ERR_RUNTIME, "renderer: a %dx%d framebuffer is not complete on this GL", f->sw,
@@ -528,8 +547,9 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
         tt->material = lap(gl, &t0);
     }
 
-    /* Snapshot: what changed, and where. */
-    int same_camera = f->val_valid && memcmp(vp, f->val_vp, sizeof vp) == 0;
+    /* Snapshot: what changed, and where. The resolved terms hold the material
+     * codes of the images they were drawn with: a new material image redraws them. */
+    int same_camera = tt->material_reused && f->val_valid && memcmp(vp, f->val_vp, sizeof vp) == 0;
     rect dirty[TERMS];
     int uploads = 0;
     lm_result r = update_snapshot(f, snap, vp, same_camera, dirty, &uploads, err);
@@ -538,11 +558,15 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
 
     /* Radiance: each term where it changed (all of it when the camera moved),
      * cleared and redrawn with every triangle of its mesh inside the dirty
-     * rectangle, so the image equals a full redraw. An empty mesh is neither
-     * cleared nor drawn: the composite takes its term as 0. */
+     * rectangle, so the image equals a full redraw there; at s > 1 then
+     * resolved into the term's output-sized image over the same pixels (the
+     * rectangle is widened to whole pixels), before the next term draws into
+     * the shared radiance image. An empty mesh is neither cleared nor drawn:
+     * the composite takes its term as 0. */
     unsigned terms = 0;
     double redrawn = 0.0, present = 0.0;
     int drew = 0;
+    const int ss = f->desc.supersample;
     for (int t = 0; r == LM_OK && t < TERMS; ++t) {
         term_state *ts = &f->term[t];
         if (!ts->tris) {
@@ -552,25 +576,48 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
         terms |= 1u << t;
         present += 1.0;
         if (rect_empty(&dirty[t])) continue;
-        const rect *d = &dirty[t];
-        int part = d->x0 > 0 || d->y0 > 0 || d->x1 < f->sw || d->y1 < f->sh;
-        if (!drew) {
-            gl->UseProgram(f->prog_value);
-            gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
-            drew = 1;
-        }
+        rect d = dirty[t]; /* in samples, widened to whole pixels (f->sw = s·width) */
+        d.x0 -= d.x0 % ss;
+        d.y0 -= d.y0 % ss;
+        d.x1 += (ss - d.x1 % ss) % ss;
+        d.y1 += (ss - d.y1 % ss) % ss;
+        int part = d.x0 > 0 || d.y0 > 0 || d.x1 < f->sw || d.y1 < f->sh;
+        gl->Enable(GL_DEPTH_TEST);
+        gl->Viewport(0, 0, f->sw, f->sh);
         if (part) {
             gl->Enable(GL_SCISSOR_TEST);
-            gl->Scissor(d->x0, d->y0, d->x1 - d->x0, d->y1 - d->y0);
+            gl->Scissor(d.x0, d.y0, d.x1 - d.x0, d.y1 - d.y0);
         }
-        gl->ClearNamedFramebufferfv(ts->fbo, GL_COLOR, 0, zero);
-        gl->ClearNamedFramebufferfv(ts->fbo, GL_DEPTH, 0, &far_depth);
-        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->fbo);
+        GLuint target = f->val_fbo ? f->val_fbo : ts->fbo;
+        gl->ClearNamedFramebufferfv(target, GL_COLOR, 0, zero);
+        gl->ClearNamedFramebufferfv(target, GL_DEPTH, 0, &far_depth);
+        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
+        gl->UseProgram(f->prog_value);
+        gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
         gl->BindVertexArray(ts->vao);
         gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * ts->tris));
-        if (part) gl->Disable(GL_SCISSOR_TEST);
         ts->drawn = 1;
-        redrawn += (double)(d->x1 - d->x0) * (double)(d->y1 - d->y0) / ((double)f->sw * (double)f->sh);
+        drew = 1;
+        redrawn += (double)(d.x1 - d.x0) * (double)(d.y1 - d.y0) / ((double)f->sw * (double)f->sh);
+        if (!f->val_fbo) {
+            if (part) gl->Disable(GL_SCISSOR_TEST);
+            continue;
+        }
+        /* Resolve: one full-screen triangle over the term's pixels of the output. */
+        gl->Disable(GL_DEPTH_TEST);
+        gl->Viewport(0, 0, w, h);
+        if (part) gl->Scissor(d.x0 / ss, d.y0 / ss, (d.x1 - d.x0) / ss, (d.y1 - d.y0) / ss);
+        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->fbo);
+        gl->UseProgram(f->prog_resolve);
+        gl->Uniform1ui(f->loc_res_term, (GLuint)t);
+        GLuint inputs[2] = {f->mat_tex, f->val_tex};
+        gl->BindTextures(0, 2, inputs);
+        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
+        gl->BindVertexArray(f->empty_vao);
+        gl->DrawArrays(GL_TRIANGLES, 0, 3);
+        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
+        gl->BindTextures(0, 2, NULL);
+        if (part) gl->Disable(GL_SCISSOR_TEST);
     }
     if (r == LM_OK) {
         memcpy(f->val_vp, vp, sizeof vp);

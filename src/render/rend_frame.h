@@ -16,14 +16,19 @@
  * times the output's size, so their samples are the centres of an s×s grid in
  * each pixel; the composite is evaluated per sample and averaged (the reference
  * path tracer box-filters each pixel too). s = 1 samples the pixel centres.
+ * The composite is linear in its terms, so at s > 1 each radiance term is
+ * resolved (its product with the material, box-filtered) into an output-sized
+ * image as soon as it is drawn, and the three terms take turns in one
+ * sample-sized radiance image (docs/memory.md).
  *
  * What is redrawn: the material image depends only on the camera, so a draw
  * with the same camera as the last one keeps it. Each radiance image depends on
  * the camera and its mesh: with the same camera, a mesh whose triangles are the
  * same bytes as last time is neither uploaded nor drawn, and a changed one is
  * redrawn only inside the bounding rectangle of the triangles that changed
- * (cleared there and drawn with all its triangles, so the image is bit for bit
- * what a full redraw gives: tests/rend_frame_test.c). A camera move redraws
+ * (widened to whole pixels, cleared there, drawn with all its triangles and
+ * resolved there, so the image is bit for bit what a full redraw gives:
+ * tests/rend_frame_test.c). A camera move redraws
  * everything. So a still camera under a refining cache costs what changed, a
  * still camera on a converged cache only the composite (rend_frame_times says
  * what was reused). A snapshot with the generation and arrays of the one drawn
@@ -46,8 +51,10 @@
  *     // sample o.texture in a tone-mapping pass drawn to the window (linear values are
  *     // not displayable as they are), or blit o.framebuffer for a debug view
  *
- * Memory: 68 bytes of GL images per sample (s²·width·height samples) and a CPU
- * copy of the snapshot's meshes (24 bytes per triangle corner).
+ * Memory: GL images of 24 bytes per sample (s²·width·height samples: material
+ * code, depth, the radiance image) and 64 per pixel (three resolved terms, the
+ * output) at s > 1; 72 per pixel at s = 1 (code, depth, three radiance images,
+ * output); a CPU copy of the snapshot's meshes (24 bytes per triangle corner).
  * Threads: everything on the thread where gl's context is current.
  * Viewer controls (cheap: only the composite uses them, it runs every draw):
  *     rend_frame_set_components(f, REND_FRAME_COMPONENTS_ALL & ~REND_FRAME_COMPONENT_INDIRECT);
@@ -83,7 +90,7 @@ enum {
     REND_FRAME_SUPERSAMPLE_DEFAULT = 3,         /* s for desc.supersample = 0 (offline renders:
                                                    docs/renderer.md has the error and cost per s) */
     REND_FRAME_DEFAULT_SAMPLES_MAX = 1 << 23,   /* ...lowered until s²·width·height is at most this
-                                                   (68 bytes of GL images per sample: 570 MB) */
+                                                   (24 bytes of GL images per sample: 200 MB) */
     REND_FRAME_SUPERSAMPLE_MAX = 8
 };
 
@@ -104,8 +111,9 @@ typedef struct rend_frame_times {
     double material;         /* material image (s·width × s·height) */
     double upload;           /* the snapshot: comparing each mesh with the one drawn before, finding
                                 where it changed, copying changed meshes to GL */
-    double radiance;         /* drawing the radiance images (s·width × s·height), changed parts only */
-    double composite;        /* per-sample composite and box filter into the output (width × height) */
+    double radiance;         /* drawing the radiance images (s·width × s·height) and, at s > 1, resolving
+                                them, changed parts only */
+    double composite;        /* the terms and the box-filtered emission into the output (width × height) */
     double readback;         /* output to rgb on the CPU; 0 for a draw with rgb = NULL */
     double total;            /* the whole call: the above plus state changes */
     double radiance_redrawn; /* share of the (non-empty) radiance images' pixels redrawn: 1 after a
@@ -142,7 +150,7 @@ void rend_frame_get_times(const rend_frame *f, rend_frame_times *out);
 void rend_frame_get_output(const rend_frame *f, rend_frame_output *out);
 
 /* Which terms the composite adds (REND_FRAME_COMPONENT_* bits; default all).
- * Applied at the next draw; the radiance images are kept. */
+ * Applied at the next draw; the terms' images are kept. */
 void rend_frame_set_components(rend_frame *f, unsigned components);
 unsigned rend_frame_get_components(const rend_frame *f);
 /* Moves every sample of the next draws by (jx, jy) output pixels (right, down)
