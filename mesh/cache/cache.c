@@ -134,6 +134,7 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounce_rays must be a square up to 4096, not %u", rays);
     if (!(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f) || (unsigned)desc->scheduler >= CACHE_SCHED_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache: the JND and leaf size must be non-negative");
+    const double t_create = lm_now_seconds();
     cache *c = calloc(1, sizeof *c);
     if (!c) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
     c->desc = *desc;
@@ -187,6 +188,7 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
         cache_destroy(c);
         return r;
     }
+    c->startup.create_seconds = lm_now_seconds() - t_create;
     *out = c;
     return LM_OK;
 }
@@ -353,6 +355,14 @@ static lm_result gather_roots(cache *c, const uint32_t *v, uint32_t n, float *E,
     return r;
 }
 
+/* Adds the time since *t to *spent when timed; *t becomes now. */
+static void lap(double *spent, int timed, double *t)
+{
+    double now = lm_now_seconds();
+    if (timed) *spent += now - *t;
+    *t = now;
+}
+
 /* The coarse cache over triangles tris[0..ntris) (NULL: every active one): the
  * root corners of the light meshes, then of the direct and specular meshes (from
  * the light meshes), the further bounces' transport over what is active, the
@@ -363,6 +373,9 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
 {
     uint32_t *v = NULL, n = 0;
     lm_result r = LM_OK;
+    /* The first time, where the time goes (cache_stats.startup). */
+    const int timed = !c->initialised;
+    double t = lm_now_seconds();
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
         if (!c->light[l]) continue;
         r = root_vertices(c, c->light[l], tris, ntris, &v, &n, err);
@@ -370,8 +383,10 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
         free(v);
         v = NULL;
     }
+    lap(&c->startup.light_seconds, timed, &t);
     if (r == LM_OK) r = sample_roots(c, CACHE_KIND_DIRECT, tris, ntris, err);
     if (r == LM_OK && c->specular) r = sample_roots(c, CACHE_KIND_SPECULAR, tris, ntris, err);
+    lap(&c->startup.values_seconds, timed, &t);
     /* Further bounces through E_m in the source, from a transport traced here
      * (cache_bounces.c) over the triangles that take part: traced again when an
      * eighth more take part (until then the newer ones get no E_m). */
@@ -386,6 +401,7 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
         c->bounce_active_at = c->active_count;
     }
     if (r == LM_OK) r = cache_update_radiance_source(c, 1, err);
+    lap(&c->startup.source_seconds, timed, &t);
     if (r == LM_OK) r = root_vertices(c, c->indirect, tris, ntris, &v, &n, err);
     float *E = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E) : NULL;
     if (r == LM_OK && !E) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
@@ -393,6 +409,7 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
     for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, v[i], E + 3 * (size_t)i, err);
     free(E);
     free(v);
+    lap(&c->startup.gather_seconds, timed, &t);
     return r;
 }
 
@@ -426,6 +443,7 @@ lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err)
     if (c->initialised) return LM_OK;
     uint32_t *tris = NULL, n = 0;
     lm_result r = LM_OK;
+    const double t0 = lm_now_seconds();
     if (pixels) {
         c->active = calloc(c->s->tri_count ? c->s->tri_count : 1, 1);
         c->active_count = 0;
@@ -434,8 +452,11 @@ lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err)
     } else {
         c->active_count = c->s->tri_count;
     }
+    c->startup.reach_seconds = lm_now_seconds() - t0;
     if (r == LM_OK) r = sample_coarse(c, NULL, 0, err);
     if (r == LM_OK) c->initialised = 1;
+    for (uint32_t l = 0; l < c->light_count; ++l) c->startup.light_samples += c->vis.light_stats[l].samples;
+    c->startup.gathers = c->src.indirect_stats.samples;
     return r;
 }
 
@@ -537,6 +558,7 @@ void cache_get_stats(cache *c, cache_stats *out)
     }
     out->active_triangles = c->active_count;
     out->reach_rays = c->reach_rays;
+    out->startup = c->startup;
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
     out->bytes += vs.bytes + cache_light_state_bytes(&c->vis, c->light_count) + c->outl.bytes +

@@ -158,14 +158,24 @@ typedef struct cache_estimate {
     float jnd;                /* the JND it was measured against */
 } cache_estimate;
 
+/* Indirect values a rebuilt source moved that one cache_refine call gathers
+ * again, per leaf of its budget, unless cache_refine_desc.regather says. */
+#define CACHE_REGATHER_PER_LEAF 8
+
 typedef struct cache_refine_desc {
     const uint32_t *pixels;   /* per scene triangle, pixels it covers (rend_id); NULL: all 1e6 */
     uint32_t budget;          /* leaves to test in this call; 0 = 256 */
+    uint32_t regather;        /* at most this many outdated indirect values gathered again first;
+                                 0 = CACHE_REGATHER_PER_LEAF × budget. A caller that caps the leaf
+                                 tests (a total to reach) keeps this at its step's size: the values
+                                 are owed to the coarse cache, not leaf tests */
 } cache_refine_desc;
 
 typedef struct cache_refine_result {
     uint32_t tested, split, undone;  /* leaves tested; splits kept; splits undone (found nothing) */
-    uint32_t remaining;              /* leaves still waiting to be tested */
+    uint32_t remaining;              /* leaves still waiting to be tested, and outdated values */
+    uint32_t outdated;               /* indirect values still waiting to be gathered again (no leaf is
+                                        tested until they are) */
     uint32_t regathered_finer;       /* indirect values gathered again with more rays (their noise was seen) */
     int converged;                   /* nothing left to do, and the estimate is below the JND
                                         (cache_estimate_converged) */
@@ -262,6 +272,19 @@ typedef struct cache_bounce_stats {
     uint64_t updates;         /* times re-evaluated (source rebuilds, light edits) */
 } cache_bounce_stats;
 
+/* Where the time before the first image went (cache_create and the first
+ * cache_init_seen / cache_init; wall seconds on the calling thread). */
+typedef struct cache_startup_stats {
+    double create_seconds;  /* cache_create: the vertex table and every mesh's roots */
+    double reach_seconds;   /* finding what takes part (seen triangles and what they reach) */
+    double light_seconds;   /* light samples at the light meshes' root corners */
+    double values_seconds;  /* direct and specular root values from the light meshes */
+    double source_seconds;  /* further bounces' transport and the indirect source */
+    double gather_seconds;  /* the indirect mesh's root values (gathers, borrowed ones) */
+    uint64_t light_samples; /* light samples taken by the first cache_init_seen */
+    uint64_t gathers;       /* indirect samples taken by it */
+} cache_startup_stats;
+
 typedef struct cache_stats {
     uint32_t light_count;
     cache_mesh_stats direct, indirect, specular; /* specular: all zero when there is no specular mesh */
@@ -274,6 +297,7 @@ typedef struct cache_stats {
     cache_bounce_stats bounces;
     uint32_t active_triangles;  /* scene triangles taken part (cache_init_seen); all of them after cache_init */
     uint64_t reach_rays;        /* rays traced to find what the seen triangles' gathers reach */
+    cache_startup_stats startup;
     size_t bytes;               /* everything: meshes, vertex table, bookkeeping */
 } cache_stats;
 

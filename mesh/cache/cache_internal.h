@@ -261,6 +261,7 @@ struct cache {
                                   an emitter the viewer sees (cache_sees_front) */
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
     int initialised;
+    cache_startup_stats startup; /* written by cache.c, once (cache_create, the first init) */
     /* Which scene triangles take part (allocated by cache.c's cache_init_seen;
      * these fields up to part_tris written by cache_reach.c, which takes
      * triangles part, bounce_active_at by cache.c; read by every file): an

@@ -738,7 +738,6 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
 /* What changed under the refinement's feet: values inside falsified light leaves
  * (cache_light.c) and indirect values the source has moved (cache_source.c); their leaves are tested
  * again. */
-enum { REGATHER_PER_LEAF = 8 };
 
 static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, lm_error *err)
 {
@@ -791,21 +790,17 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
         if (root != MESH_QMESH_NONE && (!pixels || pixels[t] > 0) && cache_tri_active(c, t))
             c->sched.roots[kind][c->sched.root_count[kind]++] = root;
     }
-    /* Rare (a start, an edit): a buffer of its own, not kept. */
-    mesh_qmesh_tri *tris = NULL;
-    size_t count = 0, cap = 0;
-    lm_result r = mesh_qmesh_leaf_triangles(m, &tris, &cap, &count, err);
-    uint32_t last = MESH_QMESH_NONE;
-    for (size_t i = 0; r == LM_OK && i < count; ++i) {
-        uint32_t leaf = tris[i].leaf;
-        if (leaf == last) continue; /* a fan emits several triangles per leaf */
-        last = leaf;
+    /* Every live leaf, in node order (as mesh_qmesh_leaf_triangles visits them,
+     * without making their triangles: 0.11 s of the 116k box's start). */
+    lm_result r = LM_OK;
+    const uint32_t limit = mesh_qmesh_node_limit(m);
+    for (uint32_t leaf = 0; r == LM_OK && leaf < limit; ++leaf) {
         const mesh_qnode *n = mesh_qmesh_node(m, leaf);
+        if (!n || n->child != MESH_QMESH_NONE) continue;
         if (!cache_tri_active(c, n->tri)) continue; /* unsampled roots: nothing to test yet */
         float p = leaf_priority(c, m, kind, leaf, n, pixels); /* 0: unseen and nothing gathers from it */
         r = sched_add(c, kind, leaf, p, err);
     }
-    free(tris);
     return r;
 }
 
@@ -822,12 +817,12 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     uint32_t fifth = budget / 5 ? budget / 5 : 1;
     uint32_t left[CACHE_KINDS] = {0, fifth, c->specular ? fifth : 0};
     left[KIND_DIRECT] = budget > left[1] + left[2] ? budget - left[1] - left[2] : 1;
-    /* Values a rebuilt source moved are gathered again, at most REGATHER_PER_LEAF
-     * per leaf of the budget in one call: a big scene's first rebuild can flag
+    /* Values a rebuilt source moved are gathered again, at most desc->regather
+     * (CACHE_REGATHER_PER_LEAF per leaf of the budget) in one call: a big scene's first rebuild can flag
      * most of its hundreds of thousands of values, and one call is one step of the
      * worker (the first image waits for the first). What is left waits for the
      * next call, which does nothing else until it is done. */
-    uint64_t allowance = (uint64_t)REGATHER_PER_LEAF * budget;
+    uint64_t allowance = desc->regather ? desc->regather : (uint64_t)CACHE_REGATHER_PER_LEAF * budget;
     /* Changes made outside refinement (coarse cache, a camera move). */
     if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
     int settled = 0, finer = 0;
@@ -864,6 +859,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     }
     /* Values still waiting to be gathered again count as work left. */
     res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] + c->src.outdated_n);
+    res.outdated = c->src.outdated_n;
     if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0) {
         r = cache_estimate_error(c, desc->pixels, &res.estimate, err);
         res.estimated = r == LM_OK;

@@ -67,6 +67,10 @@ typedef struct cache_snapshot {
     samp_stats sampler;          /* the worker's sampler when it was made: back ends, samples, seconds */
     samp_stats quick_sampler;    /* the quick start's sampler (the coarse cache); zero without one */
     double published_at;         /* lm_now_seconds() when it was committed */
+    double first_rounds_seconds; /* the worker's refinement rounds before the first image (the cache's
+                                    own start-up is stats.startup) */
+    double first_publish_seconds; /* the first image's estimate and snapshot; 0 in the first snapshot
+                                     itself (measured as it is made) */
     uint64_t tested;             /* leaves tested so far */
     int converged;               /* nothing was left to do and the estimate was below the cache's JND
                                     (cache_desc.jnd, cache_estimate_converged) when it was made, or

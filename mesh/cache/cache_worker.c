@@ -59,6 +59,7 @@ struct cache_worker {
     samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
     cache_estimate estimate;          /* the worker's: the last error estimate, and when it was made */
     uint64_t first_tested;            /* the worker's: leaves tested before the first publication */
+    double first_rounds_seconds, first_publish_seconds; /* the worker's: cache_snapshot's */
     /* The worker's: AUTO's calibration, deferred to the first convergence; the
      * Embree sampler it replaced, kept until the calibrated one has shown its cost
      * on the cache's own samples (calibrated_check). */
@@ -161,10 +162,13 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
  * convergence claim, cache_refine_result.estimate, not made twice). */
 #define ESTIMATE_SECONDS 0.5
 
-static lm_result fill_snapshot(snapshot_store *st, cache *c, const cache_estimate *estimate, int debug,
+static lm_result fill_snapshot(cache_worker *w, cache *c, const cache_estimate *estimate, int debug,
                                uint64_t generation, uint64_t tested, int converged, mesh_qmesh_tri **buf,
                                size_t *buf_cap, lm_error *err)
 {
+    snapshot_store *st = w->back;
+    st->snap.first_rounds_seconds = w->first_rounds_seconds;
+    st->snap.first_publish_seconds = w->first_publish_seconds;
     lm_result r = fill_mesh(&st->mesh[0], &st->snap.direct, debug, c, cache_direct_mesh(c), buf, buf_cap, err);
     if (r == LM_OK)
         r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), buf, buf_cap, err);
@@ -255,19 +259,23 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     if (r == LM_OK) r = cache_init_seen(*c, w->pixels, err);
     /* A few rounds before the first image, by the pixel counts given at creation
      * (measured in docs/renderer.md, "The first image"). */
+    double t = lm_now_seconds();
     if (r == LM_OK && w->desc.first_budget && w->pixels) {
         cache_refine_result res;
         r = cache_refine(*c, &(cache_refine_desc){.pixels = w->pixels, .budget = w->desc.first_budget}, &res, err);
         if (r == LM_OK) w->first_tested = res.tested;
     }
+    w->first_rounds_seconds = lm_now_seconds() - t;
+    t = lm_now_seconds();
     pthread_mutex_lock(&w->lock);
     int debug = w->debug_wanted;
     pthread_mutex_unlock(&w->lock);
     if (r == LM_OK) r = cache_estimate_error(*c, w->pixels, &w->estimate, err);
     w->estimate_at = lm_now_seconds();
     if (r == LM_OK)
-        r = fill_snapshot(w->back, *c, &w->estimate, debug, ++*generation, w->first_tested, 0, buf, buf_cap, err);
+        r = fill_snapshot(w, *c, &w->estimate, debug, ++*generation, w->first_tested, 0, buf, buf_cap, err);
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
+    w->first_publish_seconds = lm_now_seconds() - t;
     if (r == LM_OK) commit(w);
     if (r == LM_OK && !w->desc.no_quick_start) samp_get_stats(first, &w->quick_stats);
     if (w->desc.no_quick_start) {
@@ -394,6 +402,7 @@ static void *worker_main(void *arg)
     uint64_t generation = 0;
     lm_result r = start_cache(w, &sp, &c, &generation, &buf, &buf_cap, &err);
     uint64_t tested = w->first_tested;
+    uint32_t owed = 1; /* outdated indirect values left by the last refinement (unknown before it) */
     int idle = 0; /* converged or max_tested reached: wait for an edit */
     /* Never plateau (desc.jnd_floor): the cache's own JND, and whether it has
      * converged there since the last edit or view. */
@@ -461,11 +470,21 @@ static void *worker_main(void *arg)
             if (r != LM_OK) break;
         }
         cache_refine_result res = {0};
-        uint32_t budget = w->desc.step_budget ? w->desc.step_budget : 512;
-        if (w->desc.max_tested && tested + budget > w->desc.max_tested) budget = (uint32_t)(w->desc.max_tested - tested);
+        const uint32_t step = w->desc.step_budget ? w->desc.step_budget : 512;
+        uint32_t budget = step;
+        /* max_tested counts leaf tests; the values the first image borrowed are
+         * owed to the coarse cache whatever it says (a budget of one while they
+         * are: no leaf is tested until they are gathered). */
+        if (w->desc.max_tested && tested + budget > w->desc.max_tested)
+            budget = tested < w->desc.max_tested ? (uint32_t)(w->desc.max_tested - tested) : owed != 0;
         if (paused) budget = 0; /* an edit while paused: applied and published, nothing refined */
-        if (budget) r = cache_refine(c, &(cache_refine_desc){.pixels = w->pixels, .budget = budget}, &res, &err);
+        if (budget)
+            r = cache_refine(c,
+                             &(cache_refine_desc){.pixels = w->pixels, .budget = budget,
+                                                  .regather = CACHE_REGATHER_PER_LEAF * step},
+                             &res, &err);
         if (r != LM_OK) break;
+        if (budget) owed = res.outdated;
         tested += res.tested;
         /* Converged: the cache's estimate says so (cache_estimate_converged); nothing
          * left to do without converging (stuck) idles too, and says so. After an edit
@@ -474,7 +493,7 @@ static void *worker_main(void *arg)
         if (converged_now && !reached) reached_at = lm_now_seconds();
         reached |= converged_now;
         idle = (!paused && budget && (res.converged || res.stuck)) ||
-               (w->desc.max_tested && tested >= w->desc.max_tested);
+               (w->desc.max_tested && tested >= w->desc.max_tested && !owed);
         /* Converged above the floor: half the JND, and on (the estimate and the
          * snapshot below are still the converged ones; the next step requeues). */
         float jnd = cache_get_jnd(c);
@@ -490,7 +509,7 @@ static void *worker_main(void *arg)
         }
         if (r == LM_OK && w->fallback) calibrated_check(w, c, &sp);
         if (r == LM_OK)
-            r = fill_snapshot(w->back, c, &w->estimate, debug, ++generation, tested, reached, &buf, &buf_cap, &err);
+            r = fill_snapshot(w, c, &w->estimate, debug, ++generation, tested, reached, &buf, &buf_cap, &err);
         w->back->snap.finished = idle && !tighten;
         w->back->snap.converged_at = reached ? reached_at : 0;
         if (r == LM_OK && tighten) {

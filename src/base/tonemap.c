@@ -90,10 +90,9 @@ static double lab_f(double t)
     return t > d * d * d ? cbrt(t) : t / (3.0 * d * d) + 4.0 / 29.0;
 }
 
-void tm_display_to_lab(const float display[3], float lab[3])
+/* Linear display RGB in [0,1] -> CIELAB. */
+static void lab_of_linear(const double lin[3], float lab[3])
 {
-    double lin[3];
-    for (int i = 0; i < 3; ++i) lin[i] = decode_d(display[i]); /* decode_d clamps, NaN -> 0 */
     double f[3];
     for (int r = 0; r < 3; ++r) {
         double xyz = k_rgb_to_xyz[r][0] * lin[0] + k_rgb_to_xyz[r][1] * lin[1] +
@@ -103,6 +102,20 @@ void tm_display_to_lab(const float display[3], float lab[3])
     lab[0] = (float)(116.0 * f[1] - 16.0);
     lab[1] = (float)(500.0 * (f[0] - f[1]));
     lab[2] = (float)(200.0 * (f[1] - f[2]));
+}
+
+void tm_display_to_lab(const float display[3], float lab[3])
+{
+    double lin[3];
+    for (int i = 0; i < 3; ++i) lin[i] = decode_d(display[i]); /* decode_d clamps, NaN -> 0 */
+    lab_of_linear(lin, lab);
+}
+
+void tm_linear_to_lab(const tm_desc *desc, const float linear[3], float lab[3])
+{
+    double scale = exposure_scale(desc), lin[3];
+    for (int i = 0; i < 3; ++i) lin[i] = isfinite(linear[i]) ? clamp01(scale * (double)linear[i]) : 0.0;
+    lab_of_linear(lin, lab);
 }
 
 float tm_delta_e(const float lab_a[3], const float lab_b[3])

@@ -33,6 +33,11 @@ void tm_to_rgb8(const tm_desc *desc, const float *in, int in_channels, size_t co
 
 /* Display sRGB in [0,1] -> CIELAB (D65 white), for ΔE. */
 void tm_display_to_lab(const float display[3], float lab[3]);
+/* Linear RGB (scene units) -> the CIELAB of its display colour: what
+ * tm_display_to_lab(tm_to_display(linear)) gives, without the sRGB encode and
+ * decode between them (they cancel; what is left is the clamp to [0,1] and
+ * float rounding, below 1e-4 ΔE). For the cache's many ΔE judgements. */
+void tm_linear_to_lab(const tm_desc *desc, const float linear[3], float lab[3]);
 /* CIE76 colour difference. */
 float tm_delta_e(const float lab_a[3], const float lab_b[3]);
 

@@ -129,6 +129,20 @@ cJSON *app_stats_json(const app_stats_desc *d)
     cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);
     cJSON_AddNumberToObject(j, "active_triangles", (double)st->active_triangles);
     cJSON_AddNumberToObject(j, "reach_rays", (double)st->reach_rays);
+    cJSON *su = cJSON_AddObjectToObject(j, "startup");
+    if (su) { /* where the time before the first image went (docs/stats.md) */
+        const cache_startup_stats *u = &st->startup;
+        cJSON_AddNumberToObject(su, "create_seconds", u->create_seconds);
+        cJSON_AddNumberToObject(su, "reach_seconds", u->reach_seconds);
+        cJSON_AddNumberToObject(su, "light_seconds", u->light_seconds);
+        cJSON_AddNumberToObject(su, "values_seconds", u->values_seconds);
+        cJSON_AddNumberToObject(su, "source_seconds", u->source_seconds);
+        cJSON_AddNumberToObject(su, "gather_seconds", u->gather_seconds);
+        cJSON_AddNumberToObject(su, "first_rounds_seconds", snap->first_rounds_seconds);
+        cJSON_AddNumberToObject(su, "first_publish_seconds", snap->first_publish_seconds);
+        cJSON_AddNumberToObject(su, "light_samples", (double)u->light_samples);
+        cJSON_AddNumberToObject(su, "gathers", (double)u->gathers);
+    }
     cJSON_AddNumberToObject(j, "bytes", (double)st->bytes);
     cJSON_AddItemToObject(j, "sampler", sampler_json(&snap->sampler, &snap->quick_sampler));
     cJSON *bn = cJSON_AddObjectToObject(j, "bounces");
