@@ -202,9 +202,87 @@ static void first_image_budget(void)
     scene_destroy(s);
 }
 
+/* Direct values at the three corners of every triangle with albedo, into out
+ * (3 corners × RGB a triangle; the lamp's are left 0). */
+static void corner_direct(cache *c, const scene *s, float *out)
+{
+    lm_error err;
+    const double at[3][2] = {{0, 0}, {1, 0}, {0, 1}};
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (int k = 0; k < 3; ++k)
+            if (cache_eval_direct(c, t, at[k][0], at[k][1], out + 9 * (size_t)t + 3 * (size_t)k, &err) != LM_OK)
+                memset(out + 9 * (size_t)t + 3 * (size_t)k, 0, 3 * sizeof *out);
+}
+
+/* The first image's budget of light samples (cache_desc.coarse_lights): light
+ * sampled at 64 of the 673 root corners, each other corner's visible fraction
+ * borrowed; after the first image (cache_regather_indirect) the refine calls
+ * sample the rest and every root value is what sampling every corner gives. */
+static void first_image_light_budget(void)
+{
+    /* A plate between the lamp and the ball: a penumbra over the ball's top. */
+    scene *s = load("startup_ball_light.xml",
+                    "  <shape type='sphere' id='ball'><point name='center' x='0.3' y='0.4' z='0'/>"
+                    "<float name='radius' value='0.4'/><ref id='white'/></shape>\n"
+                    "  <shape type='rectangle' id='plate'><transform name='toWorld'><scale value='0.2'/>"
+                    "<rotate x='1' angle='90'/><translate x='0.45' y='1.3'/></transform><ref id='white'/></shape>\n");
+    if (!s) return;
+    lm_error err;
+    samp_sampler *sa = NULL, *sb = NULL;
+    cache *a = NULL, *b = NULL;
+    const samp_desc sd = {.scene = s, .backend = SAMP_BACKEND_EMBREE, .seed = 3, .threads = 1};
+    int ok = samp_create(&sd, &sa, &err) == LM_OK && samp_create(&sd, &sb, &err) == LM_OK &&
+             cache_create(&(cache_desc){.scene = s, .sampler = sa, .coarse_lights = 64}, &a, &err) == LM_OK &&
+             cache_create(&(cache_desc){.scene = s, .sampler = sb}, &b, &err) == LM_OK && cache_init(a, &err) == LM_OK &&
+             cache_init(b, &err) == LM_OK;
+    CHECK_MSG(ok, "%s", err.msg);
+    float *va = calloc(9 * (size_t)s->tri_count, sizeof *va), *vb = calloc(9 * (size_t)s->tri_count, sizeof *vb);
+    if (ok && va && vb) {
+        cache_stats st;
+        cache_get_stats(a, &st);
+        uint64_t light_a = st.lights[0].samples;
+        cache_get_stats(b, &st);
+        uint64_t light_b = st.lights[0].samples;
+        printf("first image light budget: %llu light samples for 64 corners; every corner: %llu\n",
+               (unsigned long long)light_a, (unsigned long long)light_b);
+        CHECK(light_a <= 64 && light_b > 300);
+        corner_direct(a, s, va);
+        corner_direct(b, s, vb);
+        double sum = 0.0, off = 0.0;
+        for (size_t i = 0; i < 9 * (size_t)s->tri_count; ++i) sum += vb[i], off += fabs((double)va[i] - vb[i]);
+        printf("first image light budget: the borrowed direct values are off by %.1f%% on average\n", 100.0 * off / sum);
+        CHECK(sum > 0.0 && off / sum < 0.25);
+        /* Not before the first image is over: refine calls leave them. */
+        cache_refine_result res = {0};
+        CHECK(cache_refine(a, &(cache_refine_desc){.budget = 8}, &res, &err) == LM_OK);
+        CHECK(res.outdated == 0);
+        CHECK(cache_regather_indirect(a, &err) == LM_OK);
+        int calls = 0;
+        do {
+            CHECK(cache_refine(a, &(cache_refine_desc){.budget = 8, .regather = 200}, &res, &err) == LM_OK);
+        } while (++calls < 1000 && res.outdated > 0);
+        corner_direct(a, s, va);
+        double worst = 0.0;
+        for (size_t i = 0; i < 9 * (size_t)s->tri_count; ++i)
+            worst = fmax(worst, fabs((double)va[i] - vb[i]) / fmax(1e-6, fabs((double)vb[i])));
+        printf("first image light budget: recomputed in %d refine calls; largest relative difference from sampling "
+               "every corner %.2g\n",
+               calls, worst);
+        CHECK(calls > 1 && calls < 1000 && worst < 1e-6);
+    }
+    free(va);
+    free(vb);
+    cache_destroy(a);
+    cache_destroy(b);
+    samp_destroy(sa);
+    samp_destroy(sb);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     first_image_budget();
+    first_image_light_budget();
     scene *room = load("startup_room.xml", ""), *boxed = load("startup_boxed.xml", BOX_XML);
     if (!room || !boxed) return test_finish("startup_test");
     CHECK(room->tri_count == 12 && boxed->tri_count == 12 + 12 + 1280);

@@ -269,92 +269,6 @@ lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err)
     return r;
 }
 
-/* A point's key along a Morton (Z-order) curve through the box lo + [0, span]³:
- * points close along the curve are close in space. */
-static uint64_t morton_key(const float p[3], const float lo[3], double span)
-{
-    uint32_t q[3];
-    for (int k = 0; k < 3; ++k) {
-        double u = span > 0.0 ? ((double)p[k] - lo[k]) / span : 0.0;
-        u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
-        q[k] = (uint32_t)(u * 2097151.0); /* 21 bits an axis */
-    }
-    uint64_t key = 0;
-    for (int b = 20; b >= 0; --b)
-        for (int k = 0; k < 3; ++k) key = (key << 1) | ((q[k] >> b) & 1u);
-    return key;
-}
-
-typedef struct keyed_vertex {
-    uint64_t key;
-    uint32_t index;  /* into the caller's arrays */
-} keyed_vertex;
-
-static int cmp_keyed(const void *a, const void *b)
-{
-    const keyed_vertex *x = a, *y = b;
-    if (x->key != y->key) return x->key < y->key ? -1 : 1;
-    return (x->index > y->index) - (x->index < y->index);
-}
-
-/* Indirect values at root corners v[0..n) into E. Every corner is gathered,
- * unless desc.coarse_gathers is set and smaller than n: then that many corners,
- * evenly spaced along a Morton order of their positions (so spread over the
- * scene), are gathered, and each other corner borrows from the four gathered
- * ones around it in that order: weights (n·n_g)² over the distance, those whose
- * normal is within 72° of its own (the nearest one, if none is). The borrowed
- * values are the first image's only: cache_regather_indirect gathers them all
- * (cache_worker.c does so right after the first image). */
-static lm_result gather_roots(cache *c, const uint32_t *v, uint32_t n, float *E, lm_error *err)
-{
-    const uint32_t budget = c->desc.coarse_gathers;
-    if (!budget || n <= budget) return cache_sample_indirect(c, v, n, E, err);
-    keyed_vertex *kv = malloc((size_t)n * sizeof *kv);
-    uint32_t *reps = malloc((size_t)budget * sizeof *reps);
-    float *Er = malloc(3 * (size_t)budget * sizeof *Er);
-    if (!kv || !reps || !Er) {
-        free(kv);
-        free(reps);
-        free(Er);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's gathers");
-    }
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t i = 0; i < n; ++i) {
-        const float *p = mesh_vtable_vertex(c->vt, v[i])->position;
-        for (int k = 0; k < 3; ++k) lo[k] = fminf(lo[k], p[k]), hi[k] = fmaxf(hi[k], p[k]);
-    }
-    double span = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
-    for (uint32_t i = 0; i < n; ++i) kv[i] = (keyed_vertex){morton_key(mesh_vtable_vertex(c->vt, v[i])->position, lo, span), i};
-    qsort(kv, n, sizeof *kv, cmp_keyed);
-    /* Gathered: the middle of each of `budget` equal runs of the order. */
-    for (uint32_t j = 0; j < budget; ++j) reps[j] = v[kv[(uint32_t)(((uint64_t)2 * j + 1) * n / (2 * (uint64_t)budget))].index];
-    lm_result r = cache_sample_indirect(c, reps, budget, Er, err);
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
-        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, v[kv[i].index]);
-        int64_t j0 = (int64_t)(((uint64_t)2 * i * budget) / (2 * (uint64_t)n)) - 1;
-        double acc[3] = {0, 0, 0}, wsum = 0.0, nearest = INFINITY;
-        int64_t near_j = -1;
-        for (int64_t j = j0; j <= j0 + 3; ++j) {
-            if (j < 0 || j >= budget) continue;
-            const mesh_vertex *g = mesh_vtable_vertex(c->vt, reps[j]);
-            lm_dvec3 d = dv3_sub(dv3_load(mv->position), dv3_load(g->position));
-            double dist = dv3_length(d) + 1e-6 * span, cosn = dv3_dot(dv3_load(mv->normal), dv3_load(g->normal));
-            if (dist < nearest) nearest = dist, near_j = j;
-            if (cosn < 0.3) continue;
-            double w = cosn * cosn / dist;
-            for (int k = 0; k < 3; ++k) acc[k] += w * Er[3 * (size_t)j + (size_t)k];
-            wsum += w;
-        }
-        float *out = E + 3 * (size_t)kv[i].index;
-        for (int k = 0; k < 3; ++k)
-            out[k] = wsum > 0.0 ? (float)(acc[k] / wsum) : near_j >= 0 ? Er[3 * (size_t)near_j + (size_t)k] : 0.0f;
-    }
-    free(kv);
-    free(reps);
-    free(Er);
-    return r;
-}
-
 /* Adds the time since *t to *spent when timed; *t becomes now. */
 static void lap(double *spent, int timed, double *t)
 {
@@ -376,7 +290,16 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
     /* The first time, where the time goes (cache_stats.startup). */
     const int timed = !c->initialised;
     double t = lm_now_seconds();
-    for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
+    /* The first image from a budget of light samples (cache_first.c): the
+     * direct and specular roots get values, most of them borrowed. */
+    int light_done = 0;
+    if (!tris && !c->initialised && c->desc.coarse_lights) {
+        r = root_vertices(c, c->direct, NULL, 0, &v, &n, err);
+        if (r == LM_OK) r = cache_first_light(c, v, n, &light_done, err);
+        free(v);
+        v = NULL;
+    }
+    for (uint32_t l = 0; r == LM_OK && !light_done && l < c->light_count; ++l) {
         if (!c->light[l]) continue;
         r = root_vertices(c, c->light[l], tris, ntris, &v, &n, err);
         if (r == LM_OK) r = cache_sample_light(c, l, v, n, err);
@@ -405,7 +328,7 @@ static lm_result sample_coarse(cache *c, const uint32_t *tris, uint32_t ntris, l
     if (r == LM_OK) r = root_vertices(c, c->indirect, tris, ntris, &v, &n, err);
     float *E = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *E) : NULL;
     if (r == LM_OK && !E) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
-    if (r == LM_OK) r = gather_roots(c, v, n, E, err);
+    if (r == LM_OK) r = cache_first_gathers(c, v, n, E, err);
     for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, v[i], E + 3 * (size_t)i, err);
     free(E);
     free(v);
@@ -453,7 +376,9 @@ lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err)
         c->active_count = c->s->tri_count;
     }
     c->startup.reach_seconds = lm_now_seconds() - t0;
+    c->first_pixels = pixels; /* the first image's gathers follow them (gather_roots) */
     if (r == LM_OK) r = sample_coarse(c, NULL, 0, err);
+    c->first_pixels = NULL;
     if (r == LM_OK) c->initialised = 1;
     for (uint32_t l = 0; l < c->light_count; ++l) c->startup.light_samples += c->vis.light_stats[l].samples;
     c->startup.gathers = c->src.indirect_stats.samples;
@@ -585,6 +510,8 @@ void cache_set_sampler(cache *c, samp_sampler *sp) { c->sp = sp; }
  * meet a time limit meanwhile. From then on every corner is gathered. */
 static lm_result regather_every_value(cache *c, lm_error *err)
 {
+    cache_release_borrowed(c); /* the first image's borrowed direct values too (cache_first.c) */
+    c->desc.coarse_lights = 0;
     if (!c->desc.coarse_gathers) return cache_regather_all(c, err);
     c->desc.coarse_gathers = 0;
     return cache_outdate_all(c, err);

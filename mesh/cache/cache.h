@@ -95,6 +95,13 @@ typedef struct cache_desc {
                                  a square; 0 = CACHE_BOUNCE_RAYS_DEFAULT */
     float min_leaf_pixels;    /* size criterion: leaves above this many pixels split anyway; 0 = 16 */
     uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
+    uint32_t coarse_lights;   /* the first image's budget of light samples: light is sampled at no
+                                 more of the direct mesh's root corners than this, chosen as the
+                                 gathers are (mesh/cache/cache_first.c), and the others borrow each
+                                 light's visible fraction from them, until the first
+                                 cache_regather_indirect or cache_set_bounces: after that the
+                                 refine calls sample them and recompute their values (a bounded
+                                 number a call, before any leaf is tested). 0 = every corner */
     uint32_t coarse_gathers;  /* the first image's budget (docs/cache.md "Start-up bounded by what is
                                  seen"): the coarse cache gathers indirect light at no more root
                                  corners than this, spread over the scene, and the other corners

@@ -91,6 +91,13 @@ typedef struct cache_light_state {
     size_t falsified_n, falsified_cap;
     uint64_t falsified_total;
     uint64_t revised;          /* values recomputed; read by cache_source.c (direct mesh changes) */
+    /* Scene triangles whose direct or specular root has a corner the first image
+     * borrowed (cache_first.c): made falsified regions, a bounded number per
+     * refine call, once released (after the first image), from borrowed_next on. */
+    uint32_t *borrowed;
+    size_t borrowed_n, borrowed_cap, borrowed_next;
+    int borrowed_released;
+    uint64_t borrowed_revised; /* of them, made regions so far */
     cache_mesh_stats *light_stats;               /* light_count; .mesh filled by cache_get_stats */
     cache_mesh_stats direct_stats, specular_stats; /* samples (.mesh filled by cache_get_stats) */
 } cache_light_state;
@@ -262,6 +269,7 @@ struct cache {
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
     int initialised;
     cache_startup_stats startup; /* written by cache.c, once (cache_create, the first init) */
+    const uint32_t *first_pixels; /* the pixel counts cache_init_seen was given, while it runs */
     /* Which scene triangles take part (allocated by cache.c's cache_init_seen;
      * these fields up to part_tris written by cache_reach.c, which takes
      * triangles part, bounce_active_at by cache.c; read by every file): an
@@ -348,6 +356,17 @@ void cache_outlines_free(cache_outlines *o);
  * for a point light the point's exact lobe·G. */
 void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3]);
 
+/* ---- cache_first.c: the first image from a budget of samples --------------------- */
+
+/* Indirect values at root corners v[0..n) into E: every one gathered, or with
+ * desc.coarse_gathers, that many and the others borrowed. */
+lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E, lm_error *err);
+/* With desc.coarse_lights below n: light sampled at that many of the direct
+ * mesh's root corners v[0..n), every corner's direct and specular value set
+ * (borrowed V elsewhere), the borrowed roots recorded; *done = 1. Else nothing
+ * (*done = 0: the caller samples every corner). */
+lm_result cache_first_light(cache *c, const uint32_t *v, uint32_t n, int *done, lm_error *err);
+
 /* ---- cache_light.c: visibility, direct values, falsified light leaves --------------- */
 
 /* 0 when memory runs out. */
@@ -380,6 +399,16 @@ lm_result cache_relight_direct(cache *c, lm_error *err);
 typedef lm_result (*cache_changed_fn)(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
                                       const uint32_t *vids, uint32_t n, void *user, lm_error *err);
 lm_result cache_revise_falsified(cache *c, cache_changed_fn changed, void *user, lm_error *err);
+/* Records scene triangle t's roots as borrowed (cache_first.c). */
+lm_result cache_borrowed_root(cache *c, uint32_t t, lm_error *err);
+/* After the first image: the borrowed roots may be recomputed from now on. */
+void cache_release_borrowed(cache *c);
+/* Up to `most` released borrowed roots become falsified regions (their direct and
+ * specular values recomputed by cache_revise_falsified, light sampled where it
+ * was borrowed). */
+lm_result cache_borrowed_to_regions(cache *c, size_t most, lm_error *err);
+/* Borrowed roots not yet made regions, released or not. */
+size_t cache_borrowed_waiting(const cache *c);
 
 /* ---- cache_source.c: indirect light ----------------------------------------------------- */
 

@@ -30,13 +30,15 @@ void cache_light_state_free(cache_light_state *st)
 {
     free(st->vertex_G);
     free(st->falsified);
+    free(st->borrowed);
     free(st->light_stats);
     memset(st, 0, sizeof *st);
 }
 
 size_t cache_light_state_bytes(const cache_light_state *st, uint32_t light_count)
 {
-    return st->falsified_cap * sizeof(cache_region) + st->vertex_G_cap * light_count * sizeof(float);
+    return st->falsified_cap * sizeof(cache_region) + st->vertex_G_cap * light_count * sizeof(float) +
+           st->borrowed_cap * sizeof *st->borrowed;
 }
 
 /* ---- visibility (§4.3.4) ----------------------------------------------------- */
@@ -325,6 +327,41 @@ lm_result cache_relight_direct(cache *c, lm_error *err)
         direct_from_G(c, st->vertex_G + (size_t)id * c->light_count, rgb);
         lm_result r = mesh_qmesh_set_value(c->direct, id, rgb, err);
         if (r != LM_OK) return r;
+    }
+    return LM_OK;
+}
+
+/* ---- the first image's borrowed roots (cache_first.c) ---------------------------- */
+
+lm_result cache_borrowed_root(cache *c, uint32_t t, lm_error *err)
+{
+    cache_light_state *st = &c->vis;
+    if (!LM_GROW(st->borrowed, st->borrowed_cap, st->borrowed_n + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory recording the first image's borrowed values");
+    st->borrowed[st->borrowed_n++] = t;
+    return LM_OK;
+}
+
+void cache_release_borrowed(cache *c) { c->vis.borrowed_released = 1; }
+
+size_t cache_borrowed_waiting(const cache *c) { return c->vis.borrowed_n - c->vis.borrowed_next; }
+
+lm_result cache_borrowed_to_regions(cache *c, size_t most, lm_error *err)
+{
+    cache_light_state *st = &c->vis;
+    if (!st->borrowed_released) return LM_OK;
+    for (size_t k = 0; k < most && st->borrowed_next < st->borrowed_n; ++k) {
+        if (!LM_GROW(st->falsified, st->falsified_cap, st->falsified_n + 1))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory recomputing the first image's borrowed values");
+        /* The whole triangle: every direct and specular value in its trees. */
+        st->falsified[st->falsified_n++] =
+            (cache_region){.light = 0, .tri = st->borrowed[st->borrowed_next++], .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
+        st->borrowed_revised++;
+    }
+    if (st->borrowed_next == st->borrowed_n) { /* all done: the list goes */
+        free(st->borrowed);
+        st->borrowed = NULL;
+        st->borrowed_n = st->borrowed_cap = st->borrowed_next = 0;
     }
     return LM_OK;
 }

@@ -823,10 +823,18 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * worker (the first image waits for the first). What is left waits for the
      * next call, which does nothing else until it is done. */
     uint64_t allowance = desc->regather ? desc->regather : (uint64_t)CACHE_REGATHER_PER_LEAF * budget;
+    /* The first image's borrowed direct and specular roots (cache_first.c), as
+     * many a call as values gathered again: their light is sampled (a light
+     * sample costs a fifteenth of a gather on the 116k box) and the values
+     * recomputed by the revision below. */
+    if (r == LM_OK) r = cache_borrowed_to_regions(c, allowance, err);
     /* Changes made outside refinement (coarse cache, a camera move). */
     if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
     int settled = 0, finer = 0;
-    while (r == LM_OK && !c->src.outdated_n) {
+    /* No leaf is tested while values it would be judged by are still the first
+     * image's (borrowed, or flagged by a rebuilt source). */
+    const size_t borrowed = c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0;
+    while (r == LM_OK && !c->src.outdated_n && !borrowed) {
         int kind = -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
             if (left[k] && c->sched.waiting[k]) kind = k;
@@ -858,8 +866,8 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
     }
     /* Values still waiting to be gathered again count as work left. */
-    res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] + c->src.outdated_n);
-    res.outdated = c->src.outdated_n;
+    res.outdated = (uint32_t)(c->src.outdated_n + (c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0));
+    res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] + res.outdated);
     if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0) {
         r = cache_estimate_error(c, desc->pixels, &res.estimate, err);
         res.estimated = r == LM_OK;

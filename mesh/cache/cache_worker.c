@@ -252,7 +252,10 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
         if (later_bounces) cd.bounces = 1;
         /* The first image from a fixed budget of gathers; every value is gathered
          * right after it (cache_regather_indirect or cache_set_bounces, below). */
-        if (!w->desc.no_quick_start) cd.coarse_gathers = CACHE_WORKER_FIRST_GATHERS;
+        if (!w->desc.no_quick_start) {
+            cd.coarse_gathers = CACHE_WORKER_FIRST_GATHERS;
+            cd.coarse_lights = CACHE_WORKER_FIRST_LIGHT_CORNERS;
+        }
         r = cache_create(&cd, c, err);
     }
     /* Only what the camera sees and what gathers from it reach (issue 16). */

@@ -1,0 +1,367 @@
+/* cache_first.c — the first image from a fixed budget (issue 16; docs/cache.md,
+ * "Start-up bounded by what is seen"): of the root corners that need a value
+ * before the first image, only a budget are sampled — gathers (cache_desc.
+ * coarse_gathers) and light samples (cache_desc.coarse_lights) — chosen along a
+ * Morton order by their share of the pixels and of the area; every other corner
+ * borrows from the chosen ones beside it in that order. Borrowed values are the
+ * first image's only: after it, cache_regather_indirect flags every indirect
+ * value (cache_source.c gathers them again) and releases the borrowed direct and
+ * specular roots (cache_light.c, cache_release_borrowed, recomputes them from
+ * light samples taken then), a bounded number per cache_refine call.
+ *
+ * What is borrowed: indirect irradiance (gathers), and per light the visible
+ * fraction V (light samples), from which a corner's direct and specular values
+ * are made with its own unoccluded G (cache_light.c): the falloff and the
+ * cosines are the corner's own, only the shadow is a neighbour's.
+ *
+ * Called by cache.c's coarse cache, on the worker thread like the rest. */
+#include "mesh/cache/cache_internal.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "src/base/vecmath.h"
+
+/* A point's key along a Morton (Z-order) curve through the box lo + [0, span]³:
+ * points close along the curve are close in space. */
+static uint64_t morton_key(const float p[3], const float lo[3], double span)
+{
+    uint32_t q[3];
+    for (int k = 0; k < 3; ++k) {
+        double u = span > 0.0 ? ((double)p[k] - lo[k]) / span : 0.0;
+        u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
+        q[k] = (uint32_t)(u * 2097151.0); /* 21 bits an axis */
+    }
+    uint64_t key = 0;
+    for (int b = 20; b >= 0; --b)
+        for (int k = 0; k < 3; ++k) key = (key << 1) | ((q[k] >> b) & 1u);
+    return key;
+}
+
+typedef struct keyed_vertex {
+    uint64_t key;
+    uint32_t index; /* into the caller's arrays */
+} keyed_vertex;
+
+static int cmp_keyed(const void *a, const void *b)
+{
+    const keyed_vertex *x = a, *y = b;
+    if (x->key != y->key) return x->key < y->key ? -1 : 1;
+    return (x->index > y->index) - (x->index < y->index);
+}
+
+/* The corners v[0..n) in Morton order and the chosen ones among them. */
+typedef struct first_pick {
+    keyed_vertex *kv;   /* n: the corners in Morton order (index into v) */
+    uint32_t *before;   /* n: per order position, how many chosen ones come before it */
+    uint32_t *chosen;   /* nchosen: their vertex ids, in order */
+    uint32_t *at;       /* nchosen: their order positions */
+    uint32_t nchosen;
+    double span;        /* the corners' bounding box's largest side */
+} first_pick;
+
+static void pick_free(first_pick *pk)
+{
+    free(pk->kv);
+    free(pk->before);
+    free(pk->chosen);
+    free(pk->at);
+    memset(pk, 0, sizeof *pk);
+}
+
+/* Each corner's weight: the share of the pixels (c->first_pixels, as guessed
+ * for the first image; none: 0) and the share of the area of the active
+ * triangles of mesh m around it, half and half. The pixels put the samples where
+ * the image is; the area keeps some on what the guess got wrong (it knows no
+ * occlusion) and on large triangles, whose corners are few but carry whole
+ * walls. */
+static lm_result corner_weights(const cache *c, const mesh_qmesh *m, const uint32_t *v, uint32_t n, double *w,
+                                lm_error *err)
+{
+    const scene *s = c->s;
+    const uint32_t limit = mesh_vtable_id_limit(c->vt);
+    uint32_t *slot = calloc(limit ? limit : 1, sizeof *slot); /* vid -> index in v, plus one */
+    double *pix = calloc(n ? n : 1, sizeof *pix);
+    if (!slot || !pix) {
+        free(slot);
+        free(pix);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
+    }
+    for (uint32_t i = 0; i < n; ++i) slot[v[i]] = i + 1;
+    for (uint32_t i = 0; i < n; ++i) w[i] = 0.0;
+    double pix_total = 0.0, area_total = 0.0;
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        uint32_t root = cache_tri_active(c, t) ? mesh_qmesh_root(m, t) : MESH_QMESH_NONE;
+        if (root == MESH_QMESH_NONE) continue;
+        const mesh_qnode *nd = mesh_qmesh_node(m, root);
+        const double a = s->tri_areas[t], p = c->first_pixels ? c->first_pixels[t] : 0.0;
+        for (int k = 0; k < 3; ++k) {
+            uint32_t i = nd->v[k] < limit ? slot[nd->v[k]] : 0;
+            if (!i) continue;
+            w[i - 1] += a;
+            pix[i - 1] += p;
+        }
+        area_total += 3.0 * a;
+        pix_total += 3.0 * p;
+    }
+    for (uint32_t i = 0; i < n; ++i)
+        w[i] = (area_total > 0.0 ? w[i] / area_total : 0.0) + (pix_total > 0.0 ? pix[i] / pix_total : 0.0);
+    free(pix);
+    free(slot);
+    return LM_OK;
+}
+
+/* At most `budget` of the corners v[0..n) of mesh m, chosen by systematic
+ * sampling of their weights along a Morton order of their positions: the
+ * corners in whose stretch of the cumulative weight one of `budget` evenly
+ * spaced marks falls. A corner with a budget's share of the weight or more is
+ * always chosen; a bunny's thousands of tiny corners share theirs. */
+static lm_result pick_corners(const cache *c, const mesh_qmesh *m, const uint32_t *v, uint32_t n, uint32_t budget,
+                              first_pick *pk, lm_error *err)
+{
+    memset(pk, 0, sizeof *pk);
+    pk->kv = malloc((size_t)n * sizeof *pk->kv);
+    pk->before = malloc((size_t)n * sizeof *pk->before);
+    pk->chosen = malloc((size_t)budget * sizeof *pk->chosen);
+    pk->at = malloc((size_t)budget * sizeof *pk->at);
+    double *w = malloc((size_t)n * sizeof *w);
+    lm_result r = pk->kv && pk->before && pk->chosen && pk->at && w
+                      ? corner_weights(c, m, v, n, w, err)
+                      : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
+    if (r != LM_OK) {
+        free(w);
+        pick_free(pk);
+        return r;
+    }
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double total = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        const float *p = mesh_vtable_vertex(c->vt, v[i])->position;
+        for (int k = 0; k < 3; ++k) lo[k] = fminf(lo[k], p[k]), hi[k] = fmaxf(hi[k], p[k]);
+        total += w[i];
+    }
+    if (!(total > 0.0)) { /* nothing weighs: evenly spaced corners */
+        for (uint32_t i = 0; i < n; ++i) w[i] = 1.0;
+        total = n;
+    }
+    pk->span = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    for (uint32_t i = 0; i < n; ++i)
+        pk->kv[i] = (keyed_vertex){morton_key(mesh_vtable_vertex(c->vt, v[i])->position, lo, pk->span), i};
+    qsort(pk->kv, n, sizeof *pk->kv, cmp_keyed);
+    /* Corners heavier than a mark's spacing are chosen outright, and the rest of
+     * the budget spread over the rest, until none is (else a few wall corners
+     * would swallow most marks and the budget go unspent). */
+    uint8_t *sure = calloc(n, 1);
+    if (!sure) {
+        free(w);
+        pick_free(pk);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
+    }
+    uint32_t left = budget;
+    for (int more = 1; more && left > 0;) {
+        more = 0;
+        const double step = total / left;
+        for (uint32_t i = 0; i < n && left > 0; ++i)
+            if (!sure[i] && w[i] >= step) sure[i] = 1, total -= w[i], left--, more = 1;
+    }
+    const double step = left ? total / left : INFINITY;
+    double acc = 0.0, mark = 0.5 * step;
+    for (uint32_t i = 0; i < n; ++i) {
+        const uint32_t k = pk->kv[i].index;
+        pk->before[i] = pk->nchosen;
+        int take = sure[k];
+        if (!take) {
+            acc += w[k];
+            if (acc > mark && left > 0) {
+                take = 1;
+                left--;
+                while (mark < acc) mark += step;
+            }
+        }
+        if (take) {
+            pk->at[pk->nchosen] = i;
+            pk->chosen[pk->nchosen++] = v[k];
+        }
+    }
+    free(sure);
+    free(w);
+    return LM_OK;
+}
+
+/* The chosen corners a corner at order position i borrows from, and their
+ * weights: of the two chosen ones on either side of it in the order, those
+ * whose normal is within 72° of its own, weighted (n·n_g)² over the distance;
+ * the nearest one if none is. Returns how many (0 only with nothing chosen). */
+static int borrow_from(const cache *c, const first_pick *pk, uint32_t vid, uint32_t i, uint32_t q[4], double w[4])
+{
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    int n = 0;
+    double nearest = INFINITY;
+    int64_t near_q = -1;
+    for (int64_t j = (int64_t)pk->before[i] - 2; j < (int64_t)pk->before[i] + 2; ++j) {
+        if (j < 0 || j >= pk->nchosen) continue;
+        const mesh_vertex *g = mesh_vtable_vertex(c->vt, pk->chosen[j]);
+        lm_dvec3 d = dv3_sub(dv3_load(mv->position), dv3_load(g->position));
+        double dist = dv3_length(d) + 1e-6 * pk->span, cosn = dv3_dot(dv3_load(mv->normal), dv3_load(g->normal));
+        if (dist < nearest) nearest = dist, near_q = j;
+        if (cosn < 0.3) continue;
+        q[n] = (uint32_t)j;
+        w[n++] = cosn * cosn / dist;
+    }
+    if (n == 0 && near_q >= 0) {
+        q[0] = (uint32_t)near_q;
+        w[0] = 1.0;
+        n = 1;
+    }
+    return n;
+}
+
+lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E, lm_error *err)
+{
+    const uint32_t budget = c->desc.coarse_gathers;
+    if (!budget || n <= budget) return cache_sample_indirect(c, v, n, E, err);
+    first_pick pk;
+    lm_result r = pick_corners(c, c->indirect, v, n, budget, &pk, err);
+    if (r != LM_OK) return r;
+    float *Er = malloc(3 * (size_t)(pk.nchosen ? pk.nchosen : 1) * sizeof *Er);
+    r = Er ? cache_sample_indirect(c, pk.chosen, pk.nchosen, Er, err)
+           : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's gathers");
+    for (uint32_t i = 0, j = 0; r == LM_OK && i < n; ++i) {
+        float *out = E + 3 * (size_t)pk.kv[i].index;
+        if (j < pk.nchosen && pk.at[j] == i) { /* gathered */
+            memcpy(out, Er + 3 * (size_t)j++, 3 * sizeof *out);
+            continue;
+        }
+        uint32_t q[4];
+        double w[4], sum[3] = {0, 0, 0}, wsum = 0.0;
+        int nb = borrow_from(c, &pk, v[pk.kv[i].index], i, q, w);
+        for (int b = 0; b < nb; ++b) {
+            for (int k = 0; k < 3; ++k) sum[k] += w[b] * Er[3 * (size_t)q[b] + (size_t)k];
+            wsum += w[b];
+        }
+        for (int k = 0; k < 3; ++k) out[k] = wsum > 0.0 ? (float)(sum[k] / wsum) : 0.0f;
+    }
+    free(Er);
+    pick_free(&pk);
+    return r;
+}
+
+/* The sites of root corners vids (their scene triangle, depth 0). */
+static lm_result root_sites(const cache *c, const uint32_t *vids, uint32_t n, cache_site **out, lm_error *err)
+{
+    cache_site *s = malloc((n ? n : 1) * sizeof *s);
+    if (!s) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    for (uint32_t i = 0; i < n; ++i) {
+        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vids[i]);
+        double scale = ldexp(1.0, -(int)mv->bary.depth);
+        s[i] = (cache_site){.vid = vids[i], .tri = mv->tri, .w1 = mv->bary.w[1] * scale, .w2 = mv->bary.w[2] * scale,
+                            .depth = 0};
+    }
+    *out = s;
+    return LM_OK;
+}
+
+/* Values of `kind` (direct or specular) at the root corners vids that mesh m
+ * uses and has no value for yet, from the light meshes (sampled where they
+ * cannot answer). */
+static lm_result exact_values(cache *c, cache_kind kind, const uint32_t *vids, uint32_t n, lm_error *err)
+{
+    mesh_qmesh *m = cache_kind_mesh(c, kind);
+    uint32_t *need = malloc((n ? n : 1) * sizeof *need), nn = 0;
+    if (!need) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    for (uint32_t i = 0; i < n; ++i)
+        if (mesh_qmesh_vertex_use(m, vids[i]) && mesh_qmesh_get_value(m, vids[i], NULL) != 1) need[nn++] = vids[i];
+    cache_site *sites = NULL;
+    float *rgb = malloc(3 * (size_t)(nn ? nn : 1) * sizeof *rgb);
+    lm_result r = rgb ? root_sites(c, need, nn, &sites, err)
+                      : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    if (r == LM_OK) r = cache_light_values(c, kind, sites, nn, rgb, err);
+    for (uint32_t i = 0; r == LM_OK && i < nn; ++i) r = mesh_qmesh_set_value(m, need[i], rgb + 3 * (size_t)i, err);
+    free(sites);
+    free(rgb);
+    free(need);
+    return r;
+}
+
+lm_result cache_first_light(cache *c, const uint32_t *v, uint32_t n, int *done, lm_error *err)
+{
+    *done = 0;
+    const uint32_t budget = c->desc.coarse_lights, L = c->light_count;
+    if (!budget || n <= budget || !L) return LM_OK;
+    first_pick pk;
+    lm_result r = pick_corners(c, c->direct, v, n, budget, &pk, err);
+    if (r != LM_OK) return r;
+    /* Light samples at the chosen corners only (each light where its mesh has them). */
+    uint32_t *need = malloc((pk.nchosen ? pk.nchosen : 1) * sizeof *need);
+    if (!need) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    for (uint32_t l = 0; r == LM_OK && l < L; ++l) {
+        if (!c->light[l]) continue;
+        uint32_t nn = 0;
+        for (uint32_t j = 0; j < pk.nchosen; ++j)
+            if (mesh_qmesh_vertex_use(c->light[l], pk.chosen[j]) && mesh_qmesh_get_value(c->light[l], pk.chosen[j], NULL) != 1)
+                need[nn++] = pk.chosen[j];
+        r = cache_sample_light(c, l, need, nn, err);
+    }
+    free(need);
+    /* Their direct and specular values as always. */
+    if (r == LM_OK) r = exact_values(c, CACHE_KIND_DIRECT, pk.chosen, pk.nchosen, err);
+    if (r == LM_OK && c->specular) r = exact_values(c, CACHE_KIND_SPECULAR, pk.chosen, pk.nchosen, err);
+    /* The others: V borrowed per light, made into values with their own G. */
+    float *V = malloc((size_t)L * sizeof *V);
+    uint8_t *borrowed = calloc(mesh_vtable_id_limit(c->vt) + 1, 1);
+    if (r == LM_OK && (!V || !borrowed)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    uint64_t nborrowed = 0;
+    for (uint32_t i = 0, j = 0; r == LM_OK && i < n; ++i) {
+        if (j < pk.nchosen && pk.at[j] == i) {
+            j++;
+            continue;
+        }
+        const uint32_t vid = v[pk.kv[i].index];
+        const uint32_t tri = mesh_vtable_vertex(c->vt, vid)->tri;
+        uint32_t q[4];
+        double w[4];
+        int nb = borrow_from(c, &pk, vid, i, q, w);
+        for (uint32_t l = 0; l < L; ++l) {
+            if (!c->light[l] || mesh_qmesh_root(c->light[l], tri) == MESH_QMESH_NONE) {
+                V[l] = 0.0f; /* its triangle cannot see the light (as cache_fetch_visibility) */
+                continue;
+            }
+            double sum = 0.0, wsum = 0.0;
+            for (int b = 0; b < nb; ++b) {
+                float vb;
+                if (mesh_qmesh_get_value(c->light[l], pk.chosen[q[b]], &vb) != 1) continue;
+                sum += w[b] * vb;
+                wsum += w[b];
+            }
+            V[l] = wsum > 0.0 ? (float)(sum / wsum) : 1.0f; /* no neighbour sees it: unoccluded */
+        }
+        float rgb[3];
+        r = cache_direct_from_visibility(c, vid, V, rgb, err);
+        if (r == LM_OK) r = mesh_qmesh_set_value(c->direct, vid, rgb, err);
+        if (r == LM_OK && c->specular && mesh_qmesh_vertex_use(c->specular, vid)) {
+            cache_specular_from_visibility(c, vid, V, rgb);
+            r = mesh_qmesh_set_value(c->specular, vid, rgb, err);
+        }
+        borrowed[vid] = 1;
+        nborrowed++;
+    }
+    /* The roots with a borrowed corner are recomputed after the first image. */
+    for (uint32_t t = 0; r == LM_OK && nborrowed && t < c->s->tri_count; ++t) {
+        if (!cache_tri_active(c, t)) continue;
+        int any = 0;
+        for (int kind = CACHE_KIND_DIRECT; kind < CACHE_KINDS && !any; ++kind) {
+            const mesh_qmesh *m = kind == CACHE_KIND_INDIRECT ? NULL : cache_kind_mesh(c, (cache_kind)kind);
+            uint32_t root = m ? mesh_qmesh_root(m, t) : MESH_QMESH_NONE;
+            if (root == MESH_QMESH_NONE) continue;
+            const mesh_qnode *nd = mesh_qmesh_node(m, root);
+            for (int k = 0; k < 3; ++k) any |= borrowed[nd->v[k]];
+        }
+        if (any) r = cache_borrowed_root(c, t, err);
+    }
+    free(V);
+    free(borrowed);
+    pick_free(&pk);
+    if (r == LM_OK) *done = 1;
+    return r;
+}
