@@ -43,7 +43,7 @@ extern "C" {
 
 enum {
     CACHE_WORKER_QUICK_RAYS = 64, /* gather rays per coarse vertex for the first snapshot (then gathered again) */
-    CACHE_WORKER_FIRST_GATHERS = 4096, /* most indirect gathers before the first snapshot (cache_desc.coarse_gathers) */
+    CACHE_WORKER_FIRST_GATHERS = 1024, /* most indirect gathers before the first snapshot (cache_desc.coarse_gathers) */
     CACHE_WORKER_FIRST_LIGHT_CORNERS = 8192 /* most corners sampled for light before it (cache_desc.coarse_lights) */
 };
 
