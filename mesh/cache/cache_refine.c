@@ -119,7 +119,7 @@ typedef struct source_levels {
     float lo, hi, bound;
 } source_levels;
 
-static source_levels source_levels_of(const cache *c, const mesh_qnode *n)
+static source_levels source_levels_of(const cache *c, const mesh_qnode *n, int with_bound)
 {
     const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
     source_levels s = {INFINITY, 0.0f, 0.0f};
@@ -130,7 +130,7 @@ static source_levels source_levels_of(const cache *c, const mesh_qnode *n)
             s.lo = fminf(s.lo, kd[ch] * v[ch]);
             s.hi = fmaxf(s.hi, kd[ch] * v[ch]);
         }
-        for (uint32_t l = 0; l < c->light_count; ++l) {
+        for (uint32_t l = 0; with_bound && l < c->light_count; ++l) { /* analytic, and dear */
             double g = cache_unoccluded(c, l, n->v[k]) / M_PI;
             for (int ch = 0; ch < 3; ++ch)
                 s.bound = fmaxf(s.bound, (float)(kd[ch] * c->light_le[3 * (size_t)l + (size_t)ch] * g));
@@ -142,7 +142,7 @@ static source_levels source_levels_of(const cache *c, const mesh_qnode *n)
 /* The largest source radiance a node could send: its corners', or its bound. */
 static float source_peak(const cache *c, const mesh_qnode *n)
 {
-    source_levels s = source_levels_of(c, n);
+    source_levels s = source_levels_of(c, n, 1);
     return fmaxf(s.hi, s.bound);
 }
 
@@ -181,8 +181,10 @@ static float source_priority(const cache *c, uint32_t node, const mesh_qnode *n)
 {
     float imax, isum;
     cache_node_importance(c, node, &imax, &isum);
-    source_levels s = source_levels_of(c, n);
+    if (!(isum > 0.0f)) return 0.0f; /* no gather draws from it (yet): nothing to weigh */
+    source_levels s = source_levels_of(c, n, 0);
     if (s.hi > 0.0f) return isum * (s.hi - s.lo);
+    s = source_levels_of(c, n, 1);
     return isum * ldexpf(s.bound, -2 * (int)dark_generations(c, node));
 }
 
