@@ -825,11 +825,12 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * worker (the first image waits for the first). What is left waits for the
      * next call, which does nothing else until it is done. */
     uint64_t allowance = desc->regather ? desc->regather : (uint64_t)CACHE_REGATHER_PER_LEAF * budget;
-    /* The first image's borrowed direct and specular roots (cache_first.c), as
-     * many a call as values gathered again: their light is sampled (a light
-     * sample costs a fifteenth of a gather on the 116k box) and the values
-     * recomputed by the revision below. */
-    if (r == LM_OK) r = cache_borrowed_to_regions(c, allowance, err);
+    /* The first image's borrowed direct and specular roots (cache_first.c),
+     * sixteen a value gathered again (a light sample costs about a fifteenth of
+     * a gather on the 116k box; at one a value, the box's leaf tests waited 30 s
+     * for them): their light is sampled and the values recomputed by the
+     * revision below, before the indirect values are gathered from them. */
+    if (r == LM_OK) r = cache_borrowed_to_regions(c, 16 * allowance, err);
     /* Changes made outside refinement (coarse cache, a camera move). */
     if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
     int settled = 0, finer = 0;
