@@ -18,6 +18,7 @@ struct material {
 };
 layout(std430, binding = 0) readonly buffer Materials { material u_materials[]; };
 uniform uint u_term; // 0: L_dd (× kd), 1: E_i (× kd/π), 2: L_ds (× ks)
+uniform int u_band_y0; // the first sample row u_value holds (rend_frame.c draws in bands)
 layout(location = 0) out vec4 o_rgb;
 
 // coef·L at sample q of material code `code` (not 0).
@@ -30,7 +31,7 @@ vec3 shade(uint code, vec3 l)
 
 void main()
 {
-    ivec2 p = ivec2(gl_FragCoord.xy) * SS;
+    ivec2 p = ivec2(gl_FragCoord.xy) * SS, pv = p - ivec2(0, u_band_y0);
     uint codes[SS * SS];
     bool one = true; // one material over the pixel (most pixels): coef once, times the mean of L
     for (int k = 0; k < SS * SS; ++k) {
@@ -43,13 +44,13 @@ void main()
             o_rgb = vec4(0.0, 0.0, 0.0, 1.0);
             return;
         }
-        c0 = texelFetch(u_value, p, 0).rgb;
-        for (int k = 1; k < SS * SS; ++k) d += texelFetch(u_value, p + ivec2(k % SS, k / SS), 0).rgb - c0;
+        c0 = texelFetch(u_value, pv, 0).rgb;
+        for (int k = 1; k < SS * SS; ++k) d += texelFetch(u_value, pv + ivec2(k % SS, k / SS), 0).rgb - c0;
         c0 = shade(codes[0], c0 + d * (1.0 / float(SS * SS)));
     } else {
-        c0 = codes[0] != 0u ? shade(codes[0], texelFetch(u_value, p, 0).rgb) : vec3(0.0);
+        c0 = codes[0] != 0u ? shade(codes[0], texelFetch(u_value, pv, 0).rgb) : vec3(0.0);
         for (int k = 1; k < SS * SS; ++k)
-            if (codes[k] != 0u) d += shade(codes[k], texelFetch(u_value, p + ivec2(k % SS, k / SS), 0).rgb) - c0;
+            if (codes[k] != 0u) d += shade(codes[k], texelFetch(u_value, pv + ivec2(k % SS, k / SS), 0).rgb) - c0;
             else d -= c0;
         c0 += d * (1.0 / float(SS * SS));
     }

@@ -12,6 +12,7 @@
 
 enum { TERMS = 3 }; /* direct, indirect, specular */
 
+
 /* One material in the composite's table (std430: three vec4). */
 typedef struct material_entry {
     float kd[4], ks[4], le[4];
@@ -49,7 +50,7 @@ struct rend_frame {
     const GladGLContext *gl;
     int sw, sh;                      /* sample images: s·width × s·height */
     GLuint prog_material, prog_value, prog_resolve, prog_composite;
-    GLint loc_mat_vp, loc_val_vp, loc_res_term, loc_comp_terms;
+    GLint loc_mat_vp, loc_val_vp, loc_res_term, loc_res_band, loc_comp_terms;
     GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
     GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
     unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
@@ -57,15 +58,21 @@ struct rend_frame {
     int comp_valid;                  /* the output holds the composite of the current inputs ... */
     unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
     /* Sample images (s·width × s·height). Only the material codes are kept
-     * between draws; the depth is every pass's (each clears it where it draws)
-     * and, at s > 1, the radiance image each term's in turn, resolved before the
-     * next term is drawn into it: 24 bytes a sample and 64 a pixel instead of 68
-     * a sample (docs/memory.md). At s = 1 a resolved image would be as large as
-     * the radiance image and cost a pass: each term keeps its own (56 bytes a
-     * pixel). */
-    GLuint mat_fbo, mat_tex;         /* R32UI material codes, with depth */
-    GLuint val_fbo, val_tex;         /* s > 1: RGBA32F radiance of the term being drawn, with depth; else 0 */
-    GLuint depth;                    /* DEPTH_COMPONENT32F, attached to all that draw */
+     * between draws, whole; the depth is every pass's (each clears it where it
+     * draws) and, at s > 1, the radiance image each term's in turn, resolved
+     * before the next term is drawn into it (docs/memory.md). At s > 1 the
+     * passes draw in bands of `band` rows (the viewport moved down by the band's
+     * first row, the same projection): the depth and the radiance image hold one
+     * band, the material pass draws its codes into a band image and copies them
+     * into the whole one: 4 bytes a sample, 24 a sample of a band and 64 a pixel
+     * (were 24 a sample: a 1920×1080 render took 450 MB of images). At s = 1 a
+     * resolved image would be as large as the radiance image and cost a pass:
+     * each term keeps its own (56 bytes a pixel), one band. */
+    int band;                        /* rows of samples a band (a multiple of s; sh at s = 1) */
+    GLuint mat_fbo, mat_tex;         /* R32UI material codes (whole); s = 1: mat_fbo draws them, with depth */
+    GLuint band_tex;                 /* s > 1: a band's codes, drawn by mat_fbo (with depth), copied to mat_tex */
+    GLuint val_fbo, val_tex;         /* s > 1: RGBA32F radiance of a band of the term being drawn, with depth */
+    GLuint depth;                    /* DEPTH_COMPONENT32F of a band, attached to all that draw */
     GLuint out_fbo, out_tex;
     GLuint empty_vao;
     term_state term[TERMS];          /* L_dd, E_i, L_ds */
@@ -99,10 +106,11 @@ void rend_frame_destroy(rend_frame *f)
         for (int i = 0; i < 4; ++i)
             if (progs[i]) gl->DeleteProgram(progs[i]);
         GLuint bufs[2] = {f->scene_vbo, f->material_ssbo}, vaos[2] = {f->scene_vao, f->empty_vao};
-        GLuint texs[3] = {f->mat_tex, f->val_tex, f->out_tex}, fbos[3] = {f->mat_fbo, f->val_fbo, f->out_fbo};
+        GLuint texs[4] = {f->mat_tex, f->band_tex, f->val_tex, f->out_tex};
+        GLuint fbos[3] = {f->mat_fbo, f->val_fbo, f->out_fbo};
         gl->DeleteBuffers(2, bufs);
         gl->DeleteVertexArrays(2, vaos);
-        gl->DeleteTextures(3, texs);
+        gl->DeleteTextures(4, texs);
         gl->DeleteRenderbuffers(1, &f->depth);
         gl->DeleteFramebuffers(3, fbos);
         for (int t = 0; t < TERMS; ++t) {
@@ -232,19 +240,27 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     f->loc_mat_vp = gl->GetUniformLocation(f->prog_material, "u_viewproj");
     f->loc_val_vp = gl->GetUniformLocation(f->prog_value, "u_viewproj");
     if (ss > 1) f->loc_res_term = gl->GetUniformLocation(f->prog_resolve, "u_term");
+    if (ss > 1) f->loc_res_band = gl->GetUniformLocation(f->prog_resolve, "u_band_y0");
     f->loc_comp_terms = gl->GetUniformLocation(f->prog_composite, "u_terms");
     gl->CreateVertexArrays(1, &f->empty_vao);
 
-    f->depth = depth_target(gl, f->sw, f->sh);
+    f->band = f->sh;
+    if (ss > 1) { /* whole pixels' rows, at least one */
+        int rows = (desc->band_samples > 0 ? desc->band_samples : REND_FRAME_BAND_SAMPLES) / f->sw;
+        rows -= rows % ss;
+        f->band = rows < ss ? ss : rows > f->sh ? f->sh : rows;
+    }
+    f->depth = depth_target(gl, f->sw, f->band);
     gl->CreateFramebuffers(1, &f->mat_fbo);
     f->mat_tex = color_target(gl, GL_R32UI, f->sw, f->sh);
-    gl->NamedFramebufferTexture(f->mat_fbo, GL_COLOR_ATTACHMENT0, f->mat_tex, 0);
+    if (ss > 1) f->band_tex = color_target(gl, GL_R32UI, f->sw, f->band);
+    gl->NamedFramebufferTexture(f->mat_fbo, GL_COLOR_ATTACHMENT0, ss > 1 ? f->band_tex : f->mat_tex, 0);
     gl->NamedFramebufferRenderbuffer(f->mat_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
     /* RGBA32F: an RGBA16F image was no faster to draw on llvmpipe (the cost
      * is per triangle) and would overflow above 65504 (docs/renderer.md). */
     if (ss > 1) {
         gl->CreateFramebuffers(1, &f->val_fbo);
-        f->val_tex = color_target(gl, GL_RGBA32F, f->sw, f->sh);
+        f->val_tex = color_target(gl, GL_RGBA32F, f->sw, f->band);
         gl->NamedFramebufferTexture(f->val_fbo, GL_COLOR_ATTACHMENT0, f->val_tex, 0);
         gl->NamedFramebufferRenderbuffer(f->val_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
     }
@@ -535,13 +551,21 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
     tt->material_reused = f->mat_valid && memcmp(vp, f->mat_vp, sizeof vp) == 0;
     if (!tt->material_reused) {
         const GLuint no_surface[4] = {0, 0, 0, 0};
-        gl->ClearNamedFramebufferuiv(f->mat_fbo, GL_COLOR, 0, no_surface);
-        gl->ClearNamedFramebufferfv(f->mat_fbo, GL_DEPTH, 0, &far_depth);
         gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->mat_fbo);
         gl->UseProgram(f->prog_material);
         gl->UniformMatrix4fv(f->loc_mat_vp, 1, GL_FALSE, vp);
         gl->BindVertexArray(f->scene_vao);
-        gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * s->tri_count));
+        for (int y0 = 0; y0 < f->sh; y0 += f->band) {
+            gl->ClearNamedFramebufferuiv(f->mat_fbo, GL_COLOR, 0, no_surface);
+            gl->ClearNamedFramebufferfv(f->mat_fbo, GL_DEPTH, 0, &far_depth);
+            gl->Viewport(0, -y0, f->sw, f->sh);
+            gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * s->tri_count));
+            if (f->band_tex) {
+                const int rows = f->sh - y0 < f->band ? f->sh - y0 : f->band;
+                gl->CopyImageSubData(f->band_tex, GL_TEXTURE_2D, 0, 0, 0, 0, f->mat_tex, GL_TEXTURE_2D, 0, 0, y0, 0,
+                                     f->sw, rows, 1);
+            }
+        }
         memcpy(f->mat_vp, vp, sizeof vp);
         f->mat_valid = 1;
         tt->material = lap(gl, &t0);
@@ -581,43 +605,52 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
         d.y0 -= d.y0 % ss;
         d.x1 += (ss - d.x1 % ss) % ss;
         d.y1 += (ss - d.y1 % ss) % ss;
-        int part = d.x0 > 0 || d.y0 > 0 || d.x1 < f->sw || d.y1 < f->sh;
-        gl->Enable(GL_DEPTH_TEST);
-        gl->Viewport(0, 0, f->sw, f->sh);
-        if (part) {
-            gl->Enable(GL_SCISSOR_TEST);
-            gl->Scissor(d.x0, d.y0, d.x1 - d.x0, d.y1 - d.y0);
-        }
-        GLuint target = f->val_fbo ? f->val_fbo : ts->fbo;
-        gl->ClearNamedFramebufferfv(target, GL_COLOR, 0, zero);
-        gl->ClearNamedFramebufferfv(target, GL_DEPTH, 0, &far_depth);
-        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
-        gl->UseProgram(f->prog_value);
-        gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
-        gl->BindVertexArray(ts->vao);
-        gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * ts->tris));
+        redrawn += (double)(d.x1 - d.x0) * (double)(d.y1 - d.y0) / ((double)f->sw * (double)f->sh);
         ts->drawn = 1;
         drew = 1;
-        redrawn += (double)(d.x1 - d.x0) * (double)(d.y1 - d.y0) / ((double)f->sw * (double)f->sh);
-        if (!f->val_fbo) {
-            if (part) gl->Disable(GL_SCISSOR_TEST);
-            continue;
+        GLuint target = f->val_fbo ? f->val_fbo : ts->fbo;
+        for (int y0 = 0; y0 < f->sh; y0 += f->band) {
+            /* The dirty rows of this band, in its own rows (whole pixels: the
+             * band and the rectangle start on multiples of s). */
+            const int rows = f->sh - y0 < f->band ? f->sh - y0 : f->band;
+            const int b0 = (d.y0 > y0 ? d.y0 : y0) - y0, b1 = (d.y1 < y0 + rows ? d.y1 : y0 + rows) - y0;
+            if (b0 >= b1) continue;
+            const int part = d.x0 > 0 || d.x1 < f->sw || b0 > 0 || b1 < rows;
+            gl->Enable(GL_DEPTH_TEST);
+            gl->Viewport(0, -y0, f->sw, f->sh);
+            if (part) {
+                gl->Enable(GL_SCISSOR_TEST);
+                gl->Scissor(d.x0, b0, d.x1 - d.x0, b1 - b0);
+            }
+            gl->ClearNamedFramebufferfv(target, GL_COLOR, 0, zero);
+            gl->ClearNamedFramebufferfv(target, GL_DEPTH, 0, &far_depth);
+            gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
+            gl->UseProgram(f->prog_value);
+            gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
+            gl->BindVertexArray(ts->vao);
+            gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * ts->tris));
+            if (!f->val_fbo) {
+                if (part) gl->Disable(GL_SCISSOR_TEST);
+                continue;
+            }
+            /* Resolve: one full-screen triangle over the band's pixels of the output. */
+            gl->Disable(GL_DEPTH_TEST);
+            gl->Viewport(0, 0, w, h);
+            gl->Enable(GL_SCISSOR_TEST);
+            gl->Scissor(d.x0 / ss, (y0 + b0) / ss, (d.x1 - d.x0) / ss, (b1 - b0) / ss);
+            gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->fbo);
+            gl->UseProgram(f->prog_resolve);
+            gl->Uniform1ui(f->loc_res_term, (GLuint)t);
+            gl->Uniform1i(f->loc_res_band, y0);
+            GLuint inputs[2] = {f->mat_tex, f->val_tex};
+            gl->BindTextures(0, 2, inputs);
+            gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
+            gl->BindVertexArray(f->empty_vao);
+            gl->DrawArrays(GL_TRIANGLES, 0, 3);
+            gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
+            gl->BindTextures(0, 2, NULL);
+            gl->Disable(GL_SCISSOR_TEST);
         }
-        /* Resolve: one full-screen triangle over the term's pixels of the output. */
-        gl->Disable(GL_DEPTH_TEST);
-        gl->Viewport(0, 0, w, h);
-        if (part) gl->Scissor(d.x0 / ss, d.y0 / ss, (d.x1 - d.x0) / ss, (d.y1 - d.y0) / ss);
-        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->fbo);
-        gl->UseProgram(f->prog_resolve);
-        gl->Uniform1ui(f->loc_res_term, (GLuint)t);
-        GLuint inputs[2] = {f->mat_tex, f->val_tex};
-        gl->BindTextures(0, 2, inputs);
-        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
-        gl->BindVertexArray(f->empty_vao);
-        gl->DrawArrays(GL_TRIANGLES, 0, 3);
-        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
-        gl->BindTextures(0, 2, NULL);
-        if (part) gl->Disable(GL_SCISSOR_TEST);
     }
     if (r == LM_OK) {
         memcpy(f->val_vp, vp, sizeof vp);

@@ -91,7 +91,8 @@ enum {
                                                    docs/renderer.md has the error and cost per s) */
     REND_FRAME_DEFAULT_SAMPLES_MAX = 1 << 23,   /* ...lowered until s²·width·height is at most this
                                                    (24 bytes of GL images per sample: 200 MB) */
-    REND_FRAME_SUPERSAMPLE_MAX = 8
+    REND_FRAME_SUPERSAMPLE_MAX = 8,
+    REND_FRAME_BAND_SAMPLES = 1 << 20 /* rend_frame_desc.band_samples' default: 20 MB of band images */
 };
 
 typedef struct rend_frame_desc {
@@ -101,6 +102,9 @@ typedef struct rend_frame_desc {
                              box-filtered, 1..REND_FRAME_SUPERSAMPLE_MAX; 1 = pixel centres only (the
                              interactive viewer); 0 = REND_FRAME_SUPERSAMPLE_DEFAULT, or less for large
                              images (REND_FRAME_DEFAULT_SAMPLES_MAX); rend_frame_times says which */
+    int band_samples;     /* s > 1: the passes draw bands of whole pixel rows of at most this many samples
+                             (at least one row), so the depth and radiance images hold a band, not the
+                             image; 0 = REND_FRAME_BAND_SAMPLES (tests ask for small bands) */
 } rend_frame_desc;
 
 /* Wall-clock seconds of the last rend_frame_draw, each pass finished (glFinish)
