@@ -26,6 +26,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "mesh/geomesh.h"
+
 /* D1[o], D2[o]: corner1 − corner0 and corner2 − corner0 in units of 2^-depth. */
 static const int k_d1[6][3] = {{-1, 1, 0}, {-1, 0, 1}, {0, -1, 1}, {1, -1, 0}, {1, 0, -1}, {0, 1, -1}};
 static const int k_d2[6][3] = {{-1, 0, 1}, {0, -1, 1}, {1, -1, 0}, {1, 0, -1}, {0, 1, -1}, {-1, 1, 0}};
@@ -41,6 +43,13 @@ struct mesh_qmesh {
     uint32_t *free_blocks;  /* first index of each free block of four */
     uint32_t free_count, free_alloc;
     uint32_t *root_of_tri;  /* [scene tri_count], MESH_QMESH_NONE when no tree */
+    /* [scene tri_count]: vertices of depth >= 1 this mesh uses inside the triangle
+     * or on its edges (an edge's vertex counts for both triangles that share it).
+     * A leaf of a triangle with none has no vertex on its edges: its triangle is
+     * emitted with no look-up (mesh_qmesh_leaf_triangles: most of a big scene's
+     * triangles are unsplit roots, and three failed hash look-ups each made the
+     * 116k box's snapshot 0.12 s). */
+    uint32_t *inner_use;
     uint32_t root_count;
 
     /* Per vtable id, [vcap]: */
@@ -96,9 +105,27 @@ static lm_result take_vertex(mesh_qmesh *m, uint32_t tri, mesh_bary p, uint32_t 
     return LM_OK;
 }
 
+/* Counts vertex id (newly used: +1, no longer: -1) in inner_use. */
+static void inner_count(mesh_qmesh *m, uint32_t id, int d)
+{
+    const mesh_vertex *v = mesh_vtable_vertex(m->vt, id);
+    if (!v || v->bary.depth == 0) return; /* a corner of the scene triangle */
+    m->inner_use[v->tri] += (uint32_t)d;
+    const int z = v->bary.w[0] == 0 ? 0 : v->bary.w[1] == 0 ? 1 : v->bary.w[2] == 0 ? 2 : -1;
+    const mesh_geo *g = mesh_vtable_geo(m->vt);
+    if (z < 0 || !g) return;
+    const int e = (z + 1) % 3; /* the edge opposite corner z (as mesh_vtable keys it) */
+    if (mesh_geo_edge_kind(g, v->tri, e) != MESH_EDGE_INTERIOR) return; /* not shared */
+    const int32_t nb = mesh_geo_neighbor(g, v->tri, e);
+    if (nb >= 0 && (uint32_t)nb < m->s->tri_count) m->inner_use[nb] += (uint32_t)d;
+}
+
 static void use_add(mesh_qmesh *m, uint32_t id, uint32_t n)
 {
-    if (m->use[id] == 0) m->used++;
+    if (m->use[id] == 0) {
+        m->used++;
+        inner_count(m, id, 1);
+    }
     m->use[id] += n;
 }
 
@@ -108,6 +135,7 @@ static void use_drop(mesh_qmesh *m, uint32_t id, uint32_t n)
     m->use[id] -= n;
     if (m->use[id] > 0) return;
     m->used--;
+    inner_count(m, id, -1);
     if (m->sampled[id]) m->sampled_count--;
     m->sampled[id] = 0;
     memset(m->values + (size_t)id * m->channels, 0, m->channels * sizeof *m->values);
@@ -144,7 +172,8 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
     m->node_cap = desc->node_cap ? desc->node_cap : UINT32_MAX;
     lm_result r = LM_OK;
     m->root_of_tri = malloc(((size_t)s->tri_count + 1) * sizeof *m->root_of_tri);
-    if (!m->root_of_tri) {
+    m->inner_use = calloc((size_t)s->tri_count + 1, sizeof *m->inner_use);
+    if (!m->root_of_tri || !m->inner_use) {
         r = lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
         goto fail;
     }
@@ -214,6 +243,7 @@ void mesh_qmesh_destroy(mesh_qmesh *m)
     free(m->nodes);
     free(m->free_blocks);
     free(m->root_of_tri);
+    free(m->inner_use);
     free(m->use);
     free(m->values);
     free(m->sampled);
@@ -578,7 +608,10 @@ lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, s
         e.tri = n->tri, e.leaf = i;
         pt p[3];
         for (int k = 0; k < 3; ++k) p[k].id = n->v[k], p[k].b = mesh_qmesh_node_corner(n, k);
-        fill(&e, p);
+        if (m->inner_use[n->tri] == 0)
+            emit(&e, p[0], p[1], p[2]); /* no vertex on its edges: fill would find none */
+        else
+            fill(&e, p);
     }
     free(e.line);
     *count = e.r == LM_OK ? e.count : 0;
@@ -604,7 +637,7 @@ void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out)
     out->merges = m->merges;
     out->bytes_nodes = (size_t)m->node_alloc * sizeof *m->nodes +
                        (size_t)m->free_alloc * sizeof *m->free_blocks +
-                       (size_t)m->s->tri_count * sizeof *m->root_of_tri + sizeof *m;
+                       (size_t)m->s->tri_count * (sizeof *m->root_of_tri + sizeof *m->inner_use) + sizeof *m;
     out->bytes_values = (size_t)m->vcap * (sizeof *m->use + m->channels * sizeof *m->values + 1);
     const double bpv = mesh_vtable_bytes_per_vertex(m->vt);
     double share = 0.0;
