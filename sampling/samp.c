@@ -16,7 +16,8 @@
 struct samp_sampler {
     samp_desc desc;            /* defaults filled in */
     const scene *s;
-    rt_scene *rt;              /* owned; shared with the back ends (read-only) */
+    const rt_scene *rt;        /* shared with the back ends (read-only) */
+    rt_scene *own_rt;          /* rt when this sampler built it (desc.rt NULL), else NULL */
     samp_choice be;            /* owned */
     samp_stats stats;
 };
@@ -163,7 +164,13 @@ lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err)
     if (!sp) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating a sampler");
     sp->desc = samp_desc_defaults(desc);
     sp->s = desc->scene;
-    lm_result r = rt_scene_create(&(rt_scene_desc){.scene = sp->s}, &sp->rt, err);
+    lm_result r = LM_OK;
+    if (desc->rt) {
+        sp->rt = desc->rt;
+    } else {
+        r = rt_scene_create(&(rt_scene_desc){.scene = sp->s}, &sp->own_rt, err);
+        sp->rt = sp->own_rt;
+    }
     if (r == LM_OK) {
         samp_choice *be = &sp->be;
         switch (sp->desc.backend) {
@@ -206,7 +213,7 @@ void samp_destroy(samp_sampler *sp)
     if (be->indirect_ops && be->indirect_impl && be->indirect_impl != be->direct_impl)
         be->indirect_ops->destroy(be->indirect_impl);
     if (be->direct_ops && be->direct_impl) be->direct_ops->destroy(be->direct_impl);
-    rt_scene_destroy(sp->rt);
+    rt_scene_destroy(sp->own_rt);
     free(sp);
 }
 

@@ -88,6 +88,10 @@ typedef struct samp_desc {
                                      0 = as accurate as GL at direct_res (equal-error comparison) */
     float indirect_target_error;  /* AUTO: the same for indirect samples; 0 = as accurate as GL */
     uint32_t seed;                /* random numbers: the same seed and calls give the same values */
+    const struct rt_scene *rt;    /* an Embree scene of `scene` to use (rt_scene.h), made by the caller
+                                     and outliving the sampler: samplers made one after the other
+                                     (a quick start, a calibration) need not build it again; NULL:
+                                     the sampler builds its own */
 } samp_desc;
 
 enum { SAMP_OFF = -1 };

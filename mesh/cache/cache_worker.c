@@ -9,6 +9,8 @@
 #include <string.h>
 #include <time.h>
 
+#include "sampling/rt_scene.h"
+
 enum { MAX_EDITS = 64 };
 
 typedef struct light_edit {
@@ -59,6 +61,9 @@ struct cache_worker {
     samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
     cache_estimate estimate;          /* the worker's: the last error estimate, and when it was made */
     uint64_t first_tested;            /* the worker's: leaves tested before the first publication */
+    rt_scene *rt;                     /* the worker's: the one Embree scene of its samplers (the quick
+                                         start's, the refining one, a calibration's), when the client
+                                         gave none in desc.sampler.rt; destroyed last */
     double first_rounds_seconds, first_publish_seconds; /* the worker's: cache_snapshot's */
     /* The worker's: AUTO's calibration, deferred to the first convergence; the
      * Embree sampler it replaced, kept until the calibrated one has shown its cost
@@ -232,15 +237,21 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
 {
     samp_desc sd = w->desc.sampler;
     sd.scene = w->s;
+    /* One Embree scene for every sampler this worker makes: each built its own
+     * (the 116k box: 0.13-0.18 s and its memory again for the sampler after the
+     * first image, and again for a calibration). */
+    lm_result r = LM_OK;
+    if (!sd.rt) r = rt_scene_create(&(rt_scene_desc){.scene = w->s}, &w->rt, err);
+    if (!sd.rt) sd.rt = w->rt;
     samp_desc quick = {.scene = w->s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = CACHE_WORKER_QUICK_RAYS,
-                       .threads = sd.threads, .seed = sd.seed};
+                       .threads = sd.threads, .seed = sd.seed, .rt = sd.rt};
     if (sd.backend == SAMP_BACKEND_EMBREE) { /* the same direct estimate: light samples are kept */
         quick.direct_rays = sd.direct_rays;
         quick.direct_control_variate = sd.direct_control_variate;
     }
     /* The sampler (and a GL context, if any) is made here: it belongs to this thread. */
     samp_sampler *first = NULL;
-    lm_result r = samp_create(w->desc.no_quick_start ? &sd : &quick, &first, err);
+    if (r == LM_OK) r = samp_create(w->desc.no_quick_start ? &sd : &quick, &first, err);
     /* Bounces beyond the first come after the first image (with the sampler that
      * refines): their transport and the direct mesh they need cost CornellBox-
      * Original's first image 50 ms (0.075 -> 0.125 s; docs/cache.md "Bounces"). */
@@ -338,6 +349,7 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
     w->calibrate_later = 0;
     samp_desc sd = w->desc.sampler;
     sd.scene = w->s;
+    if (!sd.rt) sd.rt = w->rt;
     samp_sampler *cal = NULL;
     lm_error why;
     if (samp_create(&sd, &cal, &why) != LM_OK) { /* refinement goes on with what it has */
@@ -536,6 +548,8 @@ static void *worker_main(void *arg)
     cache_destroy(c);
     samp_destroy(sp);
     samp_destroy(w->fallback);
+    rt_scene_destroy(w->rt); /* after every sampler that used it */
+    w->rt = NULL;
     pthread_mutex_lock(&w->lock);
     w->finished = 1;
     pthread_cond_broadcast(&w->cond);
