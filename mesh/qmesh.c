@@ -212,6 +212,7 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
         r = lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u roots", nroots);
         goto fail;
     }
+    const mesh_qmesh *like_mesh = desc->roots_like && desc->roots_like->vt == m->vt ? desc->roots_like : NULL;
     /* Roots in triangle order, so node ids do not depend on root_tris order. */
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         if (m->root_of_tri[t] == MESH_QMESH_NONE) continue;
@@ -219,9 +220,17 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
         mesh_qnode *n = &m->nodes[id];
         *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1,
                           .a1 = 0, .depth = 0, .orient = 0, .flags = MESH_QNODE_LIVE};
+        const uint32_t like = like_mesh ? like_mesh->root_of_tri[t] : MESH_QMESH_NONE;
         for (int c = 0; c < 3; ++c) {
             int fresh;
-            r = take_vertex(m, t, mesh_qmesh_node_corner(n, c), &n->v[c], &fresh, err);
+            if (like != MESH_QMESH_NONE) { /* the same corner, in the same order: a root is (a0 1, orient 0) */
+                n->v[c] = like_mesh->nodes[like].v[c];
+                r = ensure_vcap(m, n->v[c] + 1, err);
+                fresh = r == LM_OK && m->use[n->v[c]] == 0;
+                if (fresh) r = mesh_vtable_retain(m->vt, n->v[c], err);
+            } else {
+                r = take_vertex(m, t, mesh_qmesh_node_corner(n, c), &n->v[c], &fresh, err);
+            }
             if (r != LM_OK) goto fail; /* destroy releases what the roots so far hold */
             use_add(m, n->v[c], 1);
         }

@@ -594,6 +594,42 @@ static void test_limits(scene *s, mesh_vtable *vt)
     CHECK(vs.live == 0);
 }
 
+/* mesh_qmesh_desc.roots_like: the roots' corner ids taken from another mesh are
+ * the ones a look-up gives, each held once more in the vertex table, and still
+ * held once that mesh is gone. */
+static void test_roots_like(scene *s, mesh_vtable *vt)
+{
+    lm_error err = {{0}};
+    mesh_vtable_stats st0, st1;
+    mesh_vtable_get_stats(vt, &st0);
+    mesh_qmesh *a = NULL, *b = NULL, *c = NULL;
+    const uint32_t half = s->tri_count / 2; /* b's roots: all; a has only half of them */
+    uint32_t *first = malloc(half * sizeof *first);
+    for (uint32_t i = 0; i < half; ++i) first[i] = i;
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .root_tris = first, .root_count = half}, &a, &err) ==
+          LM_OK);
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .roots_like = a}, &b, &err) == LM_OK);
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt}, &c, &err) == LM_OK);
+    free(first);
+    if (!a || !b || !c) return;
+    mesh_vtable_get_stats(vt, &st1);
+    int same = 1;
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (int k = 0; k < 3; ++k)
+            same &= mesh_qmesh_node(b, mesh_qmesh_root(b, t))->v[k] == mesh_qmesh_node(c, mesh_qmesh_root(c, t))->v[k];
+    CHECK(same);
+    mesh_qmesh_destroy(a);
+    mesh_qmesh_destroy(c);
+    int live = 1; /* b holds its own reference to every corner */
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (int k = 0; k < 3; ++k) live &= mesh_vtable_vertex(vt, mesh_qmesh_node(b, mesh_qmesh_root(b, t))->v[k]) != NULL;
+    CHECK(live);
+    mesh_qmesh_destroy(b);
+    mesh_vtable_stats st2;
+    mesh_vtable_get_stats(vt, &st2);
+    CHECK(st1.live > st0.live && st2.live == st0.live); /* every reference given back */
+}
+
 int main(void)
 {
     scene *s = load_cornell();
@@ -606,6 +642,7 @@ int main(void)
         test_undo(s, vt);
         test_refined(s, vt);
         test_fan_small(s, vt);
+        test_roots_like(s, vt);
         test_limits(s, vt);
     }
     mesh_vtable_destroy(vt);

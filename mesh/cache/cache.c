@@ -117,7 +117,7 @@ void cache_destroy(cache *c)
 static lm_result make_bounce_mesh(cache *c, lm_error *err)
 {
     return mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3,
-                                                .node_cap = c->desc.node_cap},
+                                                .node_cap = c->desc.node_cap, .roots_like = c->direct},
                              &c->indirect1, err);
 }
 
@@ -156,26 +156,34 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l)
         memcpy(c->light_le + 3 * (size_t)l, light_radiance(c->s, l), 3 * sizeof(float));
     uint32_t cap = desc->node_cap;
+    /* Each mesh's root corners from one made before where it has the same root
+     * (mesh_qmesh_desc.roots_like): one vertex-table look-up per corner of the
+     * scene, not one per corner of every mesh. */
+    const mesh_qmesh *like = NULL;
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
         light_filter f = {c->s, l};
         uint32_t roots = 0;
         for (uint32_t t = 0; t < c->s->tri_count; ++t) roots += sees_light(c->s, t, &f) != 0;
         if (roots == 0) continue; /* a light nothing can see gets no mesh */
         r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = sees_light, .root_filter_user = &f,
-                                                 .channels = 1, .node_cap = cap},
+                                                 .channels = 1, .node_cap = cap, .roots_like = like},
                               &c->light[l], err);
+        if (r == LM_OK && !like) like = c->light[l];
     }
     if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3, .node_cap = cap},
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3,
+                                                 .node_cap = cap, .roots_like = like},
                               &c->direct, err);
     if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3, .node_cap = cap},
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3,
+                                                 .node_cap = cap, .roots_like = c->direct},
                               &c->indirect, err);
     if (r == LM_OK && c->desc.bounces != 1) r = make_bounce_mesh(c, err);
     uint32_t glossy = 0;
     for (uint32_t t = 0; r == LM_OK && t < c->s->tri_count; ++t) glossy += has_gloss(c->s, t, NULL) != 0;
     if (r == LM_OK && glossy) /* model only what the scene needs: no gloss, no mesh */
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap},
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3,
+                                                 .node_cap = cap, .roots_like = c->direct},
                               &c->specular, err);
     if (r == LM_OK && glossy && !cache_build_outlines(&c->outl, c->s, c->light_count)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
     if (desc->eye_set && !(isfinite(desc->eye[0]) && isfinite(desc->eye[1]) && isfinite(desc->eye[2])))
@@ -261,8 +269,9 @@ lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err)
     uint32_t cap = c->desc.node_cap;
     mesh_qmesh_destroy(c->specular);
     c->specular = NULL;
-    lm_result r = mesh_qmesh_create(
-        &(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3, .node_cap = cap}, &c->specular, err);
+    lm_result r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3,
+                                                        .node_cap = cap, .roots_like = c->direct},
+                                     &c->specular, err);
     if (r == LM_OK && c->initialised) r = sample_roots(c, CACHE_KIND_SPECULAR, NULL, 0, err);
     cache_sched_requeue(&c->sched, CACHE_KIND_SPECULAR);
     cache_sched_forget(&c->sched, CACHE_KIND_SPECULAR);
