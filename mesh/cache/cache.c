@@ -240,22 +240,9 @@ static lm_result root_vertices(const cache *c, const mesh_qmesh *m, const uint32
  * where those cannot answer). */
 static lm_result sample_roots(cache *c, cache_kind kind, const uint32_t *tris, uint32_t ntris, lm_error *err)
 {
-    mesh_qmesh *m = cache_kind_mesh(c, kind);
     uint32_t *v = NULL, n = 0;
-    lm_result r = root_vertices(c, m, tris, ntris, &v, &n, err);
-    float *rgb = r == LM_OK ? malloc(3 * (size_t)(n ? n : 1) * sizeof *rgb) : NULL;
-    cache_site *sites = r == LM_OK ? malloc((n ? n : 1) * sizeof *sites) : NULL;
-    if (r == LM_OK && (!rgb || !sites)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory initialising the cache");
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
-        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, v[i]);
-        double scale = ldexp(1.0, -(int)mv->bary.depth);
-        sites[i] = (cache_site){.vid = v[i], .tri = mv->tri, .w1 = mv->bary.w[1] * scale,
-                                .w2 = mv->bary.w[2] * scale, .depth = 0};
-    }
-    if (r == LM_OK) r = cache_light_values(c, kind, sites, n, rgb, err);
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(m, v[i], rgb + 3 * (size_t)i, err);
-    free(rgb);
-    free(sites);
+    lm_result r = root_vertices(c, cache_kind_mesh(c, kind), tris, ntris, &v, &n, err);
+    if (r == LM_OK) r = cache_root_values(c, kind, v, n, err);
     free(v);
     return r;
 }

@@ -14,6 +14,9 @@
  * are made with its own unoccluded G (cache_light.c): the falloff and the
  * cosines are the corner's own, only the shadow is a neighbour's.
  *
+ * Also cache_root_values, the direct and specular values at root corners from
+ * the light meshes, which the coarse cache uses for every corner it samples.
+ *
  * Called by cache.c's coarse cache, on the worker thread like the rest. */
 #include "mesh/cache/cache_internal.h"
 
@@ -251,7 +254,7 @@ lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E,
 static lm_result root_sites(const cache *c, const uint32_t *vids, uint32_t n, cache_site **out, lm_error *err)
 {
     cache_site *s = malloc((n ? n : 1) * sizeof *s);
-    if (!s) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    if (!s) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for root values");
     for (uint32_t i = 0; i < n; ++i) {
         const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vids[i]);
         double scale = ldexp(1.0, -(int)mv->bary.depth);
@@ -262,20 +265,16 @@ static lm_result root_sites(const cache *c, const uint32_t *vids, uint32_t n, ca
     return LM_OK;
 }
 
-/* Values of `kind` (direct or specular) at the root corners vids that mesh m
- * uses and has no value for yet, from the light meshes (sampled where they
- * cannot answer). */
-static lm_result exact_values(cache *c, cache_kind kind, const uint32_t *vids, uint32_t n, lm_error *err)
+lm_result cache_root_values(cache *c, cache_kind kind, const uint32_t *vids, uint32_t n, lm_error *err)
 {
     mesh_qmesh *m = cache_kind_mesh(c, kind);
     uint32_t *need = malloc((n ? n : 1) * sizeof *need), nn = 0;
-    if (!need) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    if (!need) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for root values");
     for (uint32_t i = 0; i < n; ++i)
         if (mesh_qmesh_vertex_use(m, vids[i]) && mesh_qmesh_get_value(m, vids[i], NULL) != 1) need[nn++] = vids[i];
     cache_site *sites = NULL;
     float *rgb = malloc(3 * (size_t)(nn ? nn : 1) * sizeof *rgb);
-    lm_result r = rgb ? root_sites(c, need, nn, &sites, err)
-                      : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's light");
+    lm_result r = rgb ? root_sites(c, need, nn, &sites, err) : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for root values");
     if (r == LM_OK) r = cache_light_values(c, kind, sites, nn, rgb, err);
     for (uint32_t i = 0; r == LM_OK && i < nn; ++i) r = mesh_qmesh_set_value(m, need[i], rgb + 3 * (size_t)i, err);
     free(sites);
@@ -305,8 +304,8 @@ lm_result cache_first_light(cache *c, const uint32_t *v, uint32_t n, int *done, 
     }
     free(need);
     /* Their direct and specular values as always. */
-    if (r == LM_OK) r = exact_values(c, CACHE_KIND_DIRECT, pk.chosen, pk.nchosen, err);
-    if (r == LM_OK && c->specular) r = exact_values(c, CACHE_KIND_SPECULAR, pk.chosen, pk.nchosen, err);
+    if (r == LM_OK) r = cache_root_values(c, CACHE_KIND_DIRECT, pk.chosen, pk.nchosen, err);
+    if (r == LM_OK && c->specular) r = cache_root_values(c, CACHE_KIND_SPECULAR, pk.chosen, pk.nchosen, err);
     /* The others: V borrowed per light, made into values with their own G. */
     float *V = malloc((size_t)L * sizeof *V);
     uint8_t *borrowed = calloc(mesh_vtable_id_limit(c->vt) + 1, 1);

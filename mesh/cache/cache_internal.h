@@ -361,6 +361,10 @@ void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V
 /* Indirect values at root corners v[0..n) into E: every one gathered, or with
  * desc.coarse_gathers, that many and the others borrowed. */
 lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E, lm_error *err);
+/* Values of `kind` (direct or specular) at the root corners vids that its mesh
+ * uses and has no value for yet, from the light meshes (sampled where they
+ * cannot answer). */
+lm_result cache_root_values(cache *c, cache_kind kind, const uint32_t *vids, uint32_t n, lm_error *err);
 /* With desc.coarse_lights below n: light sampled at that many of the direct
  * mesh's root corners v[0..n), every corner's direct and specular value set
  * (borrowed V elsewhere), the borrowed roots recorded; *done = 1. Else nothing
