@@ -15,6 +15,8 @@
  *   cache_refine.c    the refinement scheduler (§4.3)
  *   cache_reach.c     which triangles take part: what gathers from the seen ones
  *                     reach (cache_init_seen)
+ *   cache_first.c     the first image from a budget of gathers and light samples
+ *                     (borrowed values); root values from the light meshes
  *   cache.c           the public face (cache.h): create, init, edits, evaluation,
  *                     statistics, cache_refine()
  * Upward calls go through function pointers only (cache_changed_fn,
