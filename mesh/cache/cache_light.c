@@ -461,6 +461,13 @@ lm_result cache_revise_falsified(cache *c, cache_changed_fn changed, void *user,
         }
         free(regions);
     }
+    /* A big batch (the first image's borrowed roots: 65,536 regions a call,
+     * 3.7 MB) leaves no capacity behind once done. */
+    if (st->falsified_n == 0 && st->falsified_cap > 1024) {
+        free(st->falsified);
+        st->falsified = NULL;
+        st->falsified_cap = 0;
+    }
     free(rs.s);
     free(vals);
     free(ids);
