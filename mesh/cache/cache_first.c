@@ -317,13 +317,12 @@ lm_result cache_first_light(cache *c, const uint32_t *v, uint32_t n, int *done, 
             continue;
         }
         const uint32_t vid = v[pk.kv[i].index];
-        const uint32_t tri = mesh_vtable_vertex(c->vt, vid)->tri;
         uint32_t q[4];
         double w[4];
         int nb = borrow_from(c, &pk, vid, i, q, w);
         for (uint32_t l = 0; l < L; ++l) {
-            if (!c->light[l] || mesh_qmesh_root(c->light[l], tri) == MESH_QMESH_NONE) {
-                V[l] = 0.0f; /* its triangle cannot see the light (as cache_fetch_visibility) */
+            if (!c->light[l] || !mesh_qmesh_vertex_use(c->light[l], vid)) {
+                V[l] = 0.0f; /* no triangle around it can see the light (cache_fetch_visibility: 0) */
                 continue;
             }
             double sum = 0.0, wsum = 0.0;
