@@ -157,28 +157,28 @@ void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const floa
     tm_linear_to_lab(&c->tm, rgb, lab); /* the display's Lab, without the sRGB round trip */
 }
 
-/* The other kinds' values at corner k of leaf n of scene triangle tri, into
- * term (kind's own is the caller's). At a corner of a root that the other
- * mesh's root shares, its interpolation is that vertex's own value
- * (mesh_qmesh_interpolate: the located leaf has the corner as a corner, weights
- * 1, 0, 0), so the value is read, not located: scheduling a big scene's roots
- * made 1.2 µs a leaf of tree descents (0.42 s over the 116k-triangle box). */
-static void other_terms(const cache *c, cache_kind kind, const mesh_qnode *n, int k, float term[CACHE_KINDS][3])
+/* The other kinds' values at (w1, w2) of scene triangle tri, into term (kind's
+ * own is the caller's). root_vid: the vertex there when it is a corner of the
+ * triangle's root (else MESH_VTABLE_NONE): where the other mesh's root shares
+ * it, its interpolation is that vertex's own value (mesh_qmesh_interpolate: the
+ * located leaf has it as a corner, weights 1, 0, 0), so the value is read, not
+ * located: scheduling a big scene's roots made 1.2 µs a leaf of tree descents
+ * (0.42 s over the 116k-triangle box). */
+static void other_terms(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2, uint32_t root_vid,
+                        float term[CACHE_KINDS][3])
 {
     lm_error ignore;
-    double w1 = -1.0, w2 = -1.0;
     for (int j = 0; j < CACHE_KINDS; ++j) {
         const mesh_qmesh *mk = j == (int)kind ? NULL : cache_kind_mesh(c, (cache_kind)j);
-        uint32_t root = mk ? mesh_qmesh_root(mk, n->tri) : MESH_QMESH_NONE;
+        uint32_t root = mk ? mesh_qmesh_root(mk, tri) : MESH_QMESH_NONE;
         if (root == MESH_QMESH_NONE) continue;
-        if (n->depth == 0) {
+        if (root_vid != MESH_VTABLE_NONE) {
             const mesh_qnode *rn = mesh_qmesh_node(mk, root);
-            if ((rn->v[0] == n->v[k] || rn->v[1] == n->v[k] || rn->v[2] == n->v[k]) &&
-                mesh_qmesh_get_value(mk, n->v[k], term[j]) == 1)
+            if ((rn->v[0] == root_vid || rn->v[1] == root_vid || rn->v[2] == root_vid) &&
+                mesh_qmesh_get_value(mk, root_vid, term[j]) == 1)
                 continue;
         }
-        if (w1 < 0.0) cache_node_corner_bary(n, k, &w1, &w2);
-        mesh_qmesh_interpolate(mk, n->tri, w1, w2, term[j], &ignore);
+        mesh_qmesh_interpolate(mk, tri, w1, w2, term[j], &ignore);
     }
 }
 
@@ -186,15 +186,8 @@ void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w
                          float lab[3])
 {
     float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
-    lm_error ignore;
-    for (int k = 0; k < CACHE_KINDS; ++k) {
-        if (k == (int)kind) {
-            memcpy(term[k], value, sizeof term[k]);
-            continue;
-        }
-        const mesh_qmesh *mk = cache_kind_mesh(c, (cache_kind)k);
-        if (mk && mesh_qmesh_root(mk, tri) != MESH_QMESH_NONE) mesh_qmesh_interpolate(mk, tri, w1, w2, term[k], &ignore);
-    }
+    memcpy(term[kind], value, sizeof term[kind]);
+    other_terms(c, kind, tri, w1, w2, MESH_VTABLE_NONE, term);
     cache_seen_lab(c, tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab);
 }
 
@@ -203,8 +196,10 @@ float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, 
     float lab[3][3];
     for (int k = 0; k < 3; ++k) {
         float term[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+        double w1, w2;
+        cache_node_corner_bary(n, k, &w1, &w2);
         mesh_qmesh_get_value(m, n->v[k], term[kind]);
-        other_terms(c, kind, n, k, term);
+        other_terms(c, kind, n->tri, w1, w2, n->depth == 0 ? n->v[k] : MESH_VTABLE_NONE, term);
         cache_seen_lab(c, n->tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab[k]);
     }
     return fmaxf(tm_delta_e(lab[0], lab[1]), fmaxf(tm_delta_e(lab[1], lab[2]), tm_delta_e(lab[2], lab[0])));
