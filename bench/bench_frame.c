@@ -201,9 +201,10 @@ int main(int argc, char **argv)
     cache_worker_pause(wk); /* the fixed cases have the CPU to themselves */
     snap = cache_worker_acquire(wk);
     size_t leaves = (size_t)snap->direct.triangle_count + snap->indirect.triangle_count + snap->specular.triangle_count;
-    size_t bytes = 3 * sizeof(cache_snapshot_vertex) * leaves;
+    size_t verts = (size_t)snap->direct.vertex_count + snap->indirect.vertex_count + snap->specular.vertex_count;
+    size_t bytes = sizeof(cache_snapshot_vertex) * verts + 3 * sizeof(uint32_t) * leaves;
     printf("%s: %u scene triangles; cache %s after %.1f s: %u direct, %u indirect, %u specular leaf triangles "
-           "(%.1f MiB of vertices)\n%s; %dx%d, %d frames per fixed case, first %d not counted\n",
+           "(%.1f MiB of vertices and indices)\n%s; %dx%d, %d frames per fixed case, first %d not counted\n",
            path, s->tri_count, snap->converged ? "converged" : "stopped", lm_now_seconds() - t0,
            snap->direct.triangle_count, snap->indirect.triangle_count, snap->specular.triangle_count,
            bytes / 1048576.0, glctx_renderer(ctx), W, H, frames, WARMUP);

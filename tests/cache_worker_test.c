@@ -65,7 +65,7 @@ static const cache_snapshot *wait_newer(cache_worker *w, uint64_t gen)
 /* The specular value published at a corner at position p (first found), or -1. */
 static float specular_at(const cache_snapshot *s, const float p[3])
 {
-    for (uint32_t i = 0; i < 3 * s->specular.triangle_count; ++i)
+    for (uint32_t i = 0; i < s->specular.vertex_count; ++i)
         if (memcmp(s->specular.vertices[i].position, p, 3 * sizeof(float)) == 0) return s->specular.vertices[i].value[0];
     return -1.0f;
 }
@@ -232,14 +232,28 @@ int main(void)
         CHECK(snap->stats.indirect.mesh.leaves == sync.indirect.mesh.leaves);
         CHECK(snap->direct.triangle_count == count);
         int finite = 1;
-        for (uint32_t i = 0; i < 3 * snap->direct.triangle_count; ++i)
+        for (uint32_t i = 0; i < snap->direct.vertex_count; ++i)
             for (int k = 0; k < 3; ++k) finite &= isfinite(snap->direct.vertices[i].value[k]);
         CHECK(finite);
+        /* Indexed: every index names a vertex, every vertex is used, in the
+         * order of first use, and the corners are shared. */
+        {
+            const cache_snapshot_mesh *m = &snap->direct;
+            uint32_t next = 0, bad = 0;
+            for (uint32_t i = 0; i < 3 * m->triangle_count; ++i) {
+                if (m->index[i] > next || m->index[i] >= m->vertex_count) ++bad;
+                if (m->index[i] == next) ++next;
+            }
+            printf("direct snapshot: %u triangles, %u vertices (%.2f a triangle), %u bad indices\n",
+                   m->triangle_count, m->vertex_count, (double)m->vertex_count / m->triangle_count, bad);
+            CHECK(bad == 0 && next == m->vertex_count);
+            CHECK(m->vertex_count < 2 * m->triangle_count);
+        }
 
         /* Light edit through the worker: values change at once, no new light sample. */
         uint64_t gen = snap->generation, light_samples = snap->stats.lights[0].samples;
         uint32_t bright = 0; /* the brightest published corner, found again by position */
-        for (uint32_t i = 1; i < 3 * snap->direct.triangle_count; ++i)
+        for (uint32_t i = 1; i < snap->direct.vertex_count; ++i)
             if (snap->direct.vertices[i].value[0] > snap->direct.vertices[bright].value[0]) bright = i;
         float before = snap->direct.vertices[bright].value[0], where[3];
         memcpy(where, snap->direct.vertices[bright].position, sizeof where);
@@ -252,7 +266,7 @@ int main(void)
             edited = cache_worker_acquire(w);
         }
         float after = -1.0f;
-        for (uint32_t i = 0; i < 3 * edited->direct.triangle_count && after < 0.0f; ++i)
+        for (uint32_t i = 0; i < edited->direct.vertex_count && after < 0.0f; ++i)
             if (memcmp(edited->direct.vertices[i].position, where, sizeof where) == 0)
                 after = edited->direct.vertices[i].value[0];
         printf("light edit (radiance halved): brightest value %.5f -> %.5f, light samples %llu -> %llu\n", before,

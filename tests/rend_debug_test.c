@@ -91,7 +91,8 @@ static void synthetic(void)
     const uint32_t ntri = 2 * (GN - 1) * (GN - 1);
     cache_snapshot_vertex *v = calloc(3 * (size_t)ntri, sizeof *v);
     cache_snapshot_corner *c = calloc(3 * (size_t)ntri, sizeof *c);
-    uint32_t *tri = calloc(ntri, sizeof *tri);
+    uint32_t *tri = calloc(ntri, sizeof *tri), *index = calloc(3 * (size_t)ntri, sizeof *index);
+    for (uint32_t i = 0; i < 3 * ntri; ++i) index[i] = i; /* each corner its own vertex */
     /* Each cell: two triangles (a, b, d) and (b, e, d) sharing the diagonal b-d,
      * which is a fan diagonal (flag clear). Vertices with odd id are unsampled. */
     uint32_t t = 0;
@@ -113,7 +114,8 @@ static void synthetic(void)
             c[3 * (t - 2) + 1].flags &= ~(uint32_t)CACHE_CORNER_LEAF_EDGE; /* b -> d */
             c[3 * (t - 1) + 2].flags &= ~(uint32_t)CACHE_CORNER_LEAF_EDGE; /* d -> b */
         }
-    cache_snapshot_mesh m = {.vertices = v, .tri = tri, .corners = c, .triangle_count = ntri};
+    cache_snapshot_mesh m = {.vertices = v, .index = index, .tri = tri, .corners = c, .triangle_count = ntri,
+                             .vertex_count = 3 * ntri};
     rend_debug_desc d = {.camera = &cam, .width = W, .height = H, .ids = ids, .background = bg};
     lm_error err;
     rend_debug_counts n;
@@ -211,7 +213,7 @@ static void synthetic(void)
     CHECK(rend_debug_samples(&bad_d, &m, out, &n, &err) == LM_ERR_INVALID_ARG);
     CHECK(rend_debug_leaves(&d, NULL, out, &n, &err) == LM_ERR_INVALID_ARG);
 
-    free(v), free(c), free(tri), free(ids), free(bg), free(out);
+    free(v), free(c), free(tri), free(index), free(ids), free(bg), free(out);
 }
 
 /* ---- the worker and the GL ID pass ------------------------------------------------------ */
@@ -282,8 +284,11 @@ static void with_gl(const GladGLContext *gl)
         CHECK(psnap->lights == NULL && psnap->light_mesh_count == 0 && psnap->direct.corners == NULL &&
               psnap->indirect.corners == NULL);
         CHECK(snap->direct.triangle_count == psnap->direct.triangle_count &&
+              snap->direct.vertex_count == psnap->direct.vertex_count &&
               memcmp(snap->direct.vertices, psnap->direct.vertices,
-                     3 * (size_t)snap->direct.triangle_count * sizeof *snap->direct.vertices) == 0);
+                     (size_t)snap->direct.vertex_count * sizeof *snap->direct.vertices) == 0 &&
+              memcmp(snap->direct.index, psnap->direct.index,
+                     3 * (size_t)snap->direct.triangle_count * sizeof *snap->direct.index) == 0);
     }
     cache_worker_destroy(plain);
 
@@ -292,7 +297,7 @@ static void with_gl(const GladGLContext *gl)
         CHECK(lm->triangle_count > 0 && lm->corners && snap->direct.corners && snap->indirect.corners);
         /* V in [0, 1], the other channels 0; the blocker (facing down) has no light leaves. */
         int vbad = 0;
-        for (size_t i = 0; i < 3 * (size_t)lm->triangle_count; ++i) {
+        for (size_t i = 0; i < lm->vertex_count; ++i) {
             const float *val = lm->vertices[i].value;
             vbad += !(val[0] >= 0.0f && val[0] <= 1.0f) || val[1] != 0.0f || val[2] != 0.0f;
         }
@@ -374,7 +379,7 @@ static void with_gl(const GladGLContext *gl)
             double p[3][2];
             int front = 1, pen = 0, lit = 1;
             for (int k = 0; k < 3; ++k) {
-                const cache_snapshot_vertex *cv = &lm->vertices[3 * t + (uint32_t)k];
+                const cache_snapshot_vertex *cv = cache_snapshot_corner_vertex(lm, t, k);
                 front &= rend_debug_project(&d, cv->position, &p[k][0], &p[k][1]);
                 pen |= cv->value[0] > 0.02f && cv->value[0] < 0.98f;
                 lit &= cv->value[0] >= 0.9999f;

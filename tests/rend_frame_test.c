@@ -256,7 +256,7 @@ static void flat_case(const GladGLContext *gl)
     if (!s) return;
     /* The snapshot: the two scene triangles with one value per mesh. */
     cache_snapshot_vertex v[3][6];
-    uint32_t tri[2] = {0, 1};
+    uint32_t tri[2] = {0, 1}, index[6] = {0, 1, 2, 3, 4, 5}; /* each corner its own vertex */
     const float values[3][3] = {{0.3f, 0.7f, 0.9f}, {2.1f, 1.3f, 0.2f}, {0.05f, 0.5f, 1.7f}};
     for (int m = 0; m < 3; ++m)
         for (int t = 0; t < 2; ++t)
@@ -266,9 +266,9 @@ static void flat_case(const GladGLContext *gl)
                 memcpy(v[m][3 * t + c].value, values[m], 3 * sizeof(float));
             }
     cache_snapshot snap = {.generation = 1,
-                           .direct = {.vertices = v[0], .tri = tri, .triangle_count = 2},
-                           .indirect = {.vertices = v[1], .tri = tri, .triangle_count = 2},
-                           .specular = {.vertices = v[2], .tri = tri, .triangle_count = 2},
+                           .direct = {.vertices = v[0], .index = index, .tri = tri, .triangle_count = 2, .vertex_count = 6},
+                           .indirect = {.vertices = v[1], .index = index, .tri = tri, .triangle_count = 2, .vertex_count = 6},
+                           .specular = {.vertices = v[2], .index = index, .tri = tri, .triangle_count = 2, .vertex_count = 6},
                            .converged = 1};
     enum { W = 37, H = 23 }; /* odd sizes: no symmetry to hide an off-by-one */
     float one[W * H * 3], img[W * H * 3];

@@ -3,8 +3,9 @@
  * display side reads a snapshot without touching the cache or taking a lock.
  *
  * A snapshot holds the crack-free leaf triangles of the direct, indirect and
- * specular meshes with, per corner, its position and value and, per triangle, its
- * scene triangle (for the material) — what the radiance passes draw — and the
+ * specular meshes, indexed: each vertex of a mesh once, with its position and
+ * value, and per triangle its three vertices and its scene triangle (for the
+ * material) — what the radiance passes draw — and the
  * cache statistics when it was made. With publish_debug it also holds each light's
  * visibility mesh and, for every mesh, per-corner vertex ids and flags (sampled
  * vertex, leaf-boundary edge): what the debug overlays draw (rend_debug.h). Off,
@@ -28,7 +29,7 @@
 extern "C" {
 #endif
 
-/* One corner of a published triangle. */
+/* One vertex of a published mesh (shared by the triangles that index it). */
 typedef struct cache_snapshot_vertex {
     float position[3];           /* scene units */
     float value[3];              /* direct: L_dd per unit albedo; indirect: E_i (W·m⁻²); specular: L_ds per unit ks */
@@ -42,18 +43,30 @@ enum {
                                         its leaf's boundary; clear: a diagonal of the fan tiling the leaf */
 };
 
-/* One corner's debug data (cache_worker_desc.publish_debug), parallel to vertices. */
+/* One corner's debug data (cache_worker_desc.publish_debug), parallel to index. */
 typedef struct cache_snapshot_corner {
     uint32_t vertex;             /* vertex-table id: corners with the same id are one vertex of the mesh */
     uint32_t flags;              /* CACHE_CORNER_* */
 } cache_snapshot_corner;
 
+/* A published mesh. Indexed because leaf triangles share their corners (about
+ * two triangles a vertex): 28 bytes a triangle instead of 76 with a position and
+ * value per corner, in each of the worker's three slots, the renderer's copy and
+ * its GL buffers (docs/memory.md, "Indexed snapshots"). */
 typedef struct cache_snapshot_mesh {
-    const cache_snapshot_vertex *vertices; /* 3 per triangle */
+    const cache_snapshot_vertex *vertices; /* vertex_count, in the order the triangles first use them */
+    const uint32_t *index;       /* 3 per triangle: its corners, into vertices (counter-clockwise) */
     const uint32_t *tri;         /* scene triangle of each triangle (its material) */
     const cache_snapshot_corner *corners;  /* 3 per triangle with publish_debug; else NULL */
-    uint32_t triangle_count;
+    uint32_t triangle_count, vertex_count;
 } cache_snapshot_mesh;
+
+/* Corner k (0..2) of triangle t of m. */
+static inline const cache_snapshot_vertex *cache_snapshot_corner_vertex(const cache_snapshot_mesh *m, uint32_t t,
+                                                                        int k)
+{
+    return &m->vertices[m->index[3 * (size_t)t + (size_t)k]];
+}
 
 typedef struct cache_snapshot {
     uint64_t generation;         /* 1, 2, ... per commit */

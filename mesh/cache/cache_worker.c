@@ -21,10 +21,20 @@ typedef struct light_edit {
 /* Arrays behind one published mesh. */
 typedef struct mesh_store {
     cache_snapshot_vertex *verts;
-    uint32_t *tris;
+    uint32_t *index, *tris;
     cache_snapshot_corner *corners;   /* publish_debug only */
-    size_t cap;                       /* triangles */
+    size_t cap, verts_cap;            /* triangles (index: 3 a triangle, tris, corners); vertices */
 } mesh_store;
+
+/* The worker's scratch for publishing: the leaf triangles of one mesh, and each
+ * vertex-table id's index in the mesh being published (UINT32_MAX: not yet in
+ * it; set back to that after each mesh). */
+typedef struct publish_scratch {
+    mesh_qmesh_tri *buf;
+    size_t buf_cap;
+    uint32_t *local;
+    size_t local_cap;
+} publish_scratch;
 
 /* Buffers behind one snapshot; owned by whichever side holds the slot. */
 typedef struct snapshot_store {
@@ -103,44 +113,74 @@ static void fill_corners(cache_snapshot_corner *out, const mesh_qmesh *m, const 
     }
 }
 
-/* Publishes mesh m (NULL: empty) into ms and *sm. Without debug it does exactly
- * what the renderer needs: positions, values, scene triangles. */
+/* Publishes mesh m (NULL: empty) into ms and *sm, indexed: each vertex once, in
+ * the order the leaf triangles first use it (they come in node order, so a
+ * triangle's corners are mostly near each other in the array too). Without debug
+ * it does exactly what the renderer needs: positions, values, scene triangles. */
 static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, const cache *c, const mesh_qmesh *m,
-                           mesh_qmesh_tri **buf, size_t *buf_cap, lm_error *err)
+                           publish_scratch *ps, lm_error *err)
 {
     size_t count = 0;
-    lm_result r = m ? mesh_qmesh_leaf_triangles(m, buf, buf_cap, &count, err) : LM_OK;
+    lm_result r = m ? mesh_qmesh_leaf_triangles(m, &ps->buf, &ps->buf_cap, &count, err) : LM_OK;
     if (r != LM_OK) return r;
+    const mesh_vtable *vt = cache_vtable(c);
+    const size_t ids = mesh_vtable_id_limit(vt);
+    if (count && ids > ps->local_cap) {
+        uint32_t *l = realloc(ps->local, ids * sizeof *l);
+        if (!l) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        memset(l + ps->local_cap, 0xff, (ids - ps->local_cap) * sizeof *l);
+        ps->local = l;
+        ps->local_cap = ids;
+    }
     if (count > ms->cap || (debug && count && !ms->corners)) {
-        cache_snapshot_vertex *v = realloc(ms->verts, 3 * count * sizeof *v);
-        if (v) ms->verts = v;
-        uint32_t *t = v ? realloc(ms->tris, count * sizeof *t) : NULL;
+        uint32_t *x = realloc(ms->index, 3 * count * sizeof *x);
+        if (x) ms->index = x;
+        uint32_t *t = x ? realloc(ms->tris, count * sizeof *t) : NULL;
         if (t) ms->tris = t;
         cache_snapshot_corner *k = t && debug ? realloc(ms->corners, 3 * count * sizeof *k) : NULL;
         if (k) ms->corners = k;
-        if (!v || !t || (debug && !k)) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        if (!x || !t || (debug && !k)) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
         ms->cap = count;
     }
-    const mesh_vtable *vt = cache_vtable(c);
-    const int pad = m && mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
-    for (size_t i = 0; i < count; ++i) {
-        ms->tris[i] = (*buf)[i].tri;
-        for (int k = 0; k < 3; ++k) {
-            cache_snapshot_vertex *out = &ms->verts[3 * i + (size_t)k];
-            memcpy(out->position, mesh_vtable_vertex(vt, (*buf)[i].v[k])->position, sizeof out->position);
-            if (pad) memset(out->value, 0, sizeof out->value);
-            if (mesh_qmesh_get_value(m, (*buf)[i].v[k], out->value) < 0) memset(out->value, 0, sizeof out->value);
+    /* Number the vertices first (the count sizes verts), then fill them. */
+    uint32_t nv = 0;
+    for (size_t i = 0; i < 3 * count; ++i) {
+        uint32_t id = ps->buf[i / 3].v[i % 3];
+        if (ps->local[id] == UINT32_MAX) ps->local[id] = nv++;
+        ms->index[i] = ps->local[id];
+    }
+    if (nv > ms->verts_cap) {
+        cache_snapshot_vertex *v = realloc(ms->verts, (size_t)nv * sizeof *v);
+        if (!v) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        else {
+            ms->verts = v;
+            ms->verts_cap = nv;
         }
     }
-    if (debug && count) fill_corners(ms->corners, m, *buf, count);
-    *sm = (cache_snapshot_mesh){.vertices = ms->verts, .tri = ms->tris, .corners = debug && count ? ms->corners : NULL,
-                                .triangle_count = (uint32_t)count};
+    const int pad = m && mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
+    for (size_t i = 0; i < 3 * count; ++i) {
+        uint32_t id = ps->buf[i / 3].v[i % 3];
+        if (ps->local[id] == UINT32_MAX) continue; /* done: an earlier corner */
+        if (r == LM_OK) {
+            cache_snapshot_vertex *out = &ms->verts[ps->local[id]];
+            memcpy(out->position, mesh_vtable_vertex(vt, id)->position, sizeof out->position);
+            if (pad) memset(out->value, 0, sizeof out->value);
+            if (mesh_qmesh_get_value(m, id, out->value) < 0) memset(out->value, 0, sizeof out->value);
+        }
+        ps->local[id] = UINT32_MAX;
+    }
+    if (r != LM_OK) return r;
+    for (size_t i = 0; i < count; ++i) ms->tris[i] = ps->buf[i].tri;
+    if (debug && count) fill_corners(ms->corners, m, ps->buf, count);
+    *sm = (cache_snapshot_mesh){.vertices = ms->verts, .index = ms->index, .tri = ms->tris,
+                                .corners = debug && count ? ms->corners : NULL,
+                                .triangle_count = (uint32_t)count, .vertex_count = nv};
     return LM_OK;
 }
 
 /* publish_debug: every light's visibility mesh into snap.lights. */
-static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t light_count, mesh_qmesh_tri **buf,
-                                   size_t *buf_cap, lm_error *err)
+static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t light_count, publish_scratch *ps,
+                                   lm_error *err)
 {
     if (light_count > st->light_mesh_cap) {
         mesh_store *m = realloc(st->light_mesh, light_count * sizeof *m);
@@ -153,7 +193,7 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
     }
     for (uint32_t l = 0; l < light_count; ++l) {
         lm_result r =
-            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, c, cache_light_mesh(c, l), buf, buf_cap, err);
+            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, c, cache_light_mesh(c, l), ps, err);
         if (r != LM_OK) return r;
     }
     st->snap.lights = st->light_snap;
@@ -168,22 +208,22 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
 #define ESTIMATE_SECONDS 0.5
 
 static lm_result fill_snapshot(cache_worker *w, cache *c, const cache_estimate *estimate, int debug,
-                               uint64_t generation, uint64_t tested, int converged, mesh_qmesh_tri **buf,
-                               size_t *buf_cap, lm_error *err)
+                               uint64_t generation, uint64_t tested, int converged, publish_scratch *ps,
+                               lm_error *err)
 {
     snapshot_store *st = w->back;
     st->snap.first_rounds_seconds = w->first_rounds_seconds;
     st->snap.first_publish_seconds = w->first_publish_seconds;
-    lm_result r = fill_mesh(&st->mesh[0], &st->snap.direct, debug, c, cache_direct_mesh(c), buf, buf_cap, err);
+    lm_result r = fill_mesh(&st->mesh[0], &st->snap.direct, debug, c, cache_direct_mesh(c), ps, err);
     if (r == LM_OK)
-        r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), buf, buf_cap, err);
+        r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), ps, err);
     if (r == LM_OK && cache_specular_mesh(c))
-        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, c, cache_specular_mesh(c), buf, buf_cap, err);
+        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, c, cache_specular_mesh(c), ps, err);
     if (!cache_specular_mesh(c)) st->snap.specular = (cache_snapshot_mesh){0};
     if (r != LM_OK) return r;
     cache_get_stats(c, &st->snap.stats);
     st->snap.estimate = *estimate;
-    if (debug) r = fill_light_meshes(st, c, st->snap.stats.light_count, buf, buf_cap, err);
+    if (debug) r = fill_light_meshes(st, c, st->snap.stats.light_count, ps, err);
     if (r != LM_OK) return r;
     if (st->snap.stats.light_count > st->lights_cap) {
         cache_mesh_stats *l = realloc(st->lights, st->snap.stats.light_count * sizeof *l);
@@ -232,8 +272,8 @@ static void publish_failure(cache_worker *w, uint64_t generation, const char *ms
  * the coarse indirect gathered again with it. AUTO starts with Embree at its
  * defaults and calibrates after the first convergence (calibrate_now), so no
  * refinement waits for a calibration (issue 14; docs/renderer.md). */
-static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint64_t *generation, mesh_qmesh_tri **buf,
-                             size_t *buf_cap, lm_error *err)
+static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint64_t *generation, publish_scratch *ps,
+                             lm_error *err)
 {
     samp_desc sd = w->desc.sampler;
     sd.scene = w->s;
@@ -287,7 +327,7 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     if (r == LM_OK) r = cache_estimate_error(*c, w->pixels, &w->estimate, err);
     w->estimate_at = lm_now_seconds();
     if (r == LM_OK)
-        r = fill_snapshot(w, *c, &w->estimate, debug, ++*generation, w->first_tested, 0, buf, buf_cap, err);
+        r = fill_snapshot(w, *c, &w->estimate, debug, ++*generation, w->first_tested, 0, ps, err);
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
     w->first_publish_seconds = lm_now_seconds() - t;
     if (r == LM_OK) commit(w);
@@ -412,10 +452,9 @@ static void *worker_main(void *arg)
     lm_error err = {{0}};
     samp_sampler *sp = NULL;
     cache *c = NULL;
-    mesh_qmesh_tri *buf = NULL;
-    size_t buf_cap = 0;
+    publish_scratch ps = {0};
     uint64_t generation = 0;
-    lm_result r = start_cache(w, &sp, &c, &generation, &buf, &buf_cap, &err);
+    lm_result r = start_cache(w, &sp, &c, &generation, &ps, &err);
     uint64_t tested = w->first_tested;
     uint32_t owed = 1; /* outdated indirect values left by the last refinement (unknown before it) */
     int idle = 0; /* converged or max_tested reached: wait for an edit */
@@ -524,7 +563,7 @@ static void *worker_main(void *arg)
         }
         if (r == LM_OK && w->fallback) calibrated_check(w, c, &sp);
         if (r == LM_OK)
-            r = fill_snapshot(w, c, &w->estimate, debug, ++generation, tested, reached, &buf, &buf_cap, &err);
+            r = fill_snapshot(w, c, &w->estimate, debug, ++generation, tested, reached, &ps, &err);
         w->back->snap.finished = idle && !tighten;
         w->back->snap.converged_at = reached ? reached_at : 0;
         if (r == LM_OK && tighten) {
@@ -544,7 +583,8 @@ static void *worker_main(void *arg)
         if (r == LM_OK && w->calibrate_later && tighten) calibrate_now(w, c, &sp);
     }
     if (r != LM_OK) publish_failure(w, ++generation, err.msg);
-    free(buf);
+    free(ps.buf);
+    free(ps.local);
     cache_destroy(c);
     samp_destroy(sp);
     samp_destroy(w->fallback);
@@ -565,6 +605,7 @@ static void store_free(snapshot_store *st)
     for (uint32_t k = 0; k < 3 + st->light_mesh_cap; ++k) {
         mesh_store *ms = k < 3 ? &st->mesh[k] : &st->light_mesh[k - 3];
         free(ms->verts);
+        free(ms->index);
         free(ms->tris);
         free(ms->corners);
     }

@@ -130,7 +130,7 @@ static lm_result check_args(const rend_debug_desc *d, const cache_snapshot_mesh 
         return lm_fail(err, LM_ERR_INVALID_ARG, "%s: dim must be in (0, 1], not %g", what, (double)d->dim);
     if (d->dot_radius < 0 || d->dot_radius > 16)
         return lm_fail(err, LM_ERR_INVALID_ARG, "%s: dot radius must be 0..16 pixels, not %d", what, d->dot_radius);
-    if (m->triangle_count && (!m->vertices || !m->tri))
+    if (m->triangle_count && (!m->vertices || !m->index || !m->tri))
         return lm_fail(err, LM_ERR_INVALID_ARG, "%s: a mesh with triangles but no vertices", what);
     if (m->triangle_count && !m->corners)
         return lm_fail(err, LM_ERR_INVALID_ARG,
@@ -267,8 +267,8 @@ lm_result rend_debug_leaves(const rend_debug_desc *din, const cache_snapshot_mes
         n.segments++;
         size_t i = e[g].corner, j = i - i % 3 + (i % 3 + 1) % 3;
         double a[3], b[3];
-        proj_clip(&p, m->vertices[i].position, a);
-        proj_clip(&p, m->vertices[j].position, b);
+        proj_clip(&p, m->vertices[m->index[i]].position, a);
+        proj_clip(&p, m->vertices[m->index[j]].position, b);
         if (!clip_segment(&p, a, b)) continue;
         double ax, ay, bx, by;
         proj_pixel(&p, a, &ax, &ay);
@@ -318,7 +318,7 @@ lm_result rend_debug_samples(const rend_debug_desc *din, const cache_snapshot_me
         for (end = g; end < nv && v[end].vertex == v[g].vertex; ++end)
             if (nt == 0 || tris[nt - 1] != v[end].tri) tris[nt++] = v[end].tri;
         double c[3], px, py;
-        proj_clip(&p, m->vertices[v[g].corner].position, c);
+        proj_clip(&p, m->vertices[m->index[v[g].corner]].position, c);
         int shown = 0;
         long x = -1, y = -1;
         if (in_front(c)) {

@@ -35,11 +35,13 @@ typedef struct rect {
  * s > 1 its resolved image (coef·L box-filtered over each pixel's samples,
  * rend_resolve.frag), the radiance drawn into the shared val_tex first. */
 typedef struct term_state {
-    GLuint vbo, vao, fbo, tex;
-    size_t vbo_cap;                /* bytes allocated in vbo */
-    cache_snapshot_vertex *copy;   /* what vbo holds, 3 per triangle */
+    GLuint vbo, ibo, vao, fbo, tex; /* vbo: the mesh's vertices; ibo: its index */
+    size_t vbo_cap, ibo_cap;       /* bytes allocated in vbo and ibo */
+    cache_snapshot_mesh copy;      /* what vbo and ibo hold (vertices, index; no tri, no corners) */
+    cache_snapshot_vertex *copy_v; /* copy's arrays, owned */
+    uint32_t *copy_i;
     uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
-    uint32_t tris, copy_cap;       /* triangles in vbo and copy; allocated in copy and hash */
+    uint32_t tris, copy_cap, copy_vcap; /* triangles in copy; allocated in copy_i (/3) and hash, copy_v */
     int hash_valid;
     const cache_snapshot_vertex *src; /* the snapshot array it came from */
     int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
@@ -116,13 +118,15 @@ void rend_frame_destroy(rend_frame *f)
         for (int t = 0; t < TERMS; ++t) {
             term_state *ts = &f->term[t];
             gl->DeleteBuffers(1, &ts->vbo);
+            gl->DeleteBuffers(1, &ts->ibo);
             gl->DeleteVertexArrays(1, &ts->vao);
             gl->DeleteTextures(1, &ts->tex);
             gl->DeleteFramebuffers(1, &ts->fbo);
         }
     }
     for (int t = 0; t < TERMS; ++t) {
-        free(f->term[t].copy);
+        free(f->term[t].copy_v);
+        free(f->term[t].copy_i);
         free(f->term[t].hash);
     }
     free(f->new_hash);
@@ -303,9 +307,18 @@ void rend_frame_invalidate(rend_frame *f)
 
 /* ---- Change detection ---------------------------------------------------- */
 
-static uint64_t tri_hash(const cache_snapshot_vertex *v)
+/* A triangle is what the radiance pass draws of it: its three corners'
+ * positions and values, whatever their indices. */
+static void tri_corners(const cache_snapshot_mesh *m, uint32_t t, cache_snapshot_vertex out[3])
 {
-    uint32_t w[3 * sizeof *v / sizeof(uint32_t)];
+    for (int k = 0; k < 3; ++k) out[k] = *cache_snapshot_corner_vertex(m, t, k);
+}
+
+static uint64_t tri_hash(const cache_snapshot_mesh *m, uint32_t t)
+{
+    cache_snapshot_vertex v[3];
+    tri_corners(m, t, v);
+    uint32_t w[(sizeof v) / (sizeof(uint32_t))];
     memcpy(w, v, sizeof w);
     uint64_t h = 0x9E3779B97F4A7C15u;
     for (size_t i = 0; i < sizeof w / sizeof *w; ++i) {
@@ -317,14 +330,14 @@ static uint64_t tri_hash(const cache_snapshot_vertex *v)
 
 static int rect_empty(const rect *r) { return r->x0 >= r->x1 || r->y0 >= r->y1; }
 
-/* Grows r by the pixels triangle v can touch in the w×h sample image seen
+/* Grows r by the pixels triangle t of m can touch in the w×h sample image seen
  * through vp, with a margin of 2 pixels; a corner behind the camera makes it
  * the whole image. */
-static void rect_add_tri(rect *r, const float vp[16], const cache_snapshot_vertex *v, int w, int h)
+static void rect_add_tri(rect *r, const float vp[16], const cache_snapshot_mesh *m, uint32_t t, int w, int h)
 {
     float x0 = 0, y0 = 0, x1 = 0, y1 = 0;
     for (int c = 0; c < 3; ++c) {
-        const float *p = v[c].position;
+        const float *p = cache_snapshot_corner_vertex(m, t, c)->position;
         float clip[4];
         for (int k = 0; k < 4; ++k) clip[k] = vp[k] * p[0] + vp[4 + k] * p[1] + vp[8 + k] * p[2] + vp[12 + k];
         if (!(clip[3] > 0.0f)) {
@@ -383,7 +396,7 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
         f->new_hash_cap = m->triangle_count;
     }
     if (!ts->hash_valid)
-        for (uint32_t i = 0; i < ts->tris; ++i) ts->hash[i] = tri_hash(ts->copy + 3 * (size_t)i);
+        for (uint32_t i = 0; i < ts->tris; ++i) ts->hash[i] = tri_hash(&ts->copy, i);
     ts->hash_valid = 1;
     size_t mask = f->hash_cap - 1;
     memset(f->hash_tri, 0, f->hash_cap * sizeof *f->hash_tri);
@@ -395,54 +408,79 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
         f->hash_tri[j] = i + 1;
     }
     for (uint32_t i = 0; i < m->triangle_count; ++i) {
-        const cache_snapshot_vertex *v = m->vertices + 3 * (size_t)i;
-        uint64_t hk = f->new_hash[i] = tri_hash(v);
+        cache_snapshot_vertex v[3], o_v[3];
+        tri_corners(m, i, v);
+        uint64_t hk = f->new_hash[i] = tri_hash(m, i);
         int found = 0;
         for (size_t j = (size_t)hk & mask; f->hash_tri[j]; j = (j + 1) & mask) {
             uint32_t o = f->hash_tri[j] - 1;
-            if (f->hash_key[j] == hk && !f->seen[o] && memcmp(ts->copy + 3 * (size_t)o, v, 3 * sizeof *v) == 0) {
+            if (f->hash_key[j] != hk || f->seen[o]) continue;
+            tri_corners(&ts->copy, o, o_v);
+            if (memcmp(o_v, v, sizeof v) == 0) {
                 f->seen[o] = 1;
                 found = 1;
                 break;
             }
         }
-        if (!found) rect_add_tri(out, vp, v, f->sw, f->sh);
+        if (!found) rect_add_tri(out, vp, m, i, f->sw, f->sh);
         if (memcmp(out, &full, sizeof full) == 0) return LM_OK;
     }
     *hashed = 1;
     for (uint32_t i = 0; i < ts->tris; ++i)
         if (!f->seen[i]) {
-            rect_add_tri(out, vp, ts->copy + 3 * (size_t)i, f->sw, f->sh);
+            rect_add_tri(out, vp, &ts->copy, i, f->sw, f->sh);
             if (memcmp(out, &full, sizeof full) == 0) return LM_OK;
         }
     return LM_OK;
 }
 
-/* Copies snapshot mesh m to the term's buffer (grown when needed) and its CPU copy. */
+/* Makes *buf hold at least bytes (with half as much again to grow into);
+ * immutable storage cannot grow, so a new buffer replaces it. Returns whether
+ * it is a new buffer (to be bound to the VAO again). */
+static int ensure_buffer(const GladGLContext *gl, GLuint *buf, size_t *cap, size_t bytes)
+{
+    if (bytes <= *cap) return 0;
+    if (*buf) gl->DeleteBuffers(1, buf);
+    gl->CreateBuffers(1, buf);
+    *cap = bytes + bytes / 2;
+    gl->NamedBufferStorage(*buf, (GLsizeiptr)*cap, NULL, GL_DYNAMIC_STORAGE_BIT);
+    return 1;
+}
+
+/* Whether meshes a and b hold the same vertices and index (byte for byte). */
+static int same_mesh(const cache_snapshot_mesh *a, const cache_snapshot_mesh *b)
+{
+    return a->triangle_count == b->triangle_count && a->vertex_count == b->vertex_count &&
+           (!a->triangle_count || (memcmp(a->index, b->index, 3 * (size_t)a->triangle_count * sizeof *a->index) == 0 &&
+                                   memcmp(a->vertices, b->vertices, (size_t)a->vertex_count * sizeof *a->vertices) == 0));
+}
+
+/* Copies snapshot mesh m to the term's buffers (grown when needed) and its CPU copy. */
 static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m, lm_error *err)
 {
     const GladGLContext *gl = f->gl;
-    uint32_t n = m ? m->triangle_count : 0;
+    uint32_t n = m ? m->triangle_count : 0, nv = m && n ? m->vertex_count : 0;
     ts->src = m ? m->vertices : NULL;
     ts->tris = 0;
+    ts->copy = (cache_snapshot_mesh){0};
     ts->hash_valid = 0;
     if (!n) return LM_OK;
     if (n > ts->copy_cap) {
-        cache_snapshot_vertex *c = realloc(ts->copy, 3 * (size_t)n * sizeof *c);
-        if (c) ts->copy = c;
+        uint32_t *x = realloc(ts->copy_i, 3 * (size_t)n * sizeof *x);
+        if (x) ts->copy_i = x;
         uint64_t *h = realloc(ts->hash, (size_t)n * sizeof *h);
         if (h) ts->hash = h;
-        if (!c || !h) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u triangles", n);
+        if (!x || !h) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u triangles", n);
         ts->copy_cap = n;
     }
-    size_t bytes = 3 * (size_t)n * sizeof *m->vertices;
-    if (bytes > ts->vbo_cap) {
-        /* Immutable storage cannot grow: a new buffer, bound to the VAO again. */
-        if (ts->vbo) gl->DeleteBuffers(1, &ts->vbo);
-        gl->CreateBuffers(1, &ts->vbo);
-        size_t cap = bytes + bytes / 2;
-        gl->NamedBufferStorage(ts->vbo, (GLsizeiptr)cap, NULL, GL_DYNAMIC_STORAGE_BIT);
-        ts->vbo_cap = cap;
+    if (nv > ts->copy_vcap) {
+        cache_snapshot_vertex *v = realloc(ts->copy_v, (size_t)nv * sizeof *v);
+        if (!v) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u vertices", nv);
+        ts->copy_v = v;
+        ts->copy_vcap = nv;
+    }
+    size_t vbytes = (size_t)nv * sizeof *m->vertices, ibytes = 3 * (size_t)n * sizeof *m->index;
+    if (ensure_buffer(gl, &ts->vbo, &ts->vbo_cap, vbytes)) {
         gl->VertexArrayVertexBuffer(ts->vao, 0, ts->vbo, 0, sizeof(cache_snapshot_vertex));
         for (GLuint a = 0; a < 2; ++a) {
             gl->EnableVertexArrayAttrib(ts->vao, a);
@@ -451,8 +489,13 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
             gl->VertexArrayAttribBinding(ts->vao, a, 0);
         }
     }
-    gl->NamedBufferSubData(ts->vbo, 0, (GLsizeiptr)bytes, m->vertices);
-    memcpy(ts->copy, m->vertices, bytes);
+    if (ensure_buffer(gl, &ts->ibo, &ts->ibo_cap, ibytes)) gl->VertexArrayElementBuffer(ts->vao, ts->ibo);
+    gl->NamedBufferSubData(ts->vbo, 0, (GLsizeiptr)vbytes, m->vertices);
+    gl->NamedBufferSubData(ts->ibo, 0, (GLsizeiptr)ibytes, m->index);
+    memcpy(ts->copy_v, m->vertices, vbytes);
+    memcpy(ts->copy_i, m->index, ibytes);
+    ts->copy = (cache_snapshot_mesh){.vertices = ts->copy_v, .index = ts->copy_i, .triangle_count = n,
+                                     .vertex_count = nv};
     ts->tris = n;
     return LM_OK;
 }
@@ -485,8 +528,7 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
          * per worker: rend_frame.h), else the same bytes. */
         int same = f->snap_valid && generation == f->snap_generation && (m ? m->vertices : NULL) == ts->src &&
                    n == ts->tris;
-        if (!same && n == ts->tris)
-            same = n == 0 || memcmp(ts->copy, m->vertices, 3 * (size_t)n * sizeof *m->vertices) == 0;
+        if (!same && n == ts->tris) same = n == 0 || same_mesh(&ts->copy, m);
         if (same) {
             ts->src = m ? m->vertices : NULL;
             dirty[t] = reusable ? (rect){0, 0, 0, 0} : full;
@@ -628,7 +670,7 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
             gl->UseProgram(f->prog_value);
             gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
             gl->BindVertexArray(ts->vao);
-            gl->DrawArrays(GL_TRIANGLES, 0, (GLsizei)(3 * ts->tris));
+            gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * ts->tris), GL_UNSIGNED_INT, NULL);
             if (!f->val_fbo) {
                 if (part) gl->Disable(GL_SCISSOR_TEST);
                 continue;
