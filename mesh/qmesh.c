@@ -603,15 +603,16 @@ static void fill(emitter *e, const pt p[3])
     }
 }
 
-lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, size_t *cap,
-                                    size_t *count, lm_error *err)
+lm_result mesh_qmesh_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_node, size_t max_tris,
+                                         mesh_qmesh_tri **buf, size_t *cap, size_t *count, lm_error *err)
 {
     if (count) *count = 0;
-    if (!m || !buf || !cap || !count)
+    if (!m || !next_node || !buf || !cap || !count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: NULL argument to leaf_triangles");
     if (!*buf) *cap = 0;
     emitter e = {.m = m, .buf = buf, .cap = cap, .r = LM_OK, .err = err};
-    for (uint32_t i = 0; i < m->node_hw && e.r == LM_OK; ++i) {
+    uint32_t i = *next_node;
+    for (; i < m->node_hw && e.r == LM_OK && e.count < max_tris; ++i) {
         const mesh_qnode *n = &m->nodes[i];
         if (!(n->flags & MESH_QNODE_LIVE) || n->child != MESH_QMESH_NONE) continue;
         e.tri = n->tri, e.leaf = i;
@@ -624,7 +625,15 @@ lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, s
     }
     free(e.line);
     *count = e.r == LM_OK ? e.count : 0;
+    if (e.r == LM_OK) *next_node = i < m->node_hw ? i : UINT32_MAX;
     return e.r;
+}
+
+lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, size_t *cap,
+                                    size_t *count, lm_error *err)
+{
+    uint32_t next = 0;
+    return mesh_qmesh_leaf_triangles_from(m, &next, SIZE_MAX, buf, cap, count, err);
 }
 
 uint32_t mesh_qmesh_node_count(const mesh_qmesh *m) { return m ? m->nodes_live : 0; }

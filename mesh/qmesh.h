@@ -168,6 +168,13 @@ lm_result mesh_qmesh_locate(const mesh_qmesh *m, uint32_t tri, double w1, double
  * *count is set to the number written. Worker thread only. */
 lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, size_t *cap,
                                     size_t *count, lm_error *err);
+/* The same in pieces, to bound the buffer: the triangles of whole leaves from
+ * node *next_node on, stopping after the leaf that brings *count to max_tris or
+ * more (a leaf gives at most a few dozen). *next_node is set to the node to go on
+ * from, UINT32_MAX when every leaf is done (0 starts). Pieces put together are
+ * mesh_qmesh_leaf_triangles' output, in its order. */
+lm_result mesh_qmesh_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_node, size_t max_tris,
+                                         mesh_qmesh_tri **buf, size_t *cap, size_t *count, lm_error *err);
 
 /* Walks every vertex (for bytes_vtable_share): statistics, not for hot paths. */
 void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out);

@@ -522,6 +522,23 @@ static void test_fan_small(scene *s, mesh_vtable *vt)
     CHECK(mesh_qmesh_split(m, first + 3, &err) == LM_OK);
     CHECK(mesh_qmesh_leaf_triangles(m, &tris, &cap, &n, &err) == LM_OK);
     CHECK_MSG(n == 4 + 3 * 2 + 2, "%zu triangles, want 12", n);
+    /* In pieces of at least one triangle: whole leaves each time, and together
+     * the same triangles in the same order. */
+    for (size_t piece = 1; piece <= 5; ++piece) {
+        mesh_qmesh_tri *part = NULL;
+        size_t pcap = 0, got = 0, total = 0, calls = 0;
+        int same = 1;
+        for (uint32_t next = 0; next != UINT32_MAX && calls < 100; ++calls) {
+            CHECK(mesh_qmesh_leaf_triangles_from(m, &next, piece, &part, &pcap, &got, &err) == LM_OK);
+            for (size_t i = 0; i < got; ++i)
+                same &= total + i < n && memcmp(&part[i], &tris[total + i], sizeof *part) == 0;
+            same &= got >= piece || next == UINT32_MAX;
+            same &= got == 0 || next == UINT32_MAX || part[got - 1].leaf != next; /* whole leaves */
+            total += got;
+        }
+        CHECK_MSG(same && total == n, "pieces of %zu: %zu triangles in %zu calls, want %zu", piece, total, calls, n);
+        free(part);
+    }
     /* Bad arguments and refusals leave the mesh as it was. */
     CHECK(mesh_qmesh_split(m, first + 3, &err) == LM_ERR_INVALID_ARG);
     CHECK(mesh_qmesh_merge(m, first, &err) == LM_ERR_INVALID_ARG);        /* a leaf */

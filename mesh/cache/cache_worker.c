@@ -18,23 +18,28 @@ typedef struct light_edit {
     float value[3];
 } light_edit;
 
-/* Arrays behind one published mesh. */
+/* Arrays behind one published mesh (capacities in elements). */
 typedef struct mesh_store {
     cache_snapshot_vertex *verts;
     uint32_t *index, *tris;
     cache_snapshot_corner *corners;   /* publish_debug only */
-    size_t cap, verts_cap;            /* triangles (index: 3 a triangle, tris, corners); vertices */
+    size_t verts_cap, index_cap, tris_cap, corners_cap;
 } mesh_store;
 
-/* The worker's scratch for publishing: the leaf triangles of one mesh, and each
- * vertex-table id's index in the mesh being published (UINT32_MAX: not yet in
- * it; set back to that after each mesh). */
+/* The worker's scratch for publishing: a piece of one mesh's leaf triangles,
+ * each vertex-table id's index in the mesh being published (UINT32_MAX: not yet
+ * in it; set back after each mesh) and the ids published, in order. */
 typedef struct publish_scratch {
     mesh_qmesh_tri *buf;
     size_t buf_cap;
-    uint32_t *local;
-    size_t local_cap;
+    uint32_t *local, *ids;
+    size_t local_cap, ids_cap;
 } publish_scratch;
+
+/* Leaf triangles taken from a mesh at a time when publishing: the scratch stays
+ * at ~4.5 MB (68 bytes a triangle) however big the mesh (a million-triangle
+ * scene's whole mesh at once held 70 MB more at the peak; docs/memory.md). */
+enum { PUBLISH_PIECE = 1 << 16 };
 
 /* Buffers behind one snapshot; owned by whichever side holds the slot. */
 typedef struct snapshot_store {
@@ -113,65 +118,66 @@ static void fill_corners(cache_snapshot_corner *out, const mesh_qmesh *m, const 
     }
 }
 
+/* Appends the piece ps->buf[0..got) to ms as triangles count.. and vertices
+ * *nv..: each vertex the first time a triangle uses it. */
+static lm_result append_piece(mesh_store *ms, publish_scratch *ps, int debug, const cache *c, const mesh_qmesh *m,
+                              size_t count, size_t got, uint32_t *nv, lm_error *err)
+{
+    const size_t most = (size_t)*nv + 3 * got;
+    if (!LM_GROW(ms->index, ms->index_cap, 3 * (count + got)) || !LM_GROW(ms->tris, ms->tris_cap, count + got) ||
+        (debug && !LM_GROW(ms->corners, ms->corners_cap, 3 * (count + got))) ||
+        !LM_GROW(ms->verts, ms->verts_cap, most) || !LM_GROW(ps->ids, ps->ids_cap, most))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+    const mesh_vtable *vt = cache_vtable(c);
+    const int pad = mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
+    for (size_t i = 0; i < 3 * got; ++i) {
+        uint32_t id = ps->buf[i / 3].v[i % 3];
+        if (ps->local[id] == UINT32_MAX) {
+            cache_snapshot_vertex *out = &ms->verts[*nv];
+            memcpy(out->position, mesh_vtable_vertex(vt, id)->position, sizeof out->position);
+            if (pad) memset(out->value, 0, sizeof out->value);
+            if (mesh_qmesh_get_value(m, id, out->value) < 0) memset(out->value, 0, sizeof out->value);
+            ps->ids[*nv] = id;
+            ps->local[id] = (*nv)++;
+        }
+        ms->index[3 * count + i] = ps->local[id];
+    }
+    for (size_t i = 0; i < got; ++i) ms->tris[count + i] = ps->buf[i].tri;
+    if (debug) fill_corners(ms->corners + 3 * count, m, ps->buf, got);
+    return LM_OK;
+}
+
 /* Publishes mesh m (NULL: empty) into ms and *sm, indexed: each vertex once, in
  * the order the leaf triangles first use it (they come in node order, so a
- * triangle's corners are mostly near each other in the array too). Without debug
- * it does exactly what the renderer needs: positions, values, scene triangles. */
+ * triangle's corners are mostly near each other in the array too), a piece of
+ * PUBLISH_PIECE triangles at a time. Without debug it does exactly what the
+ * renderer needs: positions, values, scene triangles. */
 static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, const cache *c, const mesh_qmesh *m,
                            publish_scratch *ps, lm_error *err)
 {
-    size_t count = 0;
-    lm_result r = m ? mesh_qmesh_leaf_triangles(m, &ps->buf, &ps->buf_cap, &count, err) : LM_OK;
-    if (r != LM_OK) return r;
-    const mesh_vtable *vt = cache_vtable(c);
-    const size_t ids = mesh_vtable_id_limit(vt);
-    if (count && ids > ps->local_cap) {
+    *sm = (cache_snapshot_mesh){0};
+    if (!m) return LM_OK;
+    const size_t ids = mesh_vtable_id_limit(cache_vtable(c));
+    if (ids > ps->local_cap) {
         uint32_t *l = realloc(ps->local, ids * sizeof *l);
         if (!l) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
         memset(l + ps->local_cap, 0xff, (ids - ps->local_cap) * sizeof *l);
         ps->local = l;
         ps->local_cap = ids;
     }
-    if (count > ms->cap || (debug && count && !ms->corners)) {
-        uint32_t *x = realloc(ms->index, 3 * count * sizeof *x);
-        if (x) ms->index = x;
-        uint32_t *t = x ? realloc(ms->tris, count * sizeof *t) : NULL;
-        if (t) ms->tris = t;
-        cache_snapshot_corner *k = t && debug ? realloc(ms->corners, 3 * count * sizeof *k) : NULL;
-        if (k) ms->corners = k;
-        if (!x || !t || (debug && !k)) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
-        ms->cap = count;
+    size_t count = 0;
+    uint32_t nv = 0, next = 0;
+    lm_result r = LM_OK;
+    while (r == LM_OK && next != UINT32_MAX) {
+        size_t got = 0;
+        r = mesh_qmesh_leaf_triangles_from(m, &next, PUBLISH_PIECE, &ps->buf, &ps->buf_cap, &got, err);
+        if (r == LM_OK && count + got > UINT32_MAX)
+            r = lm_fail(err, LM_ERR_NO_MEMORY, "publishing the cache: more than 2^32 triangles in a mesh");
+        if (r == LM_OK && got) r = append_piece(ms, ps, debug, c, m, count, got, &nv, err);
+        count += got;
     }
-    /* Number the vertices first (the count sizes verts), then fill them. */
-    uint32_t nv = 0;
-    for (size_t i = 0; i < 3 * count; ++i) {
-        uint32_t id = ps->buf[i / 3].v[i % 3];
-        if (ps->local[id] == UINT32_MAX) ps->local[id] = nv++;
-        ms->index[i] = ps->local[id];
-    }
-    if (nv > ms->verts_cap) {
-        cache_snapshot_vertex *v = realloc(ms->verts, (size_t)nv * sizeof *v);
-        if (!v) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
-        else {
-            ms->verts = v;
-            ms->verts_cap = nv;
-        }
-    }
-    const int pad = m && mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
-    for (size_t i = 0; i < 3 * count; ++i) {
-        uint32_t id = ps->buf[i / 3].v[i % 3];
-        if (ps->local[id] == UINT32_MAX) continue; /* done: an earlier corner */
-        if (r == LM_OK) {
-            cache_snapshot_vertex *out = &ms->verts[ps->local[id]];
-            memcpy(out->position, mesh_vtable_vertex(vt, id)->position, sizeof out->position);
-            if (pad) memset(out->value, 0, sizeof out->value);
-            if (mesh_qmesh_get_value(m, id, out->value) < 0) memset(out->value, 0, sizeof out->value);
-        }
-        ps->local[id] = UINT32_MAX;
-    }
+    for (uint32_t i = 0; i < nv; ++i) ps->local[ps->ids[i]] = UINT32_MAX;
     if (r != LM_OK) return r;
-    for (size_t i = 0; i < count; ++i) ms->tris[i] = ps->buf[i].tri;
-    if (debug && count) fill_corners(ms->corners, m, ps->buf, count);
     *sm = (cache_snapshot_mesh){.vertices = ms->verts, .index = ms->index, .tri = ms->tris,
                                 .corners = debug && count ? ms->corners : NULL,
                                 .triangle_count = (uint32_t)count, .vertex_count = nv};
@@ -585,6 +591,7 @@ static void *worker_main(void *arg)
     if (r != LM_OK) publish_failure(w, ++generation, err.msg);
     free(ps.buf);
     free(ps.local);
+    free(ps.ids);
     cache_destroy(c);
     samp_destroy(sp);
     samp_destroy(w->fallback);

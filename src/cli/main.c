@@ -208,6 +208,14 @@ int main(int argc, char **argv)
      * 20 s, no slower (docs/memory.md). Before any thread starts; the
      * MALLOC_ARENA_MAX variable, when set, decides instead. */
     if (!getenv("MALLOC_ARENA_MAX")) mallopt(M_ARENA_MAX, 2);
+    /* Blocks of 1 MiB and more mapped on their own and given back when freed.
+     * glibc's default threshold climbs to the largest block freed so far (up to
+     * 32 MiB), after which a big scene's many 1-30 MB arrays (grown by doubling,
+     * rebuilt each round) come from the heap, whose freed middle is never given
+     * back: the 116k-triangle box's `render --samples 1` peaked at 449 or 545 MB
+     * from run to run, at 444 every time with this (docs/memory.md, "Fixed mmap
+     * threshold"); no slower. MALLOC_MMAP_THRESHOLD_, when set, decides instead. */
+    if (!getenv("MALLOC_MMAP_THRESHOLD_")) mallopt(M_MMAP_THRESHOLD, 1 << 20);
     if (argc < 2) {
         print_help(stderr);
         return APP_EXIT_USAGE;
