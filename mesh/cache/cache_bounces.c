@@ -71,10 +71,6 @@ void cache_bounces_free(cache_bounce_state *b)
     free(b->sum);
     free(b->shown);
     free(b->whole);
-    free(b->lab_whole);
-    free(b->lab_shown);
-    free(b->lab_prev);
-    free(b->ldd);
     free(b->seen);
     memset(b, 0, sizeof *b);
 }
@@ -295,14 +291,9 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
         b->sum = calloc(3 * n, sizeof *b->sum);
         b->shown = calloc(3 * n, sizeof *b->shown);
         b->whole = calloc(3 * n, sizeof *b->whole);
-        size_t ne = b->tv_n ? b->tv_n : 1;
-        b->lab_whole = calloc(3 * ne, sizeof *b->lab_whole);
-        b->lab_shown = calloc(3 * ne, sizeof *b->lab_shown);
-        b->lab_prev = calloc(3 * ne, sizeof *b->lab_prev);
-        b->ldd = calloc(3 * ne, sizeof *b->ldd);
         b->seen = malloc(n);
         if (!pts || !count || !tri || !bary || !b->hit_first || !b->b || !b->next || !b->sum || !b->shown ||
-            !b->whole || !b->lab_whole || !b->lab_shown || !b->lab_prev || !b->ldd || !b->seen)
+            !b->whole || !b->seen)
             r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing the bounces' transport (%u vertices)", nv);
     }
     if (r == LM_OK) {
@@ -360,7 +351,7 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
         b->stats.rays = R;
         b->stats.hits = h;
         b->bytes = (size_t)h * (8 * sizeof(float)) + (size_t)nv * (5 * 3 * sizeof(float) + 2 * sizeof(uint32_t) + 1) +
-                   (size_t)b->tv_n * 15 * sizeof(float) + ((size_t)c->s->tri_count + 1) * sizeof(uint32_t);
+                   (size_t)b->tv_n * 3 * sizeof(float) + ((size_t)c->s->tri_count + 1) * sizeof(uint32_t);
     }
     free(at);
     free(pts);
@@ -430,17 +421,50 @@ static void first_bounce(const cache *c, float *out)
     }
 }
 
+/* What an evaluation compares, per seen tv entry (in tv order, the unseen
+ * skipped): L_dd there and the colours with the whole series, with what is shown
+ * and with what was shown one bounce before (CIELAB). Made for one evaluation
+ * and freed after it: at a million triangles the tv entries are three million,
+ * and a copy of these per entry held 150 MB for the cache's life. */
+typedef struct seen_lab {
+    float *ldd, *whole, *shown, *prev; /* 3 per seen entry */
+    uint32_t n;
+} seen_lab;
+
+static void seen_lab_free(seen_lab *sl)
+{
+    free(sl->ldd);
+    free(sl->whole);
+    free(sl->shown);
+    free(sl->prev);
+}
+
+static lm_result seen_lab_make(const cache_bounce_state *b, seen_lab *sl, lm_error *err)
+{
+    *sl = (seen_lab){0};
+    for (uint32_t e = 0; e < b->tv_n; ++e) sl->n += b->seen[b->tv_index[e]] != 0;
+    size_t n3 = 3 * (size_t)(sl->n ? sl->n : 1);
+    sl->ldd = malloc(n3 * sizeof *sl->ldd);
+    sl->whole = malloc(n3 * sizeof *sl->whole);
+    sl->shown = malloc(n3 * sizeof *sl->shown);
+    sl->prev = malloc(n3 * sizeof *sl->prev);
+    if (sl->ldd && sl->whole && sl->shown && sl->prev) return LM_OK;
+    seen_lab_free(sl);
+    return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing the bounces (%u seen points)", sl->n);
+}
+
 /* L_dd from the direct mesh at every seen coarse vertex of every triangle (3 per
- * tv entry; unseen entries left alone). */
+ * seen tv entry). */
 static void seen_direct(const cache *c, float *ldd)
 {
     const cache_bounce_state *b = &c->bnc;
     const scene *s = c->s;
+    uint32_t j = 0;
     for (uint32_t t = 0; t < s->tri_count; ++t)
         for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
-            float *l = ldd + 3 * (size_t)e;
-            lm_error ignore;
             if (!b->seen[b->tv_index[e]]) continue;
+            float *l = ldd + 3 * (size_t)j++;
+            lm_error ignore;
             if (mesh_qmesh_root(c->direct, t) == MESH_QMESH_NONE ||
                 mesh_qmesh_interpolate(c->direct, t, b->tv_bary[2 * (size_t)e], b->tv_bary[2 * (size_t)e + 1], l,
                                        &ignore) != LM_OK)
@@ -449,25 +473,26 @@ static void seen_direct(const cache *c, float *ldd)
 }
 
 /* The colour at every seen coarse vertex of every triangle (its material, L_dd
- * from seen_direct) with indirect irradiance E, into lab (3 per tv entry; unseen
- * entries left alone). */
+ * from seen_direct) with indirect irradiance E, into lab (3 per seen tv entry). */
 static void seen_colours(const cache *c, const float *ldd, const float *E, float *lab)
 {
     const cache_bounce_state *b = &c->bnc;
     const scene *s = c->s;
+    uint32_t j = 0;
     for (uint32_t t = 0; t < s->tri_count; ++t)
         for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
             uint32_t i = b->tv_index[e];
-            if (b->seen[i]) cache_seen_lab(c, t, ldd + 3 * (size_t)e, E + 3 * (size_t)i, NULL, lab + 3 * (size_t)e);
+            if (!b->seen[i]) continue;
+            cache_seen_lab(c, t, ldd + 3 * (size_t)j, E + 3 * (size_t)i, NULL, lab + 3 * (size_t)j);
+            ++j;
         }
 }
 
-/* The largest ΔE between two sets of seen colours. */
-static float largest_change(const cache_bounce_state *b, const float *lab0, const float *lab1)
+/* The largest ΔE between two sets of n seen colours. */
+static float largest_change(uint32_t n, const float *lab0, const float *lab1)
 {
     float worst = 0.0f;
-    for (uint32_t e = 0; e < b->tv_n; ++e)
-        if (b->seen[b->tv_index[e]]) worst = fmaxf(worst, tm_delta_e(lab0 + 3 * (size_t)e, lab1 + 3 * (size_t)e));
+    for (uint32_t j = 0; j < n; ++j) worst = fmaxf(worst, tm_delta_e(lab0 + 3 * (size_t)j, lab1 + 3 * (size_t)j));
     return worst;
 }
 
@@ -535,12 +560,15 @@ lm_result cache_bounces_update(cache *c, lm_error *err)
     st->series_seconds += lm_now_seconds() - t2;
     memcpy(b->b, b->shown, n3 * sizeof *b->b);
     memset(b->sum, 0, n3 * sizeof *b->sum);
-    seen_direct(c, b->ldd);
-    seen_colours(c, b->ldd, b->whole, b->lab_whole);
-    seen_colours(c, b->ldd, b->shown, b->lab_shown);
+    seen_lab sl;
+    r = seen_lab_make(b, &sl, err);
+    if (r != LM_OK) return r;
+    seen_direct(c, sl.ldd);
+    seen_colours(c, sl.ldd, b->whole, sl.whole);
+    seen_colours(c, sl.ldd, b->shown, sl.shown);
     int K = 1;
     for (;;) {
-        st->rest_de = largest_change(b, b->lab_shown, b->lab_whole);
+        st->rest_de = largest_change(sl.n, sl.shown, sl.whole);
         if (automatic && !(st->rest_de > c->desc.jnd)) {
             snprintf(st->why, sizeof st->why,
                      "auto: the bounces after %d would add at most ΔE %.2f where they are seen, below the JND %.2f", K,
@@ -571,14 +599,15 @@ lm_result cache_bounces_update(cache *c, lm_error *err)
         float *tmp = b->b;
         b->b = b->next;
         b->next = tmp;
-        tmp = b->lab_prev;
-        b->lab_prev = b->lab_shown;
-        b->lab_shown = tmp;
-        seen_colours(c, b->ldd, b->shown, b->lab_shown);
-        st->de[K + 1] = largest_change(b, b->lab_prev, b->lab_shown);
+        tmp = sl.prev;
+        sl.prev = sl.shown;
+        sl.shown = tmp;
+        seen_colours(c, sl.ldd, b->shown, sl.shown);
+        st->de[K + 1] = largest_change(sl.n, sl.prev, sl.shown);
         st->seconds[K + 1] += lm_now_seconds() - tk;
         K++;
     }
+    seen_lab_free(&sl);
     st->bounces = K;
     st->automatic = automatic;
     for (uint32_t i = 0; r == LM_OK && i < b->nv; ++i)

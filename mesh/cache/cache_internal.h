@@ -201,9 +201,6 @@ typedef struct cache_bounce_state {
     float *hit_weight;         /* and its weights w1, w2 there (2; w0 = 1 − w1 − w2) */
     float *b, *next, *sum, *shown; /* nv × RGB each: B_k, B_k+1, E_m, Σ B shown */
     float *whole;              /* nv × RGB: every bounce's sum */
-    float *lab_whole, *lab_shown, *lab_prev; /* 3 per tv entry: seen colours (CIELAB) with whole, shown,
-                                  and shown one bounce before */
-    float *ldd;                /* 3 per tv entry: L_dd there (the update's) */
     int dirty;                 /* something the evaluation reads changed (lights, what is seen) */
     int64_t direct_at;         /* cache_direct_changes and the JND at the last evaluation */
     float jnd_at;

@@ -286,11 +286,13 @@ static lm_result push_outdated(cache_source_state *st, uint32_t vid, lm_error *e
 
 /* A changed source triangle: corners in scene space, its front normal, the bound
  * on its change (RGB), and a bounding sphere for the far-field estimate. */
+/* A source triangle that changed: its scene triangle and its index in the new
+ * source (its change is d[3i..3i+2]). Eight bytes: a million-triangle scene's
+ * first regather changes nearly all of them, and the corners, centre, normal
+ * and change kept here before (152 bytes) held 160 MB at the peak; the corners
+ * are made again for the few that are near a point (changed_corners). */
 typedef struct changed_tri {
-    double p[3][3];
-    lm_dvec3 centre, normal;
-    double radius, area;
-    float d[3];
+    uint32_t t, i;
 } changed_tri;
 
 static void bary_point(const scene *s, uint32_t t, double w1, double w2, double out[3])
@@ -309,7 +311,15 @@ typedef struct far_field {
     uint32_t *near;
 } far_field;
 
-static int far_field_make(far_field *f, const changed_tri *ch, uint32_t n)
+/* The corners of changed triangle ct in the scene. */
+static void changed_corners(const scene *s, const samp_radiance_mesh *cur, changed_tri ct, double p[3][3])
+{
+    const float *b = cur->bary + 6 * (size_t)ct.i;
+    for (int k = 0; k < 3; ++k) bary_point(s, ct.t, b[2 * k], b[2 * k + 1], p[k]);
+}
+
+static int far_field_make(far_field *f, const scene *s, const samp_radiance_mesh *cur, const float *d,
+                          const changed_tri *ch, uint32_t n)
 {
     float *block = malloc((size_t)(n ? n : 1) * 10 * sizeof *block);
     f->near = malloc((n ? n : 1) * sizeof *f->near);
@@ -321,17 +331,25 @@ static int far_field_make(far_field *f, const changed_tri *ch, uint32_t n)
     float **cols[10] = {&f->cx, &f->cy, &f->cz, &f->nx, &f->ny, &f->nz, &f->lim, &f->ad0, &f->ad1, &f->ad2};
     for (int k = 0; k < 10; ++k) *cols[k] = block + (size_t)k * (n ? n : 1);
     for (uint32_t j = 0; j < n; ++j) {
-        const changed_tri *ct = &ch[j];
-        f->cx[j] = (float)ct->centre.x;
-        f->cy[j] = (float)ct->centre.y;
-        f->cz[j] = (float)ct->centre.z;
-        f->nx[j] = (float)ct->normal.x;
-        f->ny[j] = (float)ct->normal.y;
-        f->nz[j] = (float)ct->normal.z;
-        f->lim[j] = (float)(16.0 * ct->radius * ct->radius);
-        f->ad0[j] = (float)(ct->area * ct->d[0]);
-        f->ad1[j] = (float)(ct->area * ct->d[1]);
-        f->ad2[j] = (float)(ct->area * ct->d[2]);
+        double p[3][3];
+        changed_corners(s, cur, ch[j], p);
+        lm_dvec3 a = dv3(p[0][0], p[0][1], p[0][2]), bb = dv3(p[1][0], p[1][1], p[1][2]), cc = dv3(p[2][0], p[2][1], p[2][2]);
+        lm_dvec3 centre = dv3_scale(dv3_add(dv3_add(a, bb), cc), 1.0 / 3.0);
+        double area = 0.5 * dv3_length(dv3_cross(dv3_sub(bb, a), dv3_sub(cc, a)));
+        lm_dvec3 normal = dv3_load(s->tri_normals + 3 * (size_t)ch[j].t);
+        double radius = fmax(dv3_length(dv3_sub(a, centre)),
+                             fmax(dv3_length(dv3_sub(bb, centre)), dv3_length(dv3_sub(cc, centre))));
+        const float *dj = d + 3 * (size_t)ch[j].i;
+        f->cx[j] = (float)centre.x;
+        f->cy[j] = (float)centre.y;
+        f->cz[j] = (float)centre.z;
+        f->nx[j] = (float)normal.x;
+        f->ny[j] = (float)normal.y;
+        f->nz[j] = (float)normal.z;
+        f->lim[j] = (float)(16.0 * radius * radius);
+        f->ad0[j] = (float)(area * dj[0]);
+        f->ad1[j] = (float)(area * dj[1]);
+        f->ad2[j] = (float)(area * dj[2]);
     }
     return 1;
 }
@@ -345,8 +363,8 @@ static void far_field_free(far_field *f)
 /* Σ_j d_j·∫ over changed triangle j's front of cosθ_x dω from (x, nx), into add:
  * by area and cosines over distance² beyond four radii, exactly
  * (samp_polygon_G) nearer. */
-static void drift_bound(const far_field *f, const changed_tri *ch, uint32_t n, const double x[3], const double nx[3],
-                        double add[3])
+static void drift_bound(const far_field *f, const scene *s, const samp_radiance_mesh *cur, const float *d,
+                        const changed_tri *ch, uint32_t n, const double x[3], const double nx[3], double add[3])
 {
     const float X = (float)x[0], Y = (float)x[1], Z = (float)x[2], NX = (float)nx[0], NY = (float)nx[1],
                 NZ = (float)nx[2];
@@ -368,9 +386,11 @@ static void drift_bound(const far_field *f, const changed_tri *ch, uint32_t n, c
     add[1] += a1;
     add[2] += a2;
     for (uint32_t i = 0; i < nn; ++i) {
-        const changed_tri *ct = &ch[f->near[i]];
-        double w = samp_polygon_G(ct->p, 3, x, nx);
-        for (int k = 0; k < 3; ++k) add[k] += w * ct->d[k];
+        const changed_tri ct = ch[f->near[i]];
+        double p[3][3];
+        changed_corners(s, cur, ct, p);
+        double w = samp_polygon_G(p, 3, x, nx);
+        for (int k = 0; k < 3; ++k) add[k] += w * d[3 * (size_t)ct.i + (size_t)k];
     }
 }
 
@@ -445,24 +465,14 @@ static lm_result mark_outdated(cache *c, lm_error *err)
                 for (int k = 0; k < 3; ++k) small[k] = fmaxf(small[k], di[k]);
                 continue;
             }
-            changed_tri *ct = &ch[nch++];
-            const float *b = cur->bary + 6 * (size_t)i;
-            for (int k = 0; k < 3; ++k) bary_point(s, t, b[2 * k], b[2 * k + 1], ct->p[k]);
-            lm_dvec3 a = dv3(ct->p[0][0], ct->p[0][1], ct->p[0][2]), bb = dv3(ct->p[1][0], ct->p[1][1], ct->p[1][2]),
-                     cc = dv3(ct->p[2][0], ct->p[2][1], ct->p[2][2]);
-            ct->centre = dv3_scale(dv3_add(dv3_add(a, bb), cc), 1.0 / 3.0);
-            ct->area = 0.5 * dv3_length(dv3_cross(dv3_sub(bb, a), dv3_sub(cc, a)));
-            ct->normal = dv3_load(s->tri_normals + 3 * (size_t)t);
-            ct->radius = fmax(dv3_length(dv3_sub(a, ct->centre)),
-                              fmax(dv3_length(dv3_sub(bb, ct->centre)), dv3_length(dv3_sub(cc, ct->centre))));
-            memcpy(ct->d, di, sizeof ct->d);
+            ch[nch++] = (changed_tri){t, i};
         }
     /* Every displayed indirect value: its drift grows by Σ d·weight. */
     const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
     int any = nch || small[0] > 0.0f || small[1] > 0.0f || small[2] > 0.0f;
     if (r == LM_OK && any) r = grow_drift(&c->src, id_limit, err);
     far_field ff = {0};
-    if (r == LM_OK && any && !far_field_make(&ff, ch, nch))
+    if (r == LM_OK && any && !far_field_make(&ff, s, cur, d, ch, nch))
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
     for (uint32_t vid = 0; r == LM_OK && any && vid < id_limit; ++vid) {
         float e[3];
@@ -474,7 +484,7 @@ static lm_result mark_outdated(cache *c, lm_error *err)
         samp_point_origin(s, &sp, samp_point_epsilon(c->sp, &sp), o);
         const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
         double add[3] = {M_PI * small[0], M_PI * small[1], M_PI * small[2]};
-        drift_bound(&ff, ch, nch, x, nx, add);
+        drift_bound(&ff, s, cur, d, ch, nch, x, nx, add);
         float *dr = c->src.drift + 3 * (size_t)vid;
         for (int k = 0; k < 3; ++k) dr[k] += (float)fmin(add[k], 3e38);
         /* Could the drift be seen? E ± drift against E, through the tone map. */
