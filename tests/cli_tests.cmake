@@ -62,18 +62,22 @@ lumesh_cli_test(render_debug_meshes 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}
   OUT "wrote .*light0-leaves\\.png: [0-9]+ of [0-9]+ leaf edges shown.*light0-samples\\.png: [0-9]+ samples shown.*direct-leaves.*direct-samples.*indirect-leaves.*indirect-samples"
   FILES ${DBG}/light0-leaves.png ${DBG}/light0-samples.png ${DBG}/direct-leaves.png ${DBG}/direct-samples.png
         ${DBG}/indirect-leaves.png ${DBG}/indirect-samples.png)
-# The image module (OpenImageIO, src/image/image_internal.h) is opened when the image
+# The image module (OpenImageIO, src/image/image_internal.h) is opened when an EXR
 # is written: a broken one is one line naming it, and no file is left behind.
 set(BAD_MODULE_DIR ${CMAKE_CURRENT_BINARY_DIR}/bad_image_module)
 file(WRITE ${BAD_MODULE_DIR}/lumesh_oiio.so "not a shared object\n")
 lumesh_cli_test(render_broken_image_module 3 ENV LUMESH_MODULE_DIR=${BAD_MODULE_DIR}
-  ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/no-module.png --width 32 --height 32 --samples 50
-  ONE_ERR_LINE ERR "no-module\\.png: the image module .*bad_image_module/lumesh_oiio\\.so cannot be used: .*"
-  NO_FILES ${CMAKE_CURRENT_BINARY_DIR}/no-module.png)
+  ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/no-module.exr --width 32 --height 32 --samples 50
+  ONE_ERR_LINE ERR "no-module\\.exr: the image module .*bad_image_module/lumesh_oiio\\.so cannot be used: .*"
+  NO_FILES ${CMAKE_CURRENT_BINARY_DIR}/no-module.exr)
+# A PNG needs no module (src/image/image_png_write.c): written with the broken one.
+lumesh_cli_test(render_png_without_module 0 ENV LUMESH_MODULE_DIR=${BAD_MODULE_DIR}
+  ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/png-no-module.png --width 32 --height 32 --samples 50
+  OUT "^wrote .*png-no-module\\.png: 32x32" FILES ${CMAKE_CURRENT_BINARY_DIR}/png-no-module.png)
 # An empty LUMESH_MODULE_DIR (no module there) falls through to the program's own folder.
 lumesh_cli_test(render_module_dir_without_module 0 ENV LUMESH_MODULE_DIR=${CMAKE_CURRENT_BINARY_DIR}
-  ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/module-fallback.png --width 32 --height 32 --samples 50
-  OUT "^wrote .*module-fallback\\.png: 32x32" FILES ${CMAKE_CURRENT_BINARY_DIR}/module-fallback.png)
+  ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/module-fallback.exr --width 32 --height 32 --samples 50
+  OUT "^wrote .*module-fallback\\.exr: 32x32" FILES ${CMAKE_CURRENT_BINARY_DIR}/module-fallback.exr)
 lumesh_cli_test(render_unknown_camera 2 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/x.png --camera nope ONE_ERR_LINE ERR "no camera named 'nope'")
 
 set(CB ${LUMESH_SCENES}/cornell-box)

@@ -6,8 +6,9 @@
  * Poppler, …) whose relocation and static constructors cost 131 MB of resident
  * memory and start-up time in every process that links it, while lumesh needs
  * it only to read and write image files (docs/memory.md). The module holds
- * image_oiio.cpp, compare_oiio.cpp, image_png.c and its own copy of
- * src/base/util.c, all hidden but for one entry point, IMG_OIIO_ENTRY.
+ * image_oiio.cpp, compare_oiio.cpp, image_png.c, image_write.c and its own
+ * copy of src/base/util.c, all hidden but for one entry point, IMG_OIIO_ENTRY.
+ * PNGs are written by the program (image_png_write.c), EXRs by the module.
  */
 #ifndef LUMESH_IMAGE_INTERNAL_H
 #define LUMESH_IMAGE_INTERNAL_H
@@ -27,6 +28,21 @@ extern "C" {
  * leaves its default handler in place), and OpenImageIO 2.4 leaks a string on a
  * truncated file, both found by fuzzing (docs/robustness.md). */
 lm_result img_check_png(const char *path, lm_error *err);
+
+/* The checks of img_write's descriptor (image_write.c, in the program and the
+ * module): the format (from the extension when 0), size, channels, pixels and
+ * channel names; sets *fmt and *count (values in the image). */
+lm_result img_write_check(const img_write_desc *d, img_format *fmt, size_t *count, lm_error *err);
+
+/* Writes data[0..size) as the file target, atomically: into a new temporary
+ * file beside it (".tmp-<pid>-<n>.<ext>"), flushed, then renamed over it; on any
+ * error the target is as it was and the temporary file is gone (image_write.c). */
+lm_result img_write_file(const char *target, const char *ext, const unsigned char *data, size_t size,
+                         lm_error *err);
+
+/* A checked descriptor of format IMG_FORMAT_PNG8 with count values, written by
+ * the program (image_png_write.c; not in the module). */
+lm_result img_png_write(const img_write_desc *d, size_t count, lm_error *err);
 
 /* The module's implementations of img_write, img_read (image_oiio.cpp) and
  * cmp_oiio_compare (compare_oiio.cpp), with the same contracts. */

@@ -115,7 +115,12 @@ static const img_oiio_api *module_api(const char *what, lm_error *err)
 
 lm_result img_write(const img_write_desc *desc, lm_error *err)
 {
-    const img_oiio_api *api = module_api(desc && desc->path ? desc->path : "(no path)", err);
+    img_format fmt = IMG_FORMAT_FROM_EXTENSION;
+    size_t count = 0;
+    lm_result r = img_write_check(desc, &fmt, &count, err);
+    if (r != LM_OK) return r;
+    if (fmt == IMG_FORMAT_PNG8) return img_png_write(desc, count, err); /* no module: image_png_write.c */
+    const img_oiio_api *api = module_api(desc->path, err);
     return api ? api->write(desc, err) : LM_ERR_UNSUPPORTED;
 }
 

@@ -43,13 +43,7 @@
 
 namespace {
 
-const int kMaxWriteChannels = 16;
-const int kMaxPngChannels = 4;
 const size_t kNameCap = sizeof(((img_image *)nullptr)->channel_names[0]); /* 32 */
-
-/* Per-process counter for temporary names; with the pid and O_EXCL it makes
- * concurrent writers (threads or processes) pick distinct names. */
-std::atomic<unsigned long> g_temp_counter{0};
 
 struct FreeDeleter {
     void operator()(void *p) const noexcept { std::free(p); }
@@ -83,216 +77,25 @@ std::string input_error(const OIIO::ImageInput *in)
     return clean_error(e);
 }
 
-bool ends_with_ext(const char *path, const char *ext)
-{
-    const char *slash = std::strrchr(path, '/');
-    const char *dot = std::strrchr(path, '.');
-    if (!dot || (slash && dot < slash)) return false;
-    const char *p = dot + 1;
-    size_t i = 0;
-    for (; p[i] && ext[i]; ++i) {
-        char c = p[i];
-        if (c >= 'A' && c <= 'Z') c = (char)(c - 'A' + 'a');
-        if (c != ext[i]) return false;
-    }
-    return p[i] == '\0' && ext[i] == '\0';
-}
-
-const char *format_label(img_format f) { return f == IMG_FORMAT_PNG8 ? "PNG" : "EXR"; }
-
-lm_result validate(const img_write_desc *d, img_format *fmt, size_t *count, lm_error *err)
-{
-    if (!d) return lm_fail(err, LM_ERR_INVALID_ARG, "img_write: no descriptor");
-    if (!d->path || !d->path[0])
-        return lm_fail(err, LM_ERR_INVALID_ARG, "img_write: no output path");
-    const char *path = d->path;
-
-    /* C callers may store any value of the enum's underlying type; reading an
-     * out-of-range value as img_format is undefined in C++, so look at the
-     * bytes first. */
-    std::underlying_type<img_format>::type raw;
-    static_assert(sizeof raw == sizeof d->format, "enum layout");
-    std::memcpy(&raw, &d->format, sizeof raw);
-    long long fv = (long long)raw;
-    if (fv < 0 || fv >= (long long)IMG_FORMAT_COUNT)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "%s: unknown image format %lld", path, fv);
-    img_format f = (img_format)fv;
-    if (f == IMG_FORMAT_FROM_EXTENSION) {
-        if (ends_with_ext(path, "exr"))
-            f = IMG_FORMAT_EXR_FLOAT;
-        else if (ends_with_ext(path, "png"))
-            f = IMG_FORMAT_PNG8;
-        else
-            return lm_fail(err, LM_ERR_INVALID_ARG,
-                           "%s: unsupported image file extension (supported: .exr, .png)", path);
-    }
-
-    if (d->width <= 0 || d->height <= 0)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "%s: invalid image size %dx%d", path, d->width,
-                       d->height);
-    int max_ch = f == IMG_FORMAT_PNG8 ? kMaxPngChannels : kMaxWriteChannels;
-    if (d->channels < 1 || d->channels > max_ch)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "%s: %d channels; %s takes 1 to %d", path,
-                       d->channels, format_label(f), max_ch);
-    /* width*height*channels floats must be addressable (and fit a ptrdiff_t). */
-    size_t w = (size_t)d->width, h = (size_t)d->height, c = (size_t)d->channels;
-    size_t limit = (size_t)PTRDIFF_MAX / sizeof(float);
-    if (w > limit / h || w * h > limit / c)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "%s: image of %dx%dx%d values is too large", path,
-                       d->width, d->height, d->channels);
-
-    if ((d->pixels != nullptr) == (d->pixels8 != nullptr))
-        return lm_fail(err, LM_ERR_INVALID_ARG,
-                       "%s: exactly one of pixels (float) and pixels8 (8-bit) must be given", path);
-    if (d->pixels8 && f != IMG_FORMAT_PNG8)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "%s: 8-bit pixels can only be written as PNG",
-                       path);
-
-    if (d->channel_names) {
-        for (int i = 0; i < d->channels; ++i) {
-            const char *n = d->channel_names[i];
-            if (!n || !n[0])
-                return lm_fail(err, LM_ERR_INVALID_ARG, "%s: channel %d has no name", path, i);
-            if (std::strlen(n) >= kNameCap)
-                return lm_fail(err, LM_ERR_INVALID_ARG,
-                               "%s: channel name \"%.40s...\" is longer than %zu bytes", path, n,
-                               kNameCap - 1);
-            for (const char *q = n; *q; ++q)
-                if ((unsigned char)*q < 0x20 || *q == 0x7f)
-                    return lm_fail(err, LM_ERR_INVALID_ARG,
-                                   "%s: channel %d name contains a control character", path, i);
-            for (int j = 0; j < i; ++j)
-                if (std::strcmp(n, d->channel_names[j]) == 0)
-                    return lm_fail(err, LM_ERR_INVALID_ARG,
-                                   "%s: channel name \"%s\" is used twice", path, n);
-        }
-    }
-    *fmt = f;
-    *count = w * h * c;
-    return LM_OK;
-}
-
-/* The temporary file: removed on destruction unless committed. */
-struct TempFile {
-    std::string path;
-    int fd = -1;
-    bool live = false;
-    TempFile() = default;
-    TempFile(const TempFile &) = delete;
-    TempFile &operator=(const TempFile &) = delete;
-    ~TempFile()
-    {
-        if (fd >= 0) ::close(fd);
-        if (live) ::unlink(path.c_str());
-    }
-};
-
-/* Creates (O_EXCL) an empty "<dir>/<base>.tmp-<pid>-<n>.<ext>" beside target
- * and leaves it open for writing. A long base name is shortened so that the
- * temporary name stays within NAME_MAX even when the target's name is itself
- * near the limit. */
-lm_result make_temp(const std::string &target, const char *ext, TempFile &tmp, lm_error *err)
-{
-    size_t slash = target.rfind('/');
-    std::string dir = slash == std::string::npos ? std::string() : target.substr(0, slash + 1);
-    std::string base = slash == std::string::npos ? target : target.substr(slash + 1);
-    int last_errno = 0;
-    std::string name;
-    for (int attempt = 0; attempt < 64; ++attempt) {
-        char suffix[96];
-        unsigned long n = g_temp_counter.fetch_add(1, std::memory_order_relaxed);
-        std::snprintf(suffix, sizeof suffix, ".tmp-%ld-%lu.%s", (long)getpid(), n, ext);
-        size_t room = (size_t)NAME_MAX - std::strlen(suffix);
-        std::string b = base;
-        if (b.size() > room) {
-            size_t cut = room;
-            /* do not split a UTF-8 sequence */
-            while (cut > 0 && ((unsigned char)b[cut] & 0xC0) == 0x80) --cut;
-            b.resize(cut);
-        }
-        name = dir + b + suffix;
-        int fd = ::open(name.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-        if (fd >= 0) {
-            tmp.path = name;
-            tmp.fd = fd;
-            tmp.live = true;
-            return LM_OK;
-        }
-        last_errno = errno;
-        if (last_errno != EEXIST) break;
-    }
-    return lm_fail(err, LM_ERR_IO, "%s: cannot create temporary file %s: %s", target.c_str(),
-                   name.c_str(), std::strerror(last_errno));
-}
-
-/* Writes the whole buffer, then flushes it to stable storage and closes, so
- * that every error (short write, EFBIG, ENOSPC, EIO on writeback) is seen
- * before the file replaces the target. */
-lm_result write_file(const char *target, TempFile &tmp, const unsigned char *data, size_t size,
-                     lm_error *err)
-{
-    size_t done = 0;
-    while (done < size) {
-        ssize_t n = ::write(tmp.fd, data + done, size - done);
-        if (n < 0) {
-            if (errno == EINTR) continue;
-            return lm_fail(err, LM_ERR_IO, "%s: cannot write temporary file %s: %s", target,
-                           tmp.path.c_str(), std::strerror(errno));
-        }
-        if (n == 0)
-            return lm_fail(err, LM_ERR_IO, "%s: cannot write temporary file %s: no progress",
-                           target, tmp.path.c_str());
-        done += (size_t)n;
-    }
-    if (::fsync(tmp.fd) != 0 && errno != EINVAL && errno != EROFS) /* EINVAL: cannot sync */
-        return lm_fail(err, LM_ERR_IO, "%s: cannot flush temporary file %s: %s", target,
-                       tmp.path.c_str(), std::strerror(errno));
-    int fd = tmp.fd;
-    tmp.fd = -1;
-    if (::close(fd) != 0)
-        return lm_fail(err, LM_ERR_IO, "%s: cannot close temporary file %s: %s", target,
-                       tmp.path.c_str(), std::strerror(errno));
-    return LM_OK;
-}
 
 /* EXR stores channels sorted by name and OpenImageIO reorders them again on
  * reading, so the order the caller gave is kept in this header attribute
  * (names separated by '\n') and restored by img_read. */
 const char *const kChannelOrderAttr = "lumesh:channelOrder";
 
+/* EXR only: the program writes PNGs itself (image_png_write.c). */
 lm_result write_impl(const img_write_desc *d, lm_error *err)
 {
     img_format fmt = IMG_FORMAT_FROM_EXTENSION;
     size_t count = 0;
-    lm_result r = validate(d, &fmt, &count, err);
+    lm_result r = img_write_check(d, &fmt, &count, err);
     if (r != LM_OK) return r;
     const char *path = d->path;
-    const bool png = fmt == IMG_FORMAT_PNG8;
+    if (fmt != IMG_FORMAT_EXR_FLOAT)
+        return lm_fail(err, LM_ERR_UNSUPPORTED, "%s: the image module writes EXR only (PNG: img_write)", path);
     const int nch = d->channels;
-    const char *label = format_label(fmt);
 
-    /* Pixels in the file's type. */
-    std::vector<uint8_t> bytes;
-    const void *data = nullptr;
-    if (png) {
-        if (d->pixels8) {
-            data = d->pixels8;
-        } else {
-            bytes.resize(count);
-            for (size_t i = 0; i < count; ++i) {
-                float v = d->pixels[i];
-                /* NaN fails both tests and ends at 0. */
-                v = v > 0.0f ? (v < 1.0f ? v : 1.0f) : 0.0f;
-                bytes[i] = (uint8_t)(v * 255.0f + 0.5f);
-            }
-            data = bytes.data();
-        }
-    } else {
-        data = d->pixels;
-    }
-
-    OIIO::ImageSpec spec(d->width, d->height, nch,
-                         png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT);
+    OIIO::ImageSpec spec(d->width, d->height, nch, OIIO::TypeDesc::FLOAT);
     spec.channelnames.clear();
     static const char *const rgba[4] = {"R", "G", "B", "A"};
     for (int i = 0; i < nch; ++i) {
@@ -305,60 +108,37 @@ lm_result write_impl(const img_write_desc *d, lm_error *err)
     }
     spec.alpha_channel = -1;
     spec.z_channel = -1;
-    if (png) {
-        /* PNG has no channel names: gray, gray+alpha, RGB, RGBA by count. */
-        if (nch == 2 || nch == 4) spec.alpha_channel = nch - 1;
-        /* The data is written exactly as given: no un-premultiplication. */
-        spec.attribute("oiio:UnassociatedAlpha", 1);
-    } else {
-        std::string order;
-        for (int i = 0; i < nch; ++i) {
-            if (spec.channelnames[i] == "A") spec.alpha_channel = i;
-            if (i) order += '\n';
-            order += spec.channelnames[i];
-        }
-        spec.attribute(kChannelOrderAttr, order);
-        spec.attribute("compression", "zip");
-        for (const char *const *a = d->attributes; a && a[0] && a[1]; a += 2) spec.attribute(a[0], a[1]);
+    std::string order;
+    for (int i = 0; i < nch; ++i) {
+        if (spec.channelnames[i] == "A") spec.alpha_channel = i;
+        if (i) order += '\n';
+        order += spec.channelnames[i];
     }
+    spec.attribute(kChannelOrderAttr, order);
+    spec.attribute("compression", "zip");
+    for (const char *const *a = d->attributes; a && a[0] && a[1]; a += 2) spec.attribute(a[0], a[1]);
 
-    /* The file is encoded into memory and written out here, not by the
-     * plugin: OpenImageIO 2.4's PNG writer ignores failed writes (a full disk
-     * gives a truncated PNG and success), and this way every write is checked
-     * and nothing touches the disk unless encoding succeeded. */
+    /* The file is encoded into memory and written out by img_write_file, not by
+     * the plugin: every write is checked and nothing touches the disk unless
+     * encoding succeeded (OpenImageIO 2.4's PNG writer ignored failed writes). */
     std::vector<unsigned char> encoded;
     OIIO::Filesystem::IOVecOutput memout(encoded);
-    auto out = OIIO::ImageOutput::create(png ? "png" : "openexr");
+    auto out = OIIO::ImageOutput::create("openexr");
     if (!out)
-        return lm_fail(err, LM_ERR_UNSUPPORTED, "%s: OpenImageIO has no %s writer: %s", path,
-                       label, output_error(nullptr).c_str());
+        return lm_fail(err, LM_ERR_UNSUPPORTED, "%s: OpenImageIO has no EXR writer: %s", path,
+                       output_error(nullptr).c_str());
     if (!out->supports("ioproxy") || !out->set_ioproxy(&memout))
-        return lm_fail(err, LM_ERR_UNSUPPORTED,
-                       "%s: this OpenImageIO's %s writer cannot write to memory: %s", path, label,
-                       output_error(out.get()).c_str());
-
+        return lm_fail(err, LM_ERR_UNSUPPORTED, "%s: this OpenImageIO's EXR writer cannot write to memory: %s",
+                       path, output_error(out.get()).c_str());
     if (!out->open(path, spec))
-        return lm_fail(err, LM_ERR_IO, "%s: cannot encode %s: %s", path, label,
-                       output_error(out.get()).c_str());
-    bool ok = out->write_image(png ? OIIO::TypeDesc::UINT8 : OIIO::TypeDesc::FLOAT, data);
+        return lm_fail(err, LM_ERR_IO, "%s: cannot encode EXR: %s", path, output_error(out.get()).c_str());
+    bool ok = out->write_image(OIIO::TypeDesc::FLOAT, d->pixels);
     ok = out->close() && ok;
-    if (!ok)
-        return lm_fail(err, LM_ERR_IO, "%s: cannot encode %s: %s", path, label,
-                       output_error(out.get()).c_str());
+    if (!ok) return lm_fail(err, LM_ERR_IO, "%s: cannot encode EXR: %s", path, output_error(out.get()).c_str());
     out.reset();
-    if (encoded.empty())
-        return lm_fail(err, LM_ERR_IO, "%s: OpenImageIO produced an empty %s file", path, label);
-
-    TempFile tmp;
-    r = make_temp(path, png ? "png" : "exr", tmp, err);
-    if (r != LM_OK) return r;
-    r = write_file(path, tmp, encoded.data(), encoded.size(), err);
-    if (r != LM_OK) return r;
-    if (std::rename(tmp.path.c_str(), path) != 0)
-        return lm_fail(err, LM_ERR_IO, "%s: cannot move %s into place: %s", path,
-                       tmp.path.c_str(), std::strerror(errno));
-    tmp.live = false;
-    return LM_OK;
+    if (encoded.empty()) return lm_fail(err, LM_ERR_IO, "%s: OpenImageIO produced an empty EXR file", path);
+    (void)count;
+    return img_write_file(path, "exr", encoded.data(), encoded.size(), err);
 }
 
 void copy_name(char *dst, const std::string &src)
