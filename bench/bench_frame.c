@@ -16,7 +16,8 @@
  * glFinish) and of the whole draw; 0 means the pass was reused. The first 3
  * draws of the fixed cases are not counted (llvmpipe compiles shader variants on
  * first use).
- * usage: bench_frame [SCENE (default: CornellBox-Water)] [SECONDS (60)] [FRAMES (50)] [MAX_S (3)] */
+ * usage: bench_frame [SCENE (default: CornellBox-Water)] [SECONDS (60)] [FRAMES (50)] [MAX_S (3)]
+ *                    [BAND_SAMPLES (0: REND_FRAME_BAND_SAMPLES)] */
 #define _POSIX_C_SOURCE 200809L /* nanosleep */
 #include <stdio.h>
 #include <stdlib.h>
@@ -146,6 +147,7 @@ int main(int argc, char **argv)
         snprintf(path, sizeof path, "%s/cornell-box/CornellBox-Water.obj", LUMESH_SCENES);
     double budget = argc > 2 ? atof(argv[2]) : 60.0;
     int frames = argc > 3 ? atoi(argv[3]) : 50, max_s = argc > 4 ? atoi(argv[4]) : 3;
+    const int band = argc > 5 ? atoi(argv[5]) : 0;
     if (frames < 1 || frames > MAX_FRAMES) frames = 50;
     if (max_s < 1 || max_s > REND_FRAME_SUPERSAMPLE_MAX) max_s = 3;
     lm_error err = {{0}};
@@ -215,7 +217,7 @@ int main(int argc, char **argv)
     for (int ss = 1; ss <= max_s; ++ss) {
         rend_frame_destroy(f);
         f = NULL;
-        if (rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = ss}, &f,
+        if (rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = ss, .band_samples = band}, &f,
                               &err) != LM_OK)
             goto done;
         for (int c = 0; c < CASE_COUNT; ++c) {

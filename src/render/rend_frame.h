@@ -92,7 +92,8 @@ enum {
     REND_FRAME_DEFAULT_SAMPLES_MAX = 1 << 23,   /* ...lowered until s²·width·height is at most this
                                                    (24 bytes of GL images per sample: 200 MB) */
     REND_FRAME_SUPERSAMPLE_MAX = 8,
-    REND_FRAME_BAND_SAMPLES = 1 << 20 /* rend_frame_desc.band_samples' default: 20 MB of band images */
+    REND_FRAME_BAND_SAMPLES = 1 << 19 /* rend_frame_desc.band_samples' default: 10 MB of band images
+                                         (docs/renderer.md, "Bands": 2^20 before, 2^19 no slower) */
 };
 
 typedef struct rend_frame_desc {
