@@ -162,7 +162,7 @@ lm_result samp_gl_create(const samp_desc *desc, const rt_scene *rt, const samp_b
         r = upload_scene(g, err);
     }
     if (r == LM_OK)
-        r = samp_gl_atlas_make(g, &g->direct_atlas, g->desc.direct_res, g->desc.direct_res, GL_R32F, 2, err);
+        r = samp_gl_atlas_make(g, &g->direct_atlas, g->desc.direct_res, g->desc.direct_res, GL_R32F, 2, 1, err);
     if (r == LM_OK) r = samp_gl_grid_build(g, err);
     if (r == LM_OK) {
         uint32_t most = 1;

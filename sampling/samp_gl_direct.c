@@ -358,8 +358,10 @@ lm_result samp_gl_direct(void *impl, uint32_t light, const samp_point *pts, uint
     const scene_area_light *L = &s->area_lights[light];
     const samp_gl_atlas *a = &g->direct_atlas;
     const int cv = g->desc.direct_control_variate != SAMP_OFF;
-    const uint32_t tiles = (uint32_t)a->cols * (uint32_t)a->rows;
     lm_result r = glctx_make_current(g->ctx, err);
+    if (r == LM_OK) r = samp_gl_atlas_fit(g, &g->direct_atlas, n, err);
+    if (r != LM_OK) return r;
+    const uint32_t tiles = (uint32_t)a->cols * (uint32_t)a->rows;
     if (r == LM_OK) r = samp_gl_reserve(&g->views, &g->views_cap_cpu, tiles, sizeof *g->views, err);
     if (r == LM_OK) r = samp_gl_reserve(&g->cmds, &g->cmds_cap_cpu, tiles, sizeof *g->cmds, err);
     if (r == LM_OK)

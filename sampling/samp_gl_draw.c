@@ -51,7 +51,7 @@ lm_result samp_gl_upload(samp_gl *g, GLuint buf, size_t *cap, const void *data, 
 /* ---- atlas ---------------------------------------------------------------- */
 
 lm_result samp_gl_atlas_make(samp_gl *g, samp_gl_atlas *a, int tile_w, int tile_h, GLenum format, int color_count,
-                             lm_error *err)
+                             uint32_t tiles, lm_error *err)
 {
     const GladGLContext *gl = g->gl;
     /* ATLAS_SIDE² pixels, or one tile when a tile is larger, within GL's limit. */
@@ -66,7 +66,10 @@ lm_result samp_gl_atlas_make(samp_gl *g, samp_gl_atlas *a, int tile_w, int tile_
     a->tile_w = tile_w;
     a->tile_h = tile_h;
     a->cols = side_w / tile_w;
-    a->rows = side_h / tile_h;
+    a->full_rows = side_h / tile_h;
+    uint32_t need = tiles ? (tiles + (uint32_t)a->cols - 1) / (uint32_t)a->cols : (uint32_t)a->full_rows;
+    a->rows = need < (uint32_t)a->full_rows ? (int)need : a->full_rows;
+    a->format = format;
     a->width = a->cols * tile_w;
     a->height = a->rows * tile_h;
     a->color_count = color_count;
@@ -90,6 +93,18 @@ lm_result samp_gl_atlas_make(samp_gl *g, samp_gl_atlas *a, int tile_w, int tile_
                     g->ops.name, a->width, a->height, (unsigned)status);
     if (r != LM_OK) samp_gl_atlas_free(g, a);
     return r;
+}
+
+lm_result samp_gl_atlas_fit(samp_gl *g, samp_gl_atlas *a, uint32_t n, lm_error *err)
+{
+    const uint32_t cols = (uint32_t)a->cols, full = cols * (uint32_t)a->full_rows;
+    const uint32_t want = n < full ? n : full;
+    if (want <= cols * (uint32_t)a->rows) return LM_OK;
+    uint32_t rows = (uint32_t)a->rows;
+    while (rows * cols < want) rows *= 2;
+    const samp_gl_atlas old = *a;
+    samp_gl_atlas_free(g, a);
+    return samp_gl_atlas_make(g, a, old.tile_w, old.tile_h, old.format, old.color_count, rows * cols, err);
 }
 
 void samp_gl_atlas_free(samp_gl *g, samp_gl_atlas *a)

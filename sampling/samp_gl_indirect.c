@@ -173,7 +173,7 @@ static lm_result prepare(samp_gl *g, lm_error *err)
     int res = g->desc.indirect_res + (g->desc.indirect_res & 1); /* half faces need an even size */
     int hemi = g->desc.indirect_mode != SAMP_INDIRECT_PLANE160;
     int tw = hemi ? 3 * res : res, th = res;
-    lm_result r = samp_gl_atlas_make(g, &g->indirect_atlas, tw, th, GL_RGBA32F, 1, err);
+    lm_result r = samp_gl_atlas_make(g, &g->indirect_atlas, tw, th, GL_RGBA32F, 1, 1, err);
     if (r == LM_OK) r = make_weights(g, res, g->desc.indirect_mode, tw, th, err);
     return r;
 }
@@ -196,6 +196,7 @@ lm_result samp_gl_indirect(void *impl, const samp_radiance_mesh *mesh, const sam
     const GladGLContext *gl = g->gl;
     lm_result r = glctx_make_current(g->ctx, err);
     if (r == LM_OK) r = prepare(g, err);
+    if (r == LM_OK) r = samp_gl_atlas_fit(g, &g->indirect_atlas, n, err);
     size_t vcount = 0;
     if (r == LM_OK) r = build_vertices(g, mesh, &vcount, err);
     const samp_gl_atlas *a = &g->indirect_atlas;

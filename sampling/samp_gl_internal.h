@@ -42,6 +42,8 @@ typedef struct samp_gl_atlas {
     int width, height;       /* pixels */
     int tile_w, tile_h;      /* pixels */
     int cols, rows;          /* tiles */
+    int full_rows;           /* rows at its full size (ATLAS_SIDE² pixels) */
+    GLenum format;
 } samp_gl_atlas;
 
 /* The uniform grid over the scene's triangles used to cull occluders (paper §5). */
@@ -100,8 +102,15 @@ typedef struct samp_gl {
 lm_result samp_gl_reserve(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem, lm_error *err);
 /* Uploads `bytes` of data to GL buffer buf, growing its storage (*cap bytes) by doubling. */
 lm_result samp_gl_upload(samp_gl *g, GLuint buf, size_t *cap, const void *data, size_t bytes, lm_error *err);
+/* An atlas of tile_w×tile_h views, with rows enough for `tiles` (at most its
+ * full size, ATLAS_SIDE² pixels; 0: full). */
 lm_result samp_gl_atlas_make(samp_gl *g, samp_gl_atlas *a, int tile_w, int tile_h, GLenum format, int color_count,
-                             lm_error *err);
+                             uint32_t tiles, lm_error *err);
+/* Remade with rows doubled until it holds min(n, its full size) tiles, if it
+ * holds fewer. Atlases start one row high and grow to what calls ask: a call
+ * of a few points (auto's calibration: 24) does not make 32 MB of GL images
+ * (docs/memory.md, "The GL sampler's atlases grown to use"). */
+lm_result samp_gl_atlas_fit(samp_gl *g, samp_gl_atlas *a, uint32_t n, lm_error *err);
 void samp_gl_atlas_free(samp_gl *g, samp_gl_atlas *a);
 /* Binds the atlas, clears the rows holding `tiles` tiles (colour 0, depth 0) and
  * sets the state every view draw needs; samp_gl_end_draw puts the defaults back. */
