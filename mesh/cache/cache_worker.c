@@ -57,7 +57,7 @@ struct cache_worker {
     const scene *s;
     uint32_t *pixels;                 /* owned copy; the worker's (set_pixels hands over a new one) */
     pthread_t thread;
-    int started;
+    int started, joined;            /* the thread was made; joined (cache_worker_retire, destroy) */
 
     pthread_mutex_t lock;             /* guards every field below */
     pthread_cond_t cond;              /* signalled on any change of them */
@@ -147,6 +147,17 @@ static lm_result append_piece(mesh_store *ms, publish_scratch *ps, int debug, co
     return LM_OK;
 }
 
+/* Shrinks *p (capacity *cap elements of elem bytes) to `used` when more than an
+ * eighth of it is spare; left as it is when realloc fails (it still holds all). */
+static void fit_array(void **p, size_t *cap, size_t used, size_t elem)
+{
+    if (!used || *cap - used <= used / 8) return;
+    void *q = realloc(*p, used * elem);
+    if (!q) return;
+    *p = q;
+    *cap = used;
+}
+
 /* Publishes mesh m (NULL: empty) into ms and *sm, indexed: each vertex once, in
  * the order the leaf triangles first use it (they come in node order, so a
  * triangle's corners are mostly near each other in the array too), a piece of
@@ -178,6 +189,13 @@ static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, c
     }
     for (uint32_t i = 0; i < nv; ++i) ps->local[ps->ids[i]] = UINT32_MAX;
     if (r != LM_OK) return r;
+    /* Grown by doubling piece by piece: down to what is used, so that three slots
+     * of a big mesh do not each keep up to twice their size (Water after 20 s:
+     * 41 MB of slots at the peak; a shrink or a later growth is an mremap). */
+    fit_array((void **)&ms->index, &ms->index_cap, 3 * count, sizeof *ms->index);
+    fit_array((void **)&ms->tris, &ms->tris_cap, count, sizeof *ms->tris);
+    if (debug) fit_array((void **)&ms->corners, &ms->corners_cap, 3 * count, sizeof *ms->corners);
+    fit_array((void **)&ms->verts, &ms->verts_cap, nv, sizeof *ms->verts);
     *sm = (cache_snapshot_mesh){.vertices = ms->verts, .index = ms->index, .tri = ms->tris,
                                 .corners = debug && count ? ms->corners : NULL,
                                 .triangle_count = (uint32_t)count, .vertex_count = nv};
@@ -622,15 +640,32 @@ static void store_free(snapshot_store *st)
     free(st);
 }
 
+/* Cancels the refinement and joins the thread (once). */
+static void stop_thread(cache_worker *w)
+{
+    if (!w->started || w->joined) return;
+    pthread_mutex_lock(&w->lock);
+    w->cancel = 1;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+    pthread_join(w->thread, NULL);
+    w->joined = 1;
+}
+
+void cache_worker_retire(cache_worker *w)
+{
+    if (!w) return;
+    stop_thread(w);
+    /* The slot the worker wrote into is never handed over now. */
+    store_free(w->back);
+    w->back = NULL;
+}
+
 void cache_worker_destroy(cache_worker *w)
 {
     if (!w) return;
     if (w->started) {
-        pthread_mutex_lock(&w->lock);
-        w->cancel = 1;
-        pthread_cond_broadcast(&w->cond);
-        pthread_mutex_unlock(&w->lock);
-        pthread_join(w->thread, NULL);
+        stop_thread(w);
         pthread_mutex_destroy(&w->lock);
         pthread_cond_destroy(&w->cond);
     }

@@ -191,6 +191,11 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         r = rend_session_wait(rs, &(rend_session_wait_desc){.until = t0 + limit, .on_look = show_progress, .user = &prog},
                               &snap, &err);
     if (prog.shown) fputc('\n', stderr);
+    /* The final snapshot is all the drawing needs: the cache, its samplers and
+     * the Embree scene are freed before the renderer's images are made (the
+     * 116k-triangle box's peak: docs/memory.md, "The cache gone before the final
+     * draw"). */
+    rend_session_retire_worker(rs);
     rgb = r == LM_OK ? malloc((size_t)w * (size_t)h * 3 * sizeof *rgb) : NULL;
     if (r == LM_OK && !rgb) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
     if (r == LM_OK && mask != REND_FRAME_COMPONENTS_ALL) {

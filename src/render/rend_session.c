@@ -169,6 +169,11 @@ void rend_session_destroy(rend_session *rs)
     free(rs);
 }
 
+void rend_session_retire_worker(rend_session *rs)
+{
+    if (rs) cache_worker_retire(rs->wk);
+}
+
 lm_result rend_session_resize(rend_session *rs, int width, int height, lm_error *err)
 {
     if (!rs) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_resize: no session");

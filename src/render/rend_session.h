@@ -132,6 +132,10 @@ lm_result rend_session_create(const rend_session_desc *desc, rend_session **out,
 /* Cancels and joins the worker, then frees the GL objects and a made context.
  * NULL is a no-op. */
 void rend_session_destroy(rend_session *rs);
+/* Ends the refinement and frees the cache (cache_worker_retire): the snapshot
+ * held (rend_session_snapshot) stays valid and drawable; acquire, views and edits
+ * bring nothing new after it. For a client done refining that only draws. */
+void rend_session_retire_worker(rend_session *rs);
 
 /* A new size for the ID pass and the renderers (a window resized): both are made
  * again at their next use; the worker keeps the counts of the last view until
