@@ -212,8 +212,8 @@ int main(int argc, char **argv)
      * glibc's default threshold climbs to the largest block freed so far (up to
      * 32 MiB), after which a big scene's many 1-30 MB arrays (grown by doubling,
      * rebuilt each round) come from the heap, whose freed middle is never given
-     * back: the 116k-triangle box's `render --samples 1` peaked at 449 or 545 MB
-     * from run to run, at 444 every time with this (docs/memory.md, "Fixed mmap
+     * back: the 116k-triangle box's `render --samples 1` peaked at 460 or 558 MB
+     * from run to run, at 454 every time with this (docs/memory.md, "Fixed mmap
      * threshold"); no slower. MALLOC_MMAP_THRESHOLD_, when set, decides instead. */
     if (!getenv("MALLOC_MMAP_THRESHOLD_")) mallopt(M_MMAP_THRESHOLD, 1 << 20);
     if (argc < 2) {
