@@ -169,8 +169,15 @@ static void first_image_budget(void)
         CHECK(cache_regather_indirect(c, &err) == LM_OK);
         cache_get_stats(c, &st);
         CHECK(st.indirect.samples == 64); /* flagged, not gathered yet */
-        int calls = 0;
         cache_refine_result res = {0};
+        /* Asked to stop (a worker being cancelled): the call gathers nothing, tests
+         * nothing, claims nothing, and leaves every value owed. */
+        atomic_int stop;
+        atomic_init(&stop, 1);
+        CHECK(cache_refine(c, &(cache_refine_desc){.budget = 64, .stop = &stop}, &res, &err) == LM_OK);
+        cache_get_stats(c, &st);
+        CHECK(st.indirect.samples == 64 && res.tested == 0 && !res.converged && res.outdated >= corners);
+        int calls = 0;
         do {
             CHECK(cache_refine(c, &(cache_refine_desc){.budget = 1}, &res, &err) == LM_OK);
             cache_get_stats(c, &st);

@@ -569,7 +569,12 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
     /* The coarse cache first, here: the scheduler is below this file and cannot ask for it. */
     lm_result r = c->initialised ? take_newly_needed(c, desc->pixels, err) : cache_init_seen(c, desc->pixels, err);
     if (r == LM_OK) cache_bounces_see(c, desc->pixels);
-    if (r == LM_OK) return cache_sched_refine(c, desc, out, err);
+    if (r == LM_OK) {
+        c->stop = desc->stop;
+        r = cache_sched_refine(c, desc, out, err);
+        c->stop = NULL;
+        return r;
+    }
     if (out) *out = (cache_refine_result){0};
     return r;
 }

@@ -59,6 +59,7 @@
 #ifndef LUMESH_CACHE_H
 #define LUMESH_CACHE_H
 
+#include <stdatomic.h>
 #include <stdint.h>
 
 #include "mesh/qmesh.h"
@@ -176,6 +177,11 @@ typedef struct cache_refine_desc {
                                  0 = CACHE_REGATHER_PER_LEAF × budget. A caller that caps the leaf
                                  tests (a total to reach) keeps this at its step's size: the values
                                  are owed to the coarse cache, not leaf tests */
+    const atomic_int *stop;   /* non-NULL: looked at between batches of gathers and between rounds;
+                                 once non-zero the call returns after the batch or round in flight
+                                 (nothing is lost: what is left stays flagged or queued and counts in
+                                 remaining). A worker being cancelled: a step of the 116k box's first
+                                 regather made its client wait 1.2 s (docs/cache.md) */
 } cache_refine_desc;
 
 typedef struct cache_refine_result {

@@ -267,6 +267,7 @@ struct cache {
                                   an emitter the viewer sees (cache_sees_front) */
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
     int initialised;
+    const atomic_int *stop;    /* cache_refine_desc.stop during a cache_refine call, else NULL */
     cache_startup_stats startup; /* written by cache.c, once (cache_create, the first init) */
     const uint32_t *first_pixels; /* the pixel counts cache_init_seen was given, while it runs */
     /* Which scene triangles take part (allocated by cache.c's cache_init_seen;
@@ -297,6 +298,8 @@ struct cache {
 
 /* Does scene triangle t take part (struct cache.active)? */
 static inline int cache_tri_active(const cache *c, uint32_t t) { return !c->active || c->active[t]; }
+/* The client asked the refine call in flight to return (cache_refine_desc.stop). */
+static inline int cache_stopping(const cache *c) { return c->stop && atomic_load(c->stop) != 0; }
 
 /* ---- cache_site.c: points, leaves, regions, what the viewer sees ----------------- */
 

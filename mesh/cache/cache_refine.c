@@ -837,7 +837,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     /* No leaf is tested while values it would be judged by are still the first
      * image's (borrowed, or flagged by a rebuilt source). */
     const size_t borrowed = c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0;
-    while (r == LM_OK && !c->src.outdated_n && !borrowed) {
+    while (r == LM_OK && !c->src.outdated_n && !borrowed && !cache_stopping(c)) {
         int kind = -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
             if (left[k] && c->sched.waiting[k]) kind = k;
@@ -871,7 +871,8 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     /* Values still waiting to be gathered again count as work left. */
     res.outdated = (uint32_t)(c->src.outdated_n + (c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0));
     res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] + res.outdated);
-    if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0) {
+    /* Stopped (cache_refine_desc.stop): no claim, the settling may not have run. */
+    if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0 && !cache_stopping(c)) {
         r = cache_estimate_error(c, desc->pixels, &res.estimate, err);
         res.estimated = r == LM_OK;
         res.converged = r == LM_OK && cache_estimate_converged(&res.estimate);

@@ -921,7 +921,7 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
     float *E = NULL;
     /* Gathering may rebuild the source and flag more: until none is left, or the
      * allowance is spent. */
-    while (r == LM_OK && c->src.outdated_n && (!allowance || *allowance > 0)) {
+    while (r == LM_OK && c->src.outdated_n && (!allowance || *allowance > 0) && !cache_stopping(c)) {
         uint32_t n = 0;
         if (!ids) {
             ids = malloc(BATCH * sizeof *ids);

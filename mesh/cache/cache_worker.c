@@ -57,7 +57,9 @@ struct cache_worker {
     const scene *s;
     uint32_t *pixels;                 /* owned copy; the worker's (set_pixels hands over a new one) */
     pthread_t thread;
-    int started, joined;            /* the thread was made; joined (cache_worker_retire, destroy) */
+    int started, joined;            /* the display's: the thread was made; joined (retire, destroy) */
+    atomic_int stop_now;              /* set by the display when cancelling (stop_thread), read by the
+                                         worker's refine calls between batches (cache_refine_desc.stop) */
 
     pthread_mutex_t lock;             /* guards every field below */
     pthread_cond_t cond;              /* signalled on any change of them */
@@ -559,9 +561,9 @@ static void *worker_main(void *arg)
         if (budget)
             r = cache_refine(c,
                              &(cache_refine_desc){.pixels = w->pixels, .budget = budget,
-                                                  .regather = CACHE_REGATHER_PER_LEAF * step},
+                                                  .regather = CACHE_REGATHER_PER_LEAF * step, .stop = &w->stop_now},
                              &res, &err);
-        if (r != LM_OK) break;
+        if (r != LM_OK || atomic_load(&w->stop_now)) break; /* cancelled: no snapshot of a cut-short step */
         if (budget) owed = res.outdated;
         tested += res.tested;
         /* Converged: the cache's estimate says so (cache_estimate_converged); nothing
@@ -644,6 +646,7 @@ static void store_free(snapshot_store *st)
 static void stop_thread(cache_worker *w)
 {
     if (!w->started || w->joined) return;
+    atomic_store(&w->stop_now, 1); /* the step in flight returns after its batch */
     pthread_mutex_lock(&w->lock);
     w->cancel = 1;
     pthread_cond_broadcast(&w->cond);
@@ -687,6 +690,7 @@ lm_result cache_worker_create(const cache_worker_desc *desc, cache_worker **out,
     cache_worker *w = calloc(1, sizeof *w);
     if (!w) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the refinement worker");
     w->desc = *desc;
+    atomic_init(&w->stop_now, 0);
     w->debug_wanted = desc->publish_debug != 0;
     w->s = desc->scene;
     w->front = calloc(1, sizeof *w->front);
