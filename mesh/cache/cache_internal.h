@@ -8,8 +8,10 @@
  *   cache_specular.c  the area lights' outlines and the specular values (eq. 5)
  *   cache_light.c     visibility from the light meshes (§4.3.4), the direct values
  *                     (eq. 4), falsified light leaves
+ *   cache_drift.c     the drift bound of indirect values over source rebuilds;
+ *                     which are outdated
  *   cache_source.c    indirect light (eq. 7): the radiance source, gathers,
- *                     outdated values
+ *                     gathering outdated values again
  *   cache_estimate.c  the cache's estimate of its error (cache_estimate_error);
  *                     the values whose noise is still seen
  *   cache_refine.c    the refinement scheduler (§4.3)
@@ -24,7 +26,8 @@
  *
  * struct cache is a shared core (the scene, the sampler, the meshes; set by
  * cache.c) and one part per file that writes it: cache_light_state
- * (cache_light.c), cache_source_state (cache_source.c), cache_outlines
+ * (cache_light.c), cache_source_state (cache_source.c; its drift and outdated flags also
+ * cache_drift.c), cache_outlines
  * (cache_specular.c), cache_sched (cache_refine.c). A part's fields are written
  * by its owner only; other files may read them where said.
  *
@@ -415,6 +418,19 @@ void cache_release_borrowed(cache *c);
 lm_result cache_borrowed_to_regions(cache *c, size_t most, lm_error *err);
 /* Borrowed roots not yet made regions, released or not. */
 size_t cache_borrowed_waiting(const cache *c);
+
+/* ---- cache_drift.c: outdated indirect values ------------------------------------------- */
+
+/* Room for per-vertex drift, flags, noise and levels up to vertex id limit. */
+lm_result cache_grow_drift(cache_source_state *st, uint32_t limit, lm_error *err);
+/* Flags vertex vid outdated (once) for cache_regather_outdated. */
+lm_result cache_push_outdated(cache_source_state *st, uint32_t vid, lm_error *err);
+/* L_dd at vertex vid: its own value in the direct mesh, else interpolated there. */
+void cache_vertex_direct(const cache *c, uint32_t vid, float ldd[3]);
+/* Compares the new source (c->src.rmesh) with the previous one (c->src.rp_*),
+ * adds the bounds to the drift of every displayed indirect value and flags those
+ * that may have moved by more than the JND. */
+lm_result cache_mark_outdated(cache *c, lm_error *err);
 
 /* ---- cache_source.c: indirect light ----------------------------------------------------- */
 
