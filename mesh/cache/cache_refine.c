@@ -773,7 +773,7 @@ static lm_result regather_noisy(cache *c, const uint32_t *pixels, uint32_t budge
 /* Schedules every leaf of one mesh afresh (at the start; after a light changed;
  * for the specular mesh after the camera moved): heap, done flags and priorities
  * are rebuilt. */
-static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pixels, lm_error *err)
+static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pixels, int seen_only, lm_error *err)
 {
     mesh_qmesh *m = cache_kind_mesh(c, kind);
     c->sched.q[kind].n = 0;
@@ -800,9 +800,11 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
         const mesh_qnode *n = mesh_qmesh_node(m, leaf);
         if (!n || n->child != MESH_QMESH_NONE) continue;
         if (!cache_tri_active(c, n->tri)) continue; /* unsampled roots: nothing to test yet */
+        if (seen_only && pixels && !pixels[n->tri]) continue; /* the next call schedules it */
         float p = leaf_priority(c, m, kind, leaf, n, pixels); /* 0: unseen and nothing gathers from it */
         r = sched_add(c, kind, leaf, p, err);
     }
+    if (seen_only && pixels) c->sched.requeue[kind] = 1; /* the whole queue next time */
     return r;
 }
 
@@ -811,7 +813,8 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     cache_refine_result res = {0};
     lm_result r = LM_OK;
     for (int k = 0; r == LM_OK && k < CACHE_KINDS; ++k)
-        if (!c->sched.seeded || c->sched.requeue[k]) r = schedule_leaves(c, (refine_kind)k, desc->pixels, err);
+        if (!c->sched.seeded || c->sched.requeue[k])
+            r = schedule_leaves(c, (refine_kind)k, desc->pixels, desc->seen_only && !c->sched.seeded, err);
     c->sched.seeded = 1;
     uint32_t budget = desc->budget ? desc->budget : 256;
     /* Direct light first; indirect (smoother, dearer samples) and specular get a

@@ -342,7 +342,8 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     double t = lm_now_seconds();
     if (r == LM_OK && w->desc.first_budget && w->pixels) {
         cache_refine_result res;
-        r = cache_refine(*c, &(cache_refine_desc){.pixels = w->pixels, .budget = w->desc.first_budget}, &res, err);
+        r = cache_refine(*c, &(cache_refine_desc){.pixels = w->pixels, .budget = w->desc.first_budget, .seen_only = 1},
+                         &res, err);
         if (r == LM_OK) w->first_tested = res.tested;
     }
     w->first_rounds_seconds = lm_now_seconds() - t;
