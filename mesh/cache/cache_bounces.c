@@ -427,30 +427,24 @@ static void first_bounce(const cache *c, float *out)
  * and freed after it: at a million triangles the tv entries are three million,
  * and a copy of these per entry held 150 MB for the cache's life. */
 typedef struct seen_lab {
-    float *ldd, *whole, *shown, *prev; /* 3 per seen entry */
+    float *block;                      /* one allocation holding the four */
+    float *ldd, *whole, *shown, *prev; /* 3 per seen entry each */
     uint32_t n;
 } seen_lab;
-
-static void seen_lab_free(seen_lab *sl)
-{
-    free(sl->ldd);
-    free(sl->whole);
-    free(sl->shown);
-    free(sl->prev);
-}
 
 static lm_result seen_lab_make(const cache_bounce_state *b, seen_lab *sl, lm_error *err)
 {
     *sl = (seen_lab){0};
     for (uint32_t e = 0; e < b->tv_n; ++e) sl->n += b->seen[b->tv_index[e]] != 0;
-    size_t n3 = 3 * (size_t)(sl->n ? sl->n : 1);
-    sl->ldd = malloc(n3 * sizeof *sl->ldd);
-    sl->whole = malloc(n3 * sizeof *sl->whole);
-    sl->shown = malloc(n3 * sizeof *sl->shown);
-    sl->prev = malloc(n3 * sizeof *sl->prev);
-    if (sl->ldd && sl->whole && sl->shown && sl->prev) return LM_OK;
-    seen_lab_free(sl);
-    return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing the bounces (%u seen points)", sl->n);
+    const size_t n3 = 3 * (size_t)(sl->n ? sl->n : 1);
+    sl->block = malloc(4 * n3 * sizeof *sl->block);
+    if (!sl->block)
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing the bounces (%u seen points)", sl->n);
+    sl->ldd = sl->block;
+    sl->whole = sl->block + n3;
+    sl->shown = sl->block + 2 * n3;
+    sl->prev = sl->block + 3 * n3;
+    return LM_OK;
 }
 
 /* L_dd from the direct mesh at every seen coarse vertex of every triangle (3 per
@@ -607,7 +601,7 @@ lm_result cache_bounces_update(cache *c, lm_error *err)
         st->seconds[K + 1] += lm_now_seconds() - tk;
         K++;
     }
-    seen_lab_free(&sl);
+    free(sl.block);
     st->bounces = K;
     st->automatic = automatic;
     for (uint32_t i = 0; r == LM_OK && i < b->nv; ++i)

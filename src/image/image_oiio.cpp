@@ -1,13 +1,11 @@
 /* image_oiio.cpp — image.h on top of OpenImageIO 2.4, in the lumesh_oiio.so module
  * (image_internal.h says why a module; image_module.c opens it).
  *
- * Writing: the descriptor is validated, the pixels are put into the file's
- * type (float for EXR, 8-bit for PNG) and OpenImageIO encodes the file into
- * memory. The bytes are then written here to "<path>.tmp-<pid>-<n>.<ext>"
- * beside the target, flushed to disk, closed and renamed onto the target. A
- * failure at any step removes the temporary file; the target is only ever
- * replaced by rename(), so an existing file survives any failure intact.
- * EXR files carry the caller's channel order in a header attribute.
+ * Writing (EXR only; the program writes PNGs itself, image_png_write.c): the
+ * descriptor is checked (img_write_check), OpenImageIO encodes the file into
+ * memory and img_write_file writes it beside the target and renames it onto
+ * it, so an existing file survives any failure intact (image_write.c). EXR
+ * files carry the caller's channel order in a header attribute.
  *
  * Reading: anything OpenImageIO reads, subimage 0, MIP level 0, converted to
  * float. Alpha is returned as stored (unassociated for PNG). Channels are in
@@ -22,7 +20,6 @@
 #include <OpenImageIO/filesystem.h>
 #include <OpenImageIO/imageio.h>
 
-#include <atomic>
 #include <cerrno>
 #include <cmath>
 #include <cstdint>
@@ -33,11 +30,9 @@
 #include <memory>
 #include <new>
 #include <string>
-#include <type_traits>
 #include <vector>
 
 #include <fcntl.h>
-#include <limits.h>
 #include <sys/stat.h>
 #include <unistd.h>
 

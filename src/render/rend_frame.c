@@ -12,7 +12,6 @@
 
 enum { TERMS = 3 }; /* direct, indirect, specular */
 
-
 /* One material in the composite's table (std430: three vec4). */
 typedef struct material_entry {
     float kd[4], ks[4], le[4];
@@ -41,7 +40,7 @@ typedef struct term_state {
     cache_snapshot_vertex *copy_v; /* copy's arrays, owned */
     uint32_t *copy_i;
     uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
-    uint32_t tris, copy_cap, copy_vcap; /* triangles in copy; allocated in copy_i (/3) and hash, copy_v */
+    uint32_t copy_cap, copy_vcap;  /* allocated: triangles in copy_i and hash; vertices in copy_v */
     int hash_valid;
     const cache_snapshot_vertex *src; /* the snapshot array it came from */
     int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
@@ -314,11 +313,9 @@ static void tri_corners(const cache_snapshot_mesh *m, uint32_t t, cache_snapshot
     for (int k = 0; k < 3; ++k) out[k] = *cache_snapshot_corner_vertex(m, t, k);
 }
 
-static uint64_t tri_hash(const cache_snapshot_mesh *m, uint32_t t)
+static uint64_t tri_hash(const cache_snapshot_vertex v[3])
 {
-    cache_snapshot_vertex v[3];
-    tri_corners(m, t, v);
-    uint32_t w[(sizeof v) / (sizeof(uint32_t))];
+    uint32_t w[3 * sizeof *v / sizeof(uint32_t)];
     memcpy(w, v, sizeof w);
     uint64_t h = 0x9E3779B97F4A7C15u;
     for (size_t i = 0; i < sizeof w / sizeof *w; ++i) {
@@ -377,11 +374,12 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
     *out = (rect){0, 0, 0, 0};
     *hashed = 0;
     const rect full = {0, 0, f->sw, f->sh};
+    const uint32_t old_n = ts->copy.triangle_count;
     /* Three arrays of one capacity: a power of two (doubled from 16), at least 16 and
      * twice the triangles. */
-    size_t want = 2 * (size_t)ts->tris < 16 ? 16 : 2 * (size_t)ts->tris;
+    size_t want = 2 * (size_t)old_n < 16 ? 16 : 2 * (size_t)old_n;
     size_t need = lm_grow_capacity(f->hash_cap, want, 16, (SIZE_MAX / 2 + 1) / sizeof *f->hash_key);
-    if (!need) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: %u triangles are too many to compare", ts->tris);
+    if (!need) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: %u triangles are too many to compare", old_n);
     if (need > f->hash_cap) {
         if (!lm_realloc_array(&f->hash_key, f->hash_cap, need, sizeof *f->hash_key) ||
             !lm_realloc_array(&f->hash_tri, f->hash_cap, need, sizeof *f->hash_tri) ||
@@ -396,12 +394,16 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
         f->new_hash_cap = m->triangle_count;
     }
     if (!ts->hash_valid)
-        for (uint32_t i = 0; i < ts->tris; ++i) ts->hash[i] = tri_hash(&ts->copy, i);
+        for (uint32_t i = 0; i < old_n; ++i) {
+            cache_snapshot_vertex v[3];
+            tri_corners(&ts->copy, i, v);
+            ts->hash[i] = tri_hash(v);
+        }
     ts->hash_valid = 1;
     size_t mask = f->hash_cap - 1;
     memset(f->hash_tri, 0, f->hash_cap * sizeof *f->hash_tri);
-    memset(f->seen, 0, ts->tris ? ts->tris : 1);
-    for (uint32_t i = 0; i < ts->tris; ++i) {
+    memset(f->seen, 0, old_n ? old_n : 1);
+    for (uint32_t i = 0; i < old_n; ++i) {
         size_t j = (size_t)ts->hash[i] & mask;
         while (f->hash_tri[j]) j = (j + 1) & mask;
         f->hash_key[j] = ts->hash[i];
@@ -410,7 +412,7 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
     for (uint32_t i = 0; i < m->triangle_count; ++i) {
         cache_snapshot_vertex v[3], o_v[3];
         tri_corners(m, i, v);
-        uint64_t hk = f->new_hash[i] = tri_hash(m, i);
+        uint64_t hk = f->new_hash[i] = tri_hash(v);
         int found = 0;
         for (size_t j = (size_t)hk & mask; f->hash_tri[j]; j = (j + 1) & mask) {
             uint32_t o = f->hash_tri[j] - 1;
@@ -426,7 +428,7 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
         if (memcmp(out, &full, sizeof full) == 0) return LM_OK;
     }
     *hashed = 1;
-    for (uint32_t i = 0; i < ts->tris; ++i)
+    for (uint32_t i = 0; i < old_n; ++i)
         if (!f->seen[i]) {
             rect_add_tri(out, vp, &ts->copy, i, f->sw, f->sh);
             if (memcmp(out, &full, sizeof full) == 0) return LM_OK;
@@ -461,7 +463,6 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
     const GladGLContext *gl = f->gl;
     uint32_t n = m ? m->triangle_count : 0, nv = m && n ? m->vertex_count : 0;
     ts->src = m ? m->vertices : NULL;
-    ts->tris = 0;
     ts->copy = (cache_snapshot_mesh){0};
     ts->hash_valid = 0;
     if (!n) return LM_OK;
@@ -496,7 +497,6 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
     memcpy(ts->copy_i, m->index, ibytes);
     ts->copy = (cache_snapshot_mesh){.vertices = ts->copy_v, .index = ts->copy_i, .triangle_count = n,
                                      .vertex_count = nv};
-    ts->tris = n;
     return LM_OK;
 }
 
@@ -527,8 +527,8 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
         /* Unchanged: the same snapshot array as last time (generations are
          * per worker: rend_frame.h), else the same bytes. */
         int same = f->snap_valid && generation == f->snap_generation && (m ? m->vertices : NULL) == ts->src &&
-                   n == ts->tris;
-        if (!same && n == ts->tris) same = n == 0 || same_mesh(&ts->copy, m);
+                   n == ts->copy.triangle_count;
+        if (!same && n == ts->copy.triangle_count) same = n == 0 || same_mesh(&ts->copy, m);
         if (same) {
             ts->src = m ? m->vertices : NULL;
             dirty[t] = reusable ? (rect){0, 0, 0, 0} : full;
@@ -635,7 +635,7 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
     const int ss = f->desc.supersample;
     for (int t = 0; r == LM_OK && t < TERMS; ++t) {
         term_state *ts = &f->term[t];
-        if (!ts->tris) {
+        if (!ts->copy.triangle_count) {
             ts->drawn = 0;
             continue;
         }
@@ -670,7 +670,7 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
             gl->UseProgram(f->prog_value);
             gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
             gl->BindVertexArray(ts->vao);
-            gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * ts->tris), GL_UNSIGNED_INT, NULL);
+            gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * ts->copy.triangle_count), GL_UNSIGNED_INT, NULL);
             if (!f->val_fbo) {
                 if (part) gl->Disable(GL_SCISSOR_TEST);
                 continue;
