@@ -105,6 +105,7 @@ void cache_destroy(cache *c)
     cache_light_state_free(&c->vis);
     cache_outlines_free(&c->outl);
     cache_source_free(&c->src);
+    cache_borrow_free(&c->brw);
     cache_sched_free(&c->sched);
     free(c->active);
     free(c->reach_traced);
@@ -483,7 +484,8 @@ void cache_get_stats(cache *c, cache_stats *out)
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
     out->bytes += vs.bytes + cache_light_state_bytes(&c->vis, c->light_count) + c->outl.bytes +
-                  cache_source_bytes(&c->src) + cache_sched_bytes(&c->sched);
+                  cache_source_bytes(&c->src) + cache_sched_bytes(&c->sched) + cache_borrow_bytes(&c->brw);
+    out->borrow = c->brw.stats;
 }
 
 const mesh_qmesh *cache_direct_mesh(const cache *c) { return c->direct; }
@@ -501,16 +503,21 @@ void cache_set_sampler(cache *c, samp_sampler *sp) { c->sp = sp; }
 
 /* Every indirect value gathered again: now, or, after the first image's budget
  * of gathers (coarse_gathers, the worker's quick start), by cache_refine, a
- * bounded number a call (cache_outdate_all): on a big scene that is hundreds of
- * thousands of gathers, and the worker must stay able to stop, publish and
- * meet a time limit meanwhile. From then on every corner is gathered. */
+ * bounded number a call (cache_outdate_gathered): on a big scene that is
+ * thousands of gathers, and the worker must stay able to stop, publish and meet
+ * a time limit meanwhile. The first image's borrowed values are tested there
+ * instead of gathered (cache_borrow.c). From then on every corner is gathered. */
 static lm_result regather_every_value(cache *c, lm_error *err)
 {
     cache_release_borrowed(c); /* the first image's borrowed direct values too (cache_first.c) */
     c->desc.coarse_lights = 0;
-    if (!c->desc.coarse_gathers) return cache_regather_all(c, err);
+    if (!c->desc.coarse_gathers) {
+        cache_borrow_free(&c->brw); /* every value gathered: nothing is borrowed */
+        return cache_regather_all(c, err);
+    }
     c->desc.coarse_gathers = 0;
-    return cache_outdate_all(c, err);
+    cache_borrow_release(c);
+    return cache_outdate_gathered(c, err);
 }
 
 lm_result cache_regather_indirect(cache *c, lm_error *err)
@@ -556,7 +563,7 @@ lm_result cache_set_jnd(cache *c, float jnd, lm_error *err)
     if (jnd == c->desc.jnd) return LM_OK;
     c->desc.jnd = jnd;
     cache_sched_requeue(&c->sched, CACHE_KINDS);
-    return LM_OK;
+    return cache_borrow_jnd_changed(c, err);
 }
 
 float cache_get_jnd(const cache *c) { return c->desc.jnd; }

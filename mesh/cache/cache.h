@@ -302,6 +302,15 @@ typedef struct cache_startup_stats {
     uint64_t gathers;       /* indirect samples taken by it */
 } cache_startup_stats;
 
+/* The first image's borrowed indirect values, tested after it (docs/cache.md,
+ * "Borrowed values tested"). */
+typedef struct cache_borrow_stats {
+    uint64_t borrowed;          /* root corners that borrowed their first indirect value */
+    uint64_t tests;             /* spans tested (a gather at the middle of each) */
+    uint64_t splits;            /* ... split there (the difference seen, or too many pixels) */
+    uint64_t kept;              /* corners that kept a borrowed value after their span's test */
+} cache_borrow_stats;
+
 typedef struct cache_stats {
     uint32_t light_count;
     cache_mesh_stats direct, indirect, specular; /* specular: all zero when there is no specular mesh */
@@ -315,6 +324,7 @@ typedef struct cache_stats {
     uint32_t active_triangles;  /* scene triangles taken part (cache_init_seen); all of them after cache_init */
     uint64_t reach_rays;        /* rays traced to find what the seen triangles' gathers reach */
     cache_startup_stats startup;
+    cache_borrow_stats borrow;
     size_t bytes;               /* everything: meshes, vertex table, bookkeeping */
 } cache_stats;
 

@@ -34,7 +34,8 @@ lm_result cache_grow_drift(cache_source_state *st, uint32_t limit, lm_error *err
         !lm_realloc_array(&st->outdated, st->drift_cap, cap, sizeof *st->outdated) ||
         !lm_realloc_array(&st->sigma, st->drift_cap, cap, 3 * sizeof *st->sigma) ||
         !lm_realloc_array(&st->sigma_likely, st->drift_cap, cap, 3 * sizeof *st->sigma_likely) ||
-        !lm_realloc_array(&st->gather_level, st->drift_cap, cap, sizeof *st->gather_level))
+        !lm_realloc_array(&st->gather_level, st->drift_cap, cap, sizeof *st->gather_level) ||
+        !lm_realloc_array(&st->borrowed, st->drift_cap, cap, sizeof *st->borrowed))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
     st->drift_cap = cap;
     return LM_OK;
@@ -67,13 +68,50 @@ static void bary_point(const scene *s, uint32_t t, double w1, double w2, double 
                  w2 * s->positions[3 * (size_t)v[2] + (size_t)k];
 }
 
-/* The changed triangles as the far-field loop reads them (structure of arrays:
- * the loop over them runs for every indirect value and vectorises): centre,
- * front normal, 16·radius² (nearer than four radii: exact), area × change. */
-typedef struct far_field {
-    float *cx, *cy, *cz, *nx, *ny, *nz, *lim, *ad0, *ad1, *ad2;
-    uint32_t *near;
-} far_field;
+/* The changed triangles in a bounding-volume tree, so that a value's drift bound
+ * visits O(log n) nodes instead of every changed triangle: a million-triangle
+ * scene's first rebuild changes tens of thousands of source triangles, and the
+ * loop over all of them for every one of the 60,000 values of the 116k box took
+ * 7 s a rebuild (59% of its refinement time; docs/cache.md, "Borrowed values
+ * tested"). A node far from the value (beyond DRIFT_OPEN of its radius) adds a
+ * bound of its triangles' Σ area × change: their cosines at the value and at
+ * themselves bounded through the node's bounding sphere and its normals' cone,
+ * the distance by the sphere's nearest point. Nearer, its triangles are looked
+ * at one by one as before: by area and cosines over distance² beyond four radii,
+ * exactly (samp_polygon_G) nearer. */
+enum { DRIFT_LEAF = 8 };
+#define DRIFT_OPEN 4.0f
+
+typedef struct drift_item {
+    float c[3], n[3], lim;     /* centre, front normal, 16·radius² */
+    float r;                   /* radius */
+    float ad[3];               /* area × largest |change| (a bound of ∫|change| dA) */
+    float as[3];               /* ∫ change dA (signed) where the old source is linear over the
+                                  triangle; 0 where it is not (ad then counts whole) */
+    uint8_t linear;
+    uint32_t j;                /* index into the changed triangles */
+    uint64_t key;
+} drift_item;
+
+/* Σ over a node of ∫ change·w dA, with w = cosθx·cosθy/r² within [w_min, w_max]
+ * over the node, is at most |S|·(w_max + w_min)/2 + U·(w_max − w_min)/2 +
+ * V·w_max (S = Σ ∫ change over triangles where it is known, U = Σ ∫|change|
+ * there, V = Σ ∫|change| over the rest): a refinement of the source that moves
+ * its radiance up here and down there moves a far value by much less than the
+ * sum of the moves, and only that difference is charged. */
+typedef struct drift_node {
+    float c[3], R;             /* bounding sphere of its triangles */
+    float N[3], cos_cone;      /* their normals within the cone around N (cos_cone ≤ -1: any) */
+    float S[3], U[3], V[3];    /* as above, area-weighted, per channel */
+    uint32_t first, count;     /* its items: first .. first + count */
+    uint32_t child;            /* the first of its two children (0: a leaf) */
+} drift_node;
+
+typedef struct drift_tree {
+    drift_item *item;
+    drift_node *node;
+    uint32_t nodes;
+} drift_tree;
 
 /* The corners of changed triangle ct in the scene. */
 static void changed_corners(const scene *s, const samp_radiance_mesh *cur, changed_tri ct, double p[3][3])
@@ -82,80 +120,192 @@ static void changed_corners(const scene *s, const samp_radiance_mesh *cur, chang
     for (int k = 0; k < 3; ++k) bary_point(s, ct.t, b[2 * k], b[2 * k + 1], p[k]);
 }
 
-static int far_field_make(far_field *f, const scene *s, const samp_radiance_mesh *cur, const float *d,
-                          const changed_tri *ch, uint32_t n)
+static uint64_t spread3(uint32_t v)
 {
-    float *block = malloc((size_t)(n ? n : 1) * 10 * sizeof *block);
-    f->near = malloc((n ? n : 1) * sizeof *f->near);
-    if (!block || !f->near) {
-        free(block);
-        free(f->near);
-        return 0;
+    uint64_t x = v & 0x1fffff;
+    x = (x | x << 32) & 0x1f00000000ffffULL;
+    x = (x | x << 16) & 0x1f0000ff0000ffULL;
+    x = (x | x << 8) & 0x100f00f00f00f00fULL;
+    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
+    x = (x | x << 2) & 0x1249249249249249ULL;
+    return x;
+}
+
+static int cmp_item(const void *a, const void *b)
+{
+    const drift_item *x = a, *y = b;
+    return (x->key > y->key) - (x->key < y->key);
+}
+
+/* Node k over items [first, first + count): its sphere, cone and sums. */
+static void drift_fill(drift_tree *t, uint32_t k)
+{
+    drift_node *nd = &t->node[k];
+    const drift_item *it = t->item + nd->first;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double N[3] = {0, 0, 0}, S[3] = {0, 0, 0}, U[3] = {0, 0, 0}, V[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < nd->count; ++i)
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = fminf(lo[a], it[i].c[a] - it[i].r);
+            hi[a] = fmaxf(hi[a], it[i].c[a] + it[i].r);
+            N[a] += (double)it[i].n[a] * (it[i].ad[0] + it[i].ad[1] + it[i].ad[2] + 1e-30);
+            S[a] += it[i].as[a];
+            (it[i].linear ? U : V)[a] += it[i].ad[a];
+        }
+    double len = sqrt(N[0] * N[0] + N[1] * N[1] + N[2] * N[2]), r2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+        nd->c[a] = 0.5f * (lo[a] + hi[a]);
+        r2 += 0.25 * (double)(hi[a] - lo[a]) * (hi[a] - lo[a]);
+        nd->N[a] = len > 0.0 ? (float)(N[a] / len) : 0.0f;
+        nd->S[a] = (float)S[a];
+        nd->U[a] = (float)U[a];
+        nd->V[a] = (float)V[a];
     }
-    float **cols[10] = {&f->cx, &f->cy, &f->cz, &f->nx, &f->ny, &f->nz, &f->lim, &f->ad0, &f->ad1, &f->ad2};
-    for (int k = 0; k < 10; ++k) *cols[k] = block + (size_t)k * (n ? n : 1);
+    nd->R = (float)sqrt(r2) * 1.0001f;
+    float cone = len > 0.0 ? 1.0f : -2.0f;
+    for (uint32_t i = 0; i < nd->count && len > 0.0; ++i)
+        cone = fminf(cone, nd->N[0] * it[i].n[0] + nd->N[1] * it[i].n[1] + nd->N[2] * it[i].n[2]);
+    nd->cos_cone = cone - 1e-4f; /* round-off */
+}
+
+static int drift_tree_make(drift_tree *t, const scene *s, const samp_radiance_mesh *cur, const float *d,
+                           const float *sd, const uint8_t *nonlinear, const changed_tri *ch, uint32_t n)
+{
+    memset(t, 0, sizeof *t);
+    t->item = malloc((size_t)(n ? n : 1) * sizeof *t->item);
+    t->node = malloc((size_t)(2 * (n ? n : 1)) * sizeof *t->node); /* a binary tree of ≤ n leaves */
+    if (!t->item || !t->node) return 0;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (uint32_t j = 0; j < n; ++j) {
         double p[3][3];
         changed_corners(s, cur, ch[j], p);
         lm_dvec3 a = dv3(p[0][0], p[0][1], p[0][2]), bb = dv3(p[1][0], p[1][1], p[1][2]), cc = dv3(p[2][0], p[2][1], p[2][2]);
         lm_dvec3 centre = dv3_scale(dv3_add(dv3_add(a, bb), cc), 1.0 / 3.0);
         double area = 0.5 * dv3_length(dv3_cross(dv3_sub(bb, a), dv3_sub(cc, a)));
-        lm_dvec3 normal = dv3_load(s->tri_normals + 3 * (size_t)ch[j].t);
+        const float *nn = s->tri_normals + 3 * (size_t)ch[j].t;
         double radius = fmax(dv3_length(dv3_sub(a, centre)),
                              fmax(dv3_length(dv3_sub(bb, centre)), dv3_length(dv3_sub(cc, centre))));
-        const float *dj = d + 3 * (size_t)ch[j].i;
-        f->cx[j] = (float)centre.x;
-        f->cy[j] = (float)centre.y;
-        f->cz[j] = (float)centre.z;
-        f->nx[j] = (float)normal.x;
-        f->ny[j] = (float)normal.y;
-        f->nz[j] = (float)normal.z;
-        f->lim[j] = (float)(16.0 * radius * radius);
-        f->ad0[j] = (float)(area * dj[0]);
-        f->ad1[j] = (float)(area * dj[1]);
-        f->ad2[j] = (float)(area * dj[2]);
+        const float *dj = d + 3 * (size_t)ch[j].i, *sj = sd + 3 * (size_t)ch[j].i;
+        const int linear = !nonlinear[ch[j].i];
+        drift_item *it = &t->item[j];
+        *it = (drift_item){.c = {(float)centre.x, (float)centre.y, (float)centre.z}, .n = {nn[0], nn[1], nn[2]},
+                           .lim = (float)(16.0 * radius * radius), .r = (float)radius,
+                           .ad = {(float)(area * dj[0]), (float)(area * dj[1]), (float)(area * dj[2])},
+                           .as = {(float)(linear * area * sj[0]), (float)(linear * area * sj[1]),
+                                  (float)(linear * area * sj[2])},
+                           .linear = (uint8_t)linear, .j = j};
+        for (int k = 0; k < 3; ++k) lo[k] = fminf(lo[k], it->c[k]), hi[k] = fmaxf(hi[k], it->c[k]);
+    }
+    const float span = fmaxf(hi[0] - lo[0], fmaxf(hi[1] - lo[1], hi[2] - lo[2]));
+    for (uint32_t j = 0; j < n; ++j) {
+        uint32_t q[3];
+        for (int k = 0; k < 3; ++k) {
+            float u = span > 0.0f ? (t->item[j].c[k] - lo[k]) / span : 0.0f;
+            q[k] = (uint32_t)(fminf(fmaxf(u, 0.0f), 1.0f) * 2097151.0f);
+        }
+        t->item[j].key = spread3(q[0]) << 2 | spread3(q[1]) << 1 | spread3(q[2]);
+    }
+    qsort(t->item, n, sizeof *t->item, cmp_item);
+    /* Nodes in breadth order: node k's children are made when it is reached. */
+    t->node[0] = (drift_node){.first = 0, .count = n};
+    t->nodes = 1;
+    for (uint32_t k = 0; k < t->nodes; ++k) {
+        drift_fill(t, k);
+        drift_node *nd = &t->node[k];
+        nd->child = 0;
+        if (nd->count <= DRIFT_LEAF) continue;
+        const uint32_t half = nd->count / 2;
+        nd->child = t->nodes;
+        t->node[t->nodes++] = (drift_node){.first = nd->first, .count = half};
+        t->node[t->nodes++] = (drift_node){.first = nd->first + half, .count = nd->count - half};
     }
     return 1;
 }
 
-static void far_field_free(far_field *f)
+static void drift_tree_free(drift_tree *t)
 {
-    free(f->cx);
-    free(f->near);
+    free(t->item);
+    free(t->node);
+    memset(t, 0, sizeof *t);
 }
 
-/* Σ_j d_j·∫ over changed triangle j's front of cosθ_x dω from (x, nx), into add:
- * by area and cosines over distance² beyond four radii, exactly
- * (samp_polygon_G) nearer. */
-static void drift_bound(const far_field *f, const scene *s, const samp_radiance_mesh *cur, const float *d,
-                        const changed_tri *ch, uint32_t n, const double x[3], const double nx[3], double add[3])
+/* cos(max(θ − γ, 0)) for cos θ = ct, and γ given by its cosine and sine (γ in [0, π]). */
+static float cos_less(float ct, float cg, float sg)
 {
-    const float X = (float)x[0], Y = (float)x[1], Z = (float)x[2], NX = (float)nx[0], NY = (float)nx[1],
-                NZ = (float)nx[2];
-    float a0 = 0.0f, a1 = 0.0f, a2 = 0.0f;
-    uint32_t nn = 0;
-    for (uint32_t j = 0; j < n; ++j) {
-        float dx = f->cx[j] - X, dy = f->cy[j] - Y, dz = f->cz[j] - Z;
-        float r2 = dx * dx + dy * dy + dz * dz;
-        float px = dx * NX + dy * NY + dz * NZ, py = -(dx * f->nx[j] + dy * f->ny[j] + dz * f->nz[j]);
-        int far = r2 > f->lim[j];
-        float w = far && px > 0.0f && py > 0.0f ? px * py / (r2 * r2) : 0.0f; /* A·cosθx·cosθy/r² over A */
-        a0 += w * f->ad0[j];
-        a1 += w * f->ad1[j];
-        a2 += w * f->ad2[j];
-        f->near[nn] = j;
-        nn += (uint32_t)!far;
+    ct = fminf(fmaxf(ct, -1.0f), 1.0f);
+    if (ct >= cg) return 1.0f; /* θ ≤ γ */
+    const float st = sqrtf(fmaxf(1.0f - ct * ct, 0.0f));
+    return ct * cg + st * sg; /* cos(θ − γ) */
+}
+
+/* max(cos(θ + γ), 0) for θ + γ up to π/2, else 0 (cos θ = ct; γ as cos_less's). */
+static float cos_more(float ct, float cg, float sg)
+{
+    ct = fminf(fmaxf(ct, -1.0f), 1.0f);
+    if (ct <= 0.0f || cg <= 0.0f) return 0.0f; /* θ or γ at least π/2 */
+    const float st = sqrtf(fmaxf(1.0f - ct * ct, 0.0f));
+    return fmaxf(ct * cg - st * sg, 0.0f); /* both below π/2: θ + γ < π, and cos < 0 past π/2 */
+}
+
+/* Σ_j d_j·∫ over changed triangle j's front of cosθ_x dω from (x, nx), bounded,
+ * into add. */
+static void drift_bound(const drift_tree *t, const scene *s, const samp_radiance_mesh *cur, const float *d,
+                        const changed_tri *ch, const double x[3], const double nx[3], double add[3])
+{
+    if (!t->nodes || !t->item) return;
+    const float X[3] = {(float)x[0], (float)x[1], (float)x[2]}, NX[3] = {(float)nx[0], (float)nx[1], (float)nx[2]};
+    uint32_t stack[128];
+    uint32_t top = 0;
+    stack[top++] = 0;
+    float a[3] = {0, 0, 0};
+    while (top) {
+        const drift_node *nd = &t->node[stack[--top]];
+        const float dx = nd->c[0] - X[0], dy = nd->c[1] - X[1], dz = nd->c[2] - X[2];
+        const float dist = sqrtf(dx * dx + dy * dy + dz * dz);
+        if (dist > DRIFT_OPEN * nd->R) {
+            /* The sphere is seen within β of its centre's direction. */
+            const float sb = nd->R / dist, cb = sqrtf(fmaxf(1.0f - sb * sb, 0.0f));
+            const float ctx = (dx * NX[0] + dy * NX[1] + dz * NX[2]) / dist;
+            const float cx = cos_less(ctx, cb, sb);
+            if (cx <= 0.0f) continue; /* all behind the value's plane */
+            float cy = 1.0f, cy_min = 0.0f;
+            if (nd->cos_cone > -1.0f) { /* the normals' cone: γ = α + β */
+                const float ca = fminf(nd->cos_cone, 1.0f), sa = sqrtf(fmaxf(1.0f - ca * ca, 0.0f));
+                const float cg = ca * cb - sa * sb, sg = sa * cb + ca * sb;
+                const float cty = -(dx * nd->N[0] + dy * nd->N[1] + dz * nd->N[2]) / dist;
+                cy = sg < 0.0f ? 1.0f : cos_less(cty, cg, sg);
+                if (cy <= 0.0f) continue; /* the value is behind them all */
+                cy_min = sg < 0.0f ? 0.0f : cos_more(cty, cg, sg);
+            }
+            const float rmin = dist - nd->R, rmax = dist + nd->R;
+            const float w_max = cx * cy / (rmin * rmin), w_min = cos_more(ctx, cb, sb) * cy_min / (rmax * rmax);
+            for (int k = 0; k < 3; ++k)
+                a[k] += fabsf(nd->S[k]) * 0.5f * (w_max + w_min) + nd->U[k] * 0.5f * (w_max - w_min) + nd->V[k] * w_max;
+            continue;
+        }
+        if (nd->child) {
+            stack[top++] = nd->child;
+            stack[top++] = nd->child + 1;
+            continue;
+        }
+        for (uint32_t i = nd->first; i < nd->first + nd->count; ++i) {
+            const drift_item *it = &t->item[i];
+            float ex = it->c[0] - X[0], ey = it->c[1] - X[1], ez = it->c[2] - X[2];
+            float r2 = ex * ex + ey * ey + ez * ez;
+            if (r2 > it->lim) {
+                float px = ex * NX[0] + ey * NX[1] + ez * NX[2], py = -(ex * it->n[0] + ey * it->n[1] + ez * it->n[2]);
+                float w = px > 0.0f && py > 0.0f ? px * py / (r2 * r2) : 0.0f; /* A·cosθx·cosθy/r² over A */
+                for (int k = 0; k < 3; ++k) a[k] += w * it->ad[k];
+                continue;
+            }
+            const changed_tri ct = ch[it->j];
+            double p[3][3];
+            changed_corners(s, cur, ct, p);
+            double w = samp_polygon_G(p, 3, x, nx);
+            for (int k = 0; k < 3; ++k) add[k] += w * d[3 * (size_t)ct.i + (size_t)k];
+        }
     }
-    add[0] += a0;
-    add[1] += a1;
-    add[2] += a2;
-    for (uint32_t i = 0; i < nn; ++i) {
-        const changed_tri ct = ch[f->near[i]];
-        double p[3][3];
-        changed_corners(s, cur, ct, p);
-        double w = samp_polygon_G(p, 3, x, nx);
-        for (int k = 0; k < 3; ++k) add[k] += w * d[3 * (size_t)ct.i + (size_t)k];
-    }
+    for (int k = 0; k < 3; ++k) add[k] += a[k];
 }
 
 /* L_dd at vertex vid: its own value in the direct mesh, else interpolated there. */
@@ -182,8 +332,13 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
     samp_radiance_index_build(s, &old, &ix_old);
     samp_radiance_index_build(s, cur, &ix_new);
     float *d = calloc(3 * (size_t)(cur->tri_count ? cur->tri_count : 1), sizeof *d);
+    /* The mean change at each new triangle's corners (its ∫ change dA over its
+     * area where the old source is linear over it), and whether it is not: an old
+     * corner inside it (the cut was coarser there before, or chosen otherwise). */
+    float *sd = calloc(3 * (size_t)(cur->tri_count ? cur->tri_count : 1), sizeof *sd);
+    uint8_t *nonlinear = calloc(cur->tri_count ? cur->tri_count : 1, 1);
     changed_tri *ch = NULL;
-    lm_result r = d ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
+    lm_result r = d && sd && nonlinear ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
     /* The change over each new triangle: at its corners, and at the old corners
      * that fall inside it. */
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t)
@@ -192,8 +347,10 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
                 const float *b = cur->bary + 6 * (size_t)i, *rad = cur->radiance + 9 * (size_t)i;
                 float was[3];
                 samp_radiance_at(&old, &ix_old, t, b[2 * k], b[2 * k + 1], was);
-                for (int chn = 0; chn < 3; ++chn)
+                for (int chn = 0; chn < 3; ++chn) {
                     d[3 * i + (uint32_t)chn] = fmaxf(d[3 * i + (uint32_t)chn], fabsf(rad[3 * k + chn] - was[chn]));
+                    sd[3 * i + (uint32_t)chn] += (rad[3 * k + chn] - was[chn]) / 3.0f;
+                }
             }
     for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t)
         for (uint32_t i = old.first[t]; i < old.first[t + 1]; ++i)
@@ -202,6 +359,11 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
                 float now[3];
                 uint32_t at = samp_radiance_at(cur, &ix_new, t, b[2 * k], b[2 * k + 1], now);
                 if (at == UINT32_MAX) continue;
+                const float *nb = cur->bary + 6 * (size_t)at;
+                int corner = 0;
+                for (int q = 0; q < 3 && !corner; ++q)
+                    corner = fabsf(nb[2 * q] - b[2 * k]) < 1e-6f && fabsf(nb[2 * q + 1] - b[2 * k + 1]) < 1e-6f;
+                if (!corner) nonlinear[at] = 1;
                 for (int chn = 0; chn < 3; ++chn)
                     d[3 * at + (uint32_t)chn] = fmaxf(d[3 * at + (uint32_t)chn], fabsf(rad[3 * k + chn] - now[chn]));
             }
@@ -235,8 +397,8 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
     const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
     int any = nch || small[0] > 0.0f || small[1] > 0.0f || small[2] > 0.0f;
     if (r == LM_OK && any) r = cache_grow_drift(&c->src, id_limit, err);
-    far_field ff = {0};
-    if (r == LM_OK && any && !far_field_make(&ff, s, cur, d, ch, nch))
+    drift_tree tree = {0};
+    if (r == LM_OK && any && !drift_tree_make(&tree, s, cur, d, sd, nonlinear, ch, nch))
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
     for (uint32_t vid = 0; r == LM_OK && any && vid < id_limit; ++vid) {
         float e[3];
@@ -248,7 +410,7 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
         samp_point_origin(s, &sp, samp_point_epsilon(c->sp, &sp), o);
         const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
         double add[3] = {M_PI * small[0], M_PI * small[1], M_PI * small[2]};
-        drift_bound(&ff, s, cur, d, ch, nch, x, nx, add);
+        drift_bound(&tree, s, cur, d, ch, x, nx, add);
         float *dr = c->src.drift + 3 * (size_t)vid;
         for (int k = 0; k < 3; ++k) dr[k] += (float)fmin(add[k], 3e38);
         /* Could the drift be seen? E ± drift against E, through the tone map. */
@@ -270,9 +432,11 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
         }
         if (seen) r = cache_push_outdated(&c->src, vid, err);
     }
-    far_field_free(&ff);
+    drift_tree_free(&tree);
     free(ch);
     free(d);
+    free(sd);
+    free(nonlinear);
     samp_radiance_index_free(&ix_old);
     samp_radiance_index_free(&ix_new);
     return r;

@@ -77,16 +77,27 @@ float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node
 static int leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n, double px, float *interp_out,
                          float *noise_out)
 {
-    int tested;
+    int tested, untested_borrowed = 0;
     float interp = cache_sched_residual(&w->c->sched, w->kind, node, &tested);
     if (interp < 0.0f) { /* never tested: what its corners' contrast allows */
         interp = cache_leaf_contrast(w->c, w->m, w->kind, n);
         if (px <= 1.0) interp *= 0.25f;
     }
     if (w->kind == CACHE_KIND_INDIRECT && w->c->desc.single_mesh) interp = 0.0f; /* judged with direct */
+    if (w->kind == CACHE_KIND_INDIRECT) {
+        /* Borrowed corners (cache_borrow.c): the ΔE their span's test left adds to
+         * the leaf's own, in quadrature; one not tested yet leaves the leaf untested. */
+        float b = 0.0f;
+        for (int k = 0; k < 3; ++k) {
+            float d = cache_borrowed_de(w->c, n->v[k]);
+            if (isinf(d)) untested_borrowed = 1;
+            else b += d / 3.0f;
+        }
+        interp = sqrtf(interp * interp + b * b);
+    }
     *interp_out = interp;
     *noise_out = w->kind == CACHE_KIND_INDIRECT ? leaf_noise(w, n) : 0.0f;
-    return tested || px <= 1.0;
+    return (tested || px <= 1.0) && !untested_borrowed;
 }
 
 static void visit_leaf(const est_walk *w, uint32_t node, const mesh_qnode *n, double px)

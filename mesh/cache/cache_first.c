@@ -3,10 +3,11 @@
  * before the first image, only a budget are sampled — gathers (cache_desc.
  * coarse_gathers) and light samples (cache_desc.coarse_lights) — chosen along a
  * Morton order by their share of the pixels and of the area; every other corner
- * borrows from the chosen ones beside it in that order. Borrowed values are the
- * first image's only: after it, cache_regather_indirect flags every indirect
- * value (cache_source.c gathers them again) and releases the borrowed direct and
- * specular roots (cache_light.c, cache_release_borrowed, recomputes them from
+ * borrows from the chosen ones beside it in that order. After the first image,
+ * cache_regather_indirect flags the gathered indirect values (cache_source.c
+ * gathers them again), has the borrowed ones tested (cache_borrow.c: kept where a
+ * gather at the middle of their run agrees with them) and releases the borrowed
+ * direct and specular roots (cache_light.c, cache_release_borrowed, recomputes them from
  * light samples taken then), a bounded number per cache_refine call.
  *
  * What is borrowed: indirect irradiance (gathers), and per light the visible
@@ -195,28 +196,19 @@ static lm_result pick_corners(const cache *c, const mesh_qmesh *m, const uint32_
 /* The chosen corners a corner at order position i borrows from, and their
  * weights: of the two chosen ones on either side of it in the order, those
  * whose normal is within 72° of its own, weighted (n·n_g)² over the distance;
- * the nearest one if none is. Returns how many (0 only with nothing chosen). */
+ * the nearest one if none is (cache_borrow_weights). q: indices into
+ * pk->chosen. Returns how many (0 only with nothing chosen). */
 static int borrow_from(const cache *c, const first_pick *pk, uint32_t vid, uint32_t i, uint32_t q[4], double w[4])
 {
-    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
-    int n = 0;
-    double nearest = INFINITY;
-    int64_t near_q = -1;
+    uint32_t d[4], j0[4];
+    int nd = 0, k[4];
     for (int64_t j = (int64_t)pk->before[i] - 2; j < (int64_t)pk->before[i] + 2; ++j) {
         if (j < 0 || j >= pk->nchosen) continue;
-        const mesh_vertex *g = mesh_vtable_vertex(c->vt, pk->chosen[j]);
-        lm_dvec3 d = dv3_sub(dv3_load(mv->position), dv3_load(g->position));
-        double dist = dv3_length(d) + 1e-6 * pk->span, cosn = dv3_dot(dv3_load(mv->normal), dv3_load(g->normal));
-        if (dist < nearest) nearest = dist, near_q = j;
-        if (cosn < 0.3) continue;
-        q[n] = (uint32_t)j;
-        w[n++] = cosn * cosn / dist;
+        j0[nd] = (uint32_t)j;
+        d[nd++] = pk->chosen[j];
     }
-    if (n == 0 && near_q >= 0) {
-        q[0] = (uint32_t)near_q;
-        w[0] = 1.0;
-        n = 1;
-    }
+    int n = cache_borrow_weights(c, vid, d, nd, pk->span, k, w);
+    for (int b = 0; b < n; ++b) q[b] = j0[k[b]];
     return n;
 }
 
@@ -228,23 +220,47 @@ lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E,
     lm_result r = pick_corners(c, c->indirect, v, n, budget, &pk, err);
     if (r != LM_OK) return r;
     float *Er = malloc(3 * (size_t)(pk.nchosen ? pk.nchosen : 1) * sizeof *Er);
-    r = Er ? cache_sample_indirect(c, pk.chosen, pk.nchosen, Er, err)
-           : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's gathers");
+    uint32_t *order = malloc((size_t)n * sizeof *order);
+    r = Er && order ? cache_sample_indirect(c, pk.chosen, pk.nchosen, Er, err)
+                    : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's gathers");
     for (uint32_t i = 0, j = 0; r == LM_OK && i < n; ++i) {
+        const uint32_t vid = v[pk.kv[i].index];
         float *out = E + 3 * (size_t)pk.kv[i].index;
+        order[i] = vid;
         if (j < pk.nchosen && pk.at[j] == i) { /* gathered */
             memcpy(out, Er + 3 * (size_t)j++, 3 * sizeof *out);
             continue;
         }
+        /* Borrowed, with the standard errors of the weighted mean (tested after
+         * the first image: cache_borrow.c). */
         uint32_t q[4];
-        double w[4], sum[3] = {0, 0, 0}, wsum = 0.0;
-        int nb = borrow_from(c, &pk, v[pk.kv[i].index], i, q, w);
-        for (int b = 0; b < nb; ++b) {
-            for (int k = 0; k < 3; ++k) sum[k] += w[b] * Er[3 * (size_t)q[b] + (size_t)k];
-            wsum += w[b];
+        double w[4], sum[3] = {0, 0, 0}, v1[3] = {0, 0, 0}, v2[3] = {0, 0, 0}, wsum = 0.0;
+        int nb = borrow_from(c, &pk, vid, i, q, w);
+        for (int b = 0; b < nb; ++b) wsum += w[b];
+        for (int b = 0; b < nb && wsum > 0.0; ++b) {
+            float s1[3], s2[3];
+            cache_indirect_sigma(c, pk.chosen[q[b]], s1);
+            cache_indirect_likely_sigma(c, pk.chosen[q[b]], s2);
+            const double a = w[b] / wsum;
+            for (int k = 0; k < 3; ++k) {
+                sum[k] += a * Er[3 * (size_t)q[b] + (size_t)k];
+                v1[k] += a * a * s1[k] * s1[k];
+                v2[k] += a * a * s2[k] * s2[k];
+            }
         }
-        for (int k = 0; k < 3; ++k) out[k] = wsum > 0.0 ? (float)(sum[k] / wsum) : 0.0f;
+        float sg[3], sl[3];
+        for (int k = 0; k < 3; ++k) {
+            out[k] = (float)sum[k];
+            sg[k] = (float)sqrt(v1[k]);
+            sl[k] = (float)sqrt(v2[k]);
+        }
+        r = cache_set_borrowed(c, vid, out, sg, sl, INFINITY, err);
     }
+    if (r == LM_OK) {
+        r = cache_borrow_start(c, order, n, pk.at, pk.nchosen, pk.span, err);
+        order = NULL; /* the cache's now */
+    }
+    free(order);
     free(Er);
     pick_free(&pk);
     return r;

@@ -12,6 +12,7 @@
  *                     which are outdated
  *   cache_source.c    indirect light (eq. 7): the radiance source, gathers,
  *                     gathering outdated values again
+ *   cache_borrow.c    the first image's borrowed indirect values, tested
  *   cache_estimate.c  the cache's estimate of its error (cache_estimate_error);
  *                     the values whose noise is still seen
  *   cache_refine.c    the refinement scheduler (§4.3)
@@ -28,7 +29,7 @@
  * cache.c) and one part per file that writes it: cache_light_state
  * (cache_light.c), cache_source_state (cache_source.c; its drift and outdated flags also
  * cache_drift.c), cache_outlines
- * (cache_specular.c), cache_sched (cache_refine.c). A part's fields are written
+ * (cache_specular.c), cache_borrow_state (cache_borrow.c), cache_sched (cache_refine.c). A part's fields are written
  * by its owner only; other files may read them where said.
  *
  * Threads: a cache and everything in it belongs to the thread that refines it
@@ -141,7 +142,11 @@ typedef struct cache_source_state {
     float *sigma_likely;       /* per vertex id: its likely standard error, the strata counted (RGB; the
                                   error estimate's; sigma errs high, for the edge test) */
     uint8_t *gather_level;     /* per vertex id: its gather took GATHER_SCALE^level times the plain rays */
-    size_t drift_cap;          /* drift, outdated, sigma, sigma_likely and gather_level */
+    float *borrowed;           /* per vertex id: 0 for a gathered value (or none); else the value was
+                                  borrowed from gathered neighbours (the first image's, cache_first.c;
+                                  tested by cache_borrow.c): INFINITY until its span is tested, then
+                                  the ΔE the test left (at least CACHE_BORROW_DE_MIN). A gather sets 0. */
+    size_t drift_cap;          /* drift, outdated, sigma, sigma_likely, gather_level and borrowed */
     uint32_t *outdated_list;
     size_t outdated_n, outdated_cap;
     uint64_t regathered;       /* indirect values gathered again because they were outdated */
@@ -177,6 +182,46 @@ typedef struct cache_source_state {
     uint32_t pilot_n;
     cache_mesh_stats indirect_stats; /* samples (.mesh filled by cache_get_stats) */
 } cache_source_state;
+
+/* Borrowed indirect values tested (written by cache_borrow.c; docs/cache.md,
+ * "Borrowed values tested"). The first image's root corners in a Morton order of
+ * their positions, each either gathered (a donor) or borrowed from the donors
+ * beside it in that order; a span is a run of borrowed corners with the two
+ * nearest donors on either side. A span is tested by gathering its middle corner
+ * and comparing that with what it borrows: it splits there (the middle becomes a
+ * donor) where the difference can be seen and the noise does not explain it, or
+ * while it covers more pixels than an indirect leaf may; else its corners keep
+ * borrowed values, with the ΔE the test left as their error (the estimate's). */
+enum { CACHE_BORROW_NONE = UINT32_MAX };
+/* Indirect leaves stop this many times larger (in pixels) than the size criterion
+ * (cache_desc.min_leaf_pixels) unless their ΔE test asks for more: indirect
+ * irradiance is smooth (cache_refine.c). Borrowed spans split to the same size. */
+#define CACHE_INDIRECT_SIZE_FACTOR 16.0f
+/* A difference between an indirect value and what interpolation or borrowing
+ * gives splits nothing unless it exceeds this many standard errors of the
+ * difference in some channel (the noise explains it otherwise). */
+#define CACHE_NOISE_SIGMAS 2.5f
+#define CACHE_BORROW_DE_MIN 1e-6f
+typedef struct cache_borrow_span {
+    uint32_t lo, hi;           /* order positions, inclusive */
+    uint32_t left[2], right[2]; /* the donors' order positions, nearest first (CACHE_BORROW_NONE: none) */
+    float de;                  /* accepted: the ΔE its test left */
+} cache_borrow_span;
+
+typedef struct cache_borrow_state {
+    uint32_t *order;           /* n root corners (vertex ids), in Morton order */
+    uint32_t n;
+    double span;               /* their bounding box's largest side */
+    int released;              /* the spans are tested (after the first image's regather) */
+    cache_borrow_span *pending; /* spans to test: pending[head .. pending_n) */
+    size_t head, pending_n, pending_cap;
+    cache_borrow_span *accepted; /* tested and kept: tested again if the JND goes below their ΔE */
+    size_t accepted_n, accepted_cap;
+    uint64_t pending_corners;  /* borrowed corners in pending spans: work owed (cache_refine_result.outdated) */
+    float *px;                 /* per vertex id: pixels of the triangles around it / 3 (scratch) */
+    size_t px_cap;
+    cache_borrow_stats stats;
+} cache_borrow_state;
 
 /* Bounces beyond the first (written by cache_bounces.c). The coarse vertices are
  * the leaf corners of a coarse mesh (c->indirect1 holds E_m there); vertex i's
@@ -297,6 +342,7 @@ struct cache {
     cache_source_state src;
     cache_sched sched;
     cache_bounce_state bnc;
+    cache_borrow_state brw;
 };
 
 /* Does scene triangle t take part (struct cache.active)? */
@@ -472,6 +518,14 @@ lm_result cache_settle_source(cache *c, lm_error *err);
  * flagged (c->src.outdated_n) for the next call. */
 lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance,
                                   lm_error *err);
+/* A borrowed value's state (cache_source_state.borrowed: 0 gathered, INFINITY
+ * untested, else the ΔE its test left). */
+float cache_borrowed_de(const cache *c, uint32_t vid);
+/* Sets vertex vid's indirect value to one borrowed from gathered neighbours, with
+ * the standard errors the borrowing carries (RGB: the edge test's and the
+ * likely one, as cache_indirect_sigma) and its state de (INFINITY: untested). */
+lm_result cache_set_borrowed(cache *c, uint32_t vid, const float E[3], const float sigma[3], const float likely[3],
+                             float de, lm_error *err);
 /* Gathers every value of the indirect mesh(es) again from rebuilt sources (a light
  * edit, a better sampler); nothing is outdated afterwards. */
 lm_result cache_regather_all(cache *c, lm_error *err);
@@ -480,6 +534,9 @@ lm_result cache_regather_all(cache *c, lm_error *err);
  * (a big scene's hundreds of thousands of values are not one uninterruptible
  * call of the worker). */
 lm_result cache_outdate_all(cache *c, lm_error *err);
+/* The same for the gathered values only: the borrowed ones are tested instead
+ * (cache_borrow.c). */
+lm_result cache_outdate_gathered(cache *c, lm_error *err);
 
 /* Importance (Smits et al. 1992, "An importance-driven radiosity algorithm"):
  * after the displayed indirect was gathered at the sites (pixels: per scene
@@ -522,6 +579,37 @@ void cache_bounces_see(cache *c, const uint32_t *pixels);
  * coarse meshes, and the surfaces the bounces' transport records (a mesh root filter). */
 int cache_has_albedo(const scene *s, uint32_t t, void *user);
 void cache_bounces_free(cache_bounce_state *b);
+
+/* ---- cache_borrow.c: borrowed indirect values tested ------------------------------ */
+
+/* The weights of donors d[0..nd) (vertex ids, nd ≤ 4) for vertex vid: those whose
+ * normal is within 72° of its own, (n·n_g)² over the distance (span: the scale
+ * that keeps the distance off 0); the nearest if none is. Writes the donors'
+ * indices into q and their weights into w; returns how many (0: nd was 0). */
+int cache_borrow_weights(const cache *c, uint32_t vid, const uint32_t *d, int nd, double span, int q[4], double w[4]);
+/* Takes the first image's order (n vertex ids, Morton order; the array is the
+ * cache's from now on) and its donors' positions at[0..nchosen) (ascending):
+ * every other corner is borrowed (untested) and its span waits for
+ * cache_borrow_release. */
+lm_result cache_borrow_start(cache *c, uint32_t *order, uint32_t n, const uint32_t *at, uint32_t nchosen,
+                             double span, lm_error *err);
+/* From now on cache_borrow_test tests the spans (the first image's regather). */
+void cache_borrow_release(cache *c);
+/* Spans are waiting (released or not). */
+int cache_borrow_any(const cache *c);
+/* Borrowed corners whose span waits for a test, once released (0 before). */
+uint64_t cache_borrow_pending(const cache *c);
+/* Tests pending spans, at most *allowance gathers (taken off it; NULL: all):
+ * gathers their middles, splits or accepts them, and calls `changed` (regions
+ * NULL) with the vertices whose value changed. pixels: per scene triangle (NULL:
+ * every triangle a million: every span splits to single corners). */
+lm_result cache_borrow_test(cache *c, const uint32_t *pixels, cache_changed_fn changed, void *user,
+                            uint64_t *allowance, lm_error *err);
+/* The JND changed: accepted spans whose ΔE it is now below are tested again. */
+lm_result cache_borrow_jnd_changed(cache *c, lm_error *err);
+/* Everything gathered now (a full regather): the spans go. */
+void cache_borrow_free(cache_borrow_state *b);
+size_t cache_borrow_bytes(const cache_borrow_state *b);
 
 /* ---- cache_estimate.c: the error estimate, values worth more rays ------------------ */
 

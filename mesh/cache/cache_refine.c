@@ -42,7 +42,6 @@
 enum { ROUND_LEAVES = 64 };
 /* A round's gather (3 midpoints a leaf) keeps its pilot for the importance. */
 _Static_assert(3 * ROUND_LEAVES <= CACHE_PILOT_CHUNK, "a refine round's gather must fit one pilot chunk");
-#define INDIRECT_SIZE_FACTOR 16.0f
 
 typedef cache_kind refine_kind;
 #define KIND_DIRECT CACHE_KIND_DIRECT
@@ -408,10 +407,8 @@ static lm_result schedule_important_sources(cache *c, const cache_site *sites, u
 
 /* ---- one round ---------------------------------------------------------------- */
 
-#define NOISE_SIGMAS 2.5f
-
 /* Is fresh − interp (the midpoint's gather against the mean of the edge's ends)
- * more than NOISE_SIGMAS standard errors of that difference in some channel? */
+ * more than CACHE_NOISE_SIGMAS standard errors of that difference in some channel? */
 static int beyond_noise(const cache *c, uint32_t a, uint32_t b, uint32_t mid, const float fresh[3],
                         const float interp[3])
 {
@@ -421,7 +418,7 @@ static int beyond_noise(const cache *c, uint32_t a, uint32_t b, uint32_t mid, co
     cache_indirect_sigma(c, mid, sm);
     for (int ch = 0; ch < 3; ++ch) {
         float sd = sqrtf(sm[ch] * sm[ch] + 0.25f * (sa[ch] * sa[ch] + sb[ch] * sb[ch]));
-        if (fabsf(fresh[ch] - interp[ch]) > NOISE_SIGMAS * sd) return 1;
+        if (fabsf(fresh[ch] - interp[ch]) > CACHE_NOISE_SIGMAS * sd) return 1;
     }
     return 0;
 }
@@ -460,11 +457,11 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     uint32_t nl = 0;
     lm_result r = LM_OK;
     /* The size criterion is there to find small discontinuities (shadow edges);
-     * indirect irradiance is smooth, so its leaves stop INDIRECT_SIZE_FACTOR
+     * indirect irradiance is smooth, so its leaves stop CACHE_INDIRECT_SIZE_FACTOR
      * times larger unless the ΔE test asks for more (measured on the built-in
      * Cornell box: with the same floor, indirect samples were 28% of all and took
      * 98% of the sampler time). */
-    float min_pixels = c->desc.min_leaf_pixels * (kind == KIND_INDIRECT ? INDIRECT_SIZE_FACTOR : 1.0f);
+    float min_pixels = c->desc.min_leaf_pixels * (kind == KIND_INDIRECT ? CACHE_INDIRECT_SIZE_FACTOR : 1.0f);
 
     /* Pick and split tentatively. */
     uint32_t node;
@@ -600,7 +597,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 sum_dn2 += dn * dn;
             }
             /* Indirect values are noisy estimates: a difference the noise explains
-             * (within NOISE_SIGMAS standard errors in every channel) splits nothing. */
+             * (within CACHE_NOISE_SIGMAS standard errors in every channel) splits nothing. */
             if (found && kind == KIND_INDIRECT && !combined)
                 found = beyond_noise(c, corner[k], corner[(k + 1) % 3], leaves[i].mid[k], fresh, interp);
         }
@@ -744,7 +741,10 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
 static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, lm_error *err)
 {
     lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
-    return r == LM_OK ? cache_regather_outdated(c, requeue_changed, (void *)pixels, allowance, err) : r;
+    if (r == LM_OK) r = cache_regather_outdated(c, requeue_changed, (void *)pixels, allowance, err);
+    /* The first image's borrowed values, tested once their donors are up to date. */
+    if (r == LM_OK && !c->src.outdated_n) r = cache_borrow_test(c, pixels, requeue_changed, (void *)pixels, allowance, err);
+    return r;
 }
 
 /* Gathers again with more rays (cache_regather_finer) the indirect values whose
@@ -840,7 +840,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     /* No leaf is tested while values it would be judged by are still the first
      * image's (borrowed, or flagged by a rebuilt source). */
     const size_t borrowed = c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0;
-    while (r == LM_OK && !c->src.outdated_n && !borrowed && !cache_stopping(c)) {
+    while (r == LM_OK && !c->src.outdated_n && !borrowed && !cache_borrow_pending(c) && !cache_stopping(c)) {
         int kind = -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
             if (left[k] && c->sched.waiting[k]) kind = k;
@@ -872,7 +872,8 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
     }
     /* Values still waiting to be gathered again count as work left. */
-    res.outdated = (uint32_t)(c->src.outdated_n + (c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0));
+    res.outdated = (uint32_t)(c->src.outdated_n + (c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0) +
+                              cache_borrow_pending(c));
     res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] + res.outdated);
     /* Stopped (cache_refine_desc.stop): no claim, the settling may not have run. */
     if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0 && !cache_stopping(c)) {

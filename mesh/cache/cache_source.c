@@ -28,7 +28,7 @@
  * quarter of its nodes then (kept splits and revised values), at least 16 and at
  * most this many; always before the first indirect samples, and when refinement
  * has nothing left to test (cache_settle_source). */
-#define CACHE_RMESH_STALE 256u
+#define CACHE_RMESH_STALE 16384u
 
 /* An entry of the cut's heap (cache_source_state.cut_heap). */
 struct source_pick {
@@ -49,6 +49,7 @@ void cache_source_free(cache_source_state *st)
     free(st->sigma);
     free(st->gather_level);
     free(st->sigma_likely);
+    free(st->borrowed);
     free(st->outdated_list);
     free(st->leaf_buf);
     free(st->cut_err);
@@ -69,7 +70,7 @@ void cache_source_free(cache_source_state *st)
 size_t cache_source_bytes(const cache_source_state *st)
 {
     return st->cut_cap * (sizeof *st->cut_err + sizeof *st->cut_open + sizeof *st->cut_heap) +
-           (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (6 * sizeof(float) + 1) +
+           (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (10 * sizeof(float) + 2) +
            st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf +
            st->imp_cap * 3 * sizeof(float) + st->grown_cap * sizeof(uint32_t) +
            st->pilot_cap * (2 + CACHE_IMPORTANCE_RAYS * 2) * sizeof(uint32_t);
@@ -605,12 +606,13 @@ static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_
                             : gather_displayed(c, vids, pts, n, min_level, E, err);
     free(pts);
     if (r == LM_OK) c->src.indirect_stats.samples += n;
-    /* A value gathered from the current source has not drifted. */
+    /* A value gathered from the current source has not drifted, and is not borrowed. */
     if (r == LM_OK && c->src.drift)
         for (uint32_t i = 0; i < n; ++i)
             if (vids[i] < c->src.drift_cap) {
                 memset(c->src.drift + 3 * (size_t)vids[i], 0, 3 * sizeof *c->src.drift);
                 c->src.outdated[vids[i]] = 0;
+                c->src.borrowed[vids[i]] = 0.0f;
             }
     return r;
 }
@@ -729,14 +731,37 @@ static lm_result regather_mesh(cache *c, mesh_qmesh *m, lm_error *err)
     return r;
 }
 
-lm_result cache_outdate_all(cache *c, lm_error *err)
+static lm_result outdate(cache *c, int gathered_only, lm_error *err)
 {
     const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
     lm_result r = build_source(c, 0, err);
     if (r == LM_OK) r = cache_grow_drift(&c->src, id_limit, err);
     for (uint32_t vid = 0; r == LM_OK && vid < id_limit; ++vid)
-        if (mesh_qmesh_get_value(c->indirect, vid, NULL) == 1) r = cache_push_outdated(&c->src, vid, err);
+        if (mesh_qmesh_get_value(c->indirect, vid, NULL) == 1 && !(gathered_only && c->src.borrowed[vid] != 0.0f))
+            r = cache_push_outdated(&c->src, vid, err);
     return r;
+}
+
+lm_result cache_outdate_all(cache *c, lm_error *err) { return outdate(c, 0, err); }
+lm_result cache_outdate_gathered(cache *c, lm_error *err) { return outdate(c, 1, err); }
+
+float cache_borrowed_de(const cache *c, uint32_t vid)
+{
+    return vid < c->src.drift_cap && c->src.borrowed ? c->src.borrowed[vid] : 0.0f;
+}
+
+lm_result cache_set_borrowed(cache *c, uint32_t vid, const float E[3], const float sigma[3], const float likely[3],
+                             float de, lm_error *err)
+{
+    lm_result r = cache_grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
+    if (r == LM_OK) r = mesh_qmesh_set_value(c->indirect, vid, E, err);
+    if (r != LM_OK) return r;
+    memcpy(c->src.sigma + 3 * (size_t)vid, sigma, 3 * sizeof *sigma);
+    memcpy(c->src.sigma_likely + 3 * (size_t)vid, likely, 3 * sizeof *likely);
+    memset(c->src.drift + 3 * (size_t)vid, 0, 3 * sizeof *c->src.drift);
+    c->src.gather_level[vid] = 0;
+    c->src.borrowed[vid] = de;
+    return LM_OK;
 }
 
 /* From a source rebuilt (with E_m re-evaluated: no ray). Nothing is outdated

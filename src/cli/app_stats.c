@@ -143,6 +143,13 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNumberToObject(su, "light_samples", (double)u->light_samples);
         cJSON_AddNumberToObject(su, "gathers", (double)u->gathers);
     }
+    cJSON *bw = cJSON_AddObjectToObject(j, "borrowed");
+    if (bw) { /* the first image's borrowed indirect values, tested after it (docs/stats.md) */
+        cJSON_AddNumberToObject(bw, "corners", (double)st->borrow.borrowed);
+        cJSON_AddNumberToObject(bw, "tests", (double)st->borrow.tests);
+        cJSON_AddNumberToObject(bw, "splits", (double)st->borrow.splits);
+        cJSON_AddNumberToObject(bw, "kept", (double)st->borrow.kept);
+    }
     cJSON_AddNumberToObject(j, "bytes", (double)st->bytes);
     cJSON_AddItemToObject(j, "sampler", sampler_json(&snap->sampler, &snap->quick_sampler));
     cJSON *bn = cJSON_AddObjectToObject(j, "bounces");
