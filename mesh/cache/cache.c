@@ -578,8 +578,10 @@ lm_result cache_refine(cache *c, const cache_refine_desc *desc, cache_refine_res
     if (r == LM_OK) cache_bounces_see(c, desc->pixels);
     if (r == LM_OK) {
         c->stop = desc->stop;
+        c->pixels = desc->pixels;
         r = cache_sched_refine(c, desc, out, err);
         c->stop = NULL;
+        c->pixels = NULL;
         return r;
     }
     if (out) *out = (cache_refine_result){0};

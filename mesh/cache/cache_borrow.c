@@ -58,6 +58,11 @@ int cache_borrow_weights(const cache *c, uint32_t vid, const uint32_t *d, int nd
     return n;
 }
 
+/* A span is kept when its test differs by at most this share of the JND: one
+ * corner stands for the whole run (measured in startup_test: at the whole JND,
+ * 7.5% of the ball's corners ended above it). */
+#define BORROW_JND_SHARE 1.0f
+
 static lm_result push_span(cache_borrow_state *b, const cache_borrow_span *s, lm_error *err)
 {
     if (b->pending_n == b->pending_cap && b->head > 0) { /* reuse what was taken */
@@ -170,9 +175,44 @@ static lm_result corner_pixels(cache *c, const uint32_t *pixels, lm_error *err)
     return LM_OK;
 }
 
+/* A borrowed corner needs a donor whose normal is within about 26° of its own
+ * (cosine at least this); a span with a corner that has none splits whatever its
+ * test says: indirect irradiance turns with the normal, and on the startup_test
+ * ball, borrowing across up to 72° left 7.5% of the corners above the JND. */
+#define BORROW_NORMAL_COS 0.9
+
+/* The corner of span s that its donors support least (the smallest sum of
+ * borrowing weights: far from them, or turned away): where borrowing is most
+ * likely wrong, so the span's test is made there. *coherent: every corner has a
+ * donor within BORROW_NORMAL_COS. */
+static uint32_t least_supported(const cache *c, const cache_borrow_span *s, int *coherent)
+{
+    const cache_borrow_state *b = &c->brw;
+    uint32_t d[4], best = s->lo + (s->hi - s->lo) / 2;
+    int nd = 0, q[4];
+    for (int k = 1; k >= 0; --k)
+        if (s->left[k] != CACHE_BORROW_NONE) d[nd++] = b->order[s->left[k]];
+    for (int k = 0; k < 2; ++k)
+        if (s->right[k] != CACHE_BORROW_NONE) d[nd++] = b->order[s->right[k]];
+    double least = INFINITY;
+    *coherent = 1;
+    for (uint32_t p = s->lo; p <= s->hi; ++p) {
+        const mesh_vertex *mv = mesh_vtable_vertex(c->vt, b->order[p]);
+        double w[4], sum = 0.0, best_cos = -1.0;
+        int nb = cache_borrow_weights(c, b->order[p], d, nd, b->span, q, w);
+        for (int i = 0; i < nb; ++i) sum += w[i];
+        for (int i = 0; i < nd; ++i)
+            best_cos = fmax(best_cos, dv3_dot(dv3_load(mv->normal), dv3_load(mesh_vtable_vertex(c->vt, d[i])->normal)));
+        if (best_cos < BORROW_NORMAL_COS) *coherent = 0, sum = 0.0;
+        if (sum < least) least = sum, best = p;
+    }
+    return best;
+}
+
 typedef struct borrow_test {
     cache_borrow_span span;
     uint32_t mid;              /* order position tested */
+    int coherent;              /* least_supported's */
 } borrow_test;
 
 /* The span s's corners other than its middle m borrow from its donors and m. */
@@ -249,7 +289,7 @@ static lm_result judge(cache *c, const borrow_test *t, float min_pixels, uint32_
         dn = tm_delta_e(lab_b, lab_n);
         double px = 0.0;
         for (uint32_t p = s->lo; p <= s->hi; ++p) px += b->px[b->order[p]];
-        split = (de > c->desc.jnd && beyond) || px > min_pixels;
+        split = (de > BORROW_JND_SHARE * c->desc.jnd && beyond) || px > min_pixels || !t->coherent;
     }
     if (split) {
         b->stats.splits++;
@@ -283,7 +323,7 @@ lm_result cache_borrow_test(cache *c, const uint32_t *pixels, cache_changed_fn c
             borrow_test *t = &tests[nt++];
             t->span = b->pending[b->head++];
             b->pending_corners -= t->span.hi - t->span.lo + 1;
-            t->mid = t->span.lo + (t->span.hi - t->span.lo) / 2;
+            t->mid = least_supported(c, &t->span, &t->coherent);
             /* A middle gathered meanwhile (outdated, or noisy) is tested as it is. */
             if (cache_borrowed_de(c, b->order[t->mid]) != 0.0f) need[nn++] = b->order[t->mid];
         }

@@ -35,7 +35,8 @@ lm_result cache_grow_drift(cache_source_state *st, uint32_t limit, lm_error *err
         !lm_realloc_array(&st->sigma, st->drift_cap, cap, 3 * sizeof *st->sigma) ||
         !lm_realloc_array(&st->sigma_likely, st->drift_cap, cap, 3 * sizeof *st->sigma_likely) ||
         !lm_realloc_array(&st->gather_level, st->drift_cap, cap, sizeof *st->gather_level) ||
-        !lm_realloc_array(&st->borrowed, st->drift_cap, cap, sizeof *st->borrowed))
+        !lm_realloc_array(&st->borrowed, st->drift_cap, cap, sizeof *st->borrowed) ||
+        !lm_realloc_array(&st->unseen_stale, st->drift_cap, cap, sizeof *st->unseen_stale))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracking indirect values");
     st->drift_cap = cap;
     return LM_OK;
@@ -319,6 +320,46 @@ void cache_vertex_direct(const cache *c, uint32_t vid, float ldd[3])
         ldd[0] = ldd[1] = ldd[2] = 0.0f;
 }
 
+/* Per vertex id (calloc'd, id limit bytes): a corner of a leaf of the indirect
+ * mesh over a triangle a pixel sees. NULL when out of memory. */
+static uint8_t *seen_vertices(const cache *c, const uint32_t *pixels)
+{
+    uint8_t *seen = calloc(mesh_vtable_id_limit(c->vt) + 1, 1);
+    if (!seen) return NULL;
+    for (uint32_t t = 0; t < c->s->tri_count; ++t) {
+        const uint32_t root = pixels[t] && cache_tri_active(c, t) ? mesh_qmesh_root(c->indirect, t) : MESH_QMESH_NONE;
+        if (root == MESH_QMESH_NONE) continue;
+        uint32_t stack[4 * MESH_QMESH_DEPTHS + 4], top = 0;
+        stack[top++] = root;
+        while (top) {
+            const mesh_qnode *n = mesh_qmesh_node(c->indirect, stack[--top]);
+            if (n->child == MESH_QMESH_NONE) {
+                for (int k = 0; k < 3; ++k) seen[n->v[k]] = 1;
+                continue;
+            }
+            for (uint32_t k = 0; k < 4; ++k) stack[top++] = n->child + k;
+        }
+    }
+    return seen;
+}
+
+lm_result cache_refresh_stale(cache *c, const uint32_t *pixels, lm_error *err)
+{
+    if (!c->src.stale_n || !pixels || !c->indirect) return LM_OK;
+    uint8_t *seen = seen_vertices(c, pixels);
+    if (!seen) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding the seen indirect values");
+    lm_result r = LM_OK;
+    const uint32_t limit = mesh_vtable_id_limit(c->vt);
+    for (uint32_t vid = 0; r == LM_OK && vid < limit && vid < c->src.drift_cap; ++vid) {
+        if (!c->src.unseen_stale[vid] || !seen[vid]) continue;
+        c->src.unseen_stale[vid] = 0;
+        c->src.stale_n--;
+        if (mesh_qmesh_get_value(c->indirect, vid, NULL) == 1) r = cache_push_outdated(&c->src, vid, err);
+    }
+    free(seen);
+    return r;
+}
+
 /* Compares the new source (c->src.rmesh) with the previous one (c->rp_*), adds the
  * bounds to the drift of every displayed indirect value and flags those that may
  * have moved by more than the JND. */
@@ -400,9 +441,19 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
     drift_tree tree = {0};
     if (r == LM_OK && any && !drift_tree_make(&tree, s, cur, d, sd, nonlinear, ch, nch))
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing indirect sources");
+    /* Values no pixel sees are not bounded (half of a big scene's, and the bound
+     * is most of a rebuild's time there): they are gathered again when a pixel
+     * sees them (cache_refresh_stale). Without pixels, every value is. */
+    uint8_t *seen = r == LM_OK && any && c->pixels ? seen_vertices(c, c->pixels) : NULL;
+    if (r == LM_OK && any && c->pixels && !seen) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory finding the seen indirect values");
     for (uint32_t vid = 0; r == LM_OK && any && vid < id_limit; ++vid) {
         float e[3];
         if (c->src.outdated[vid] || mesh_qmesh_get_value(c->indirect, vid, e) != 1) continue;
+        if (seen && !seen[vid]) {
+            c->src.stale_n += !c->src.unseen_stale[vid];
+            c->src.unseen_stale[vid] = 1;
+            continue;
+        }
         const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
         /* From where the gather looks (a point on a surface's plane sees none of it). */
         samp_point sp = cache_vertex_point(c, vid);
@@ -432,6 +483,7 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
         }
         if (seen) r = cache_push_outdated(&c->src, vid, err);
     }
+    free(seen);
     drift_tree_free(&tree);
     free(ch);
     free(d);

@@ -142,11 +142,16 @@ typedef struct cache_source_state {
     float *sigma_likely;       /* per vertex id: its likely standard error, the strata counted (RGB; the
                                   error estimate's; sigma errs high, for the edge test) */
     uint8_t *gather_level;     /* per vertex id: its gather took GATHER_SCALE^level times the plain rays */
+    uint8_t *unseen_stale;     /* per vertex id: a source rebuild found it where no pixel sees it and
+                                  left its drift unbounded; gathered again once it is seen
+                                  (cache_refresh_stale) */
+    size_t stale_n;            /* how many are */
     float *borrowed;           /* per vertex id: 0 for a gathered value (or none); else the value was
                                   borrowed from gathered neighbours (the first image's, cache_first.c;
                                   tested by cache_borrow.c): INFINITY until its span is tested, then
                                   the ΔE the test left (at least CACHE_BORROW_DE_MIN). A gather sets 0. */
-    size_t drift_cap;          /* drift, outdated, sigma, sigma_likely, gather_level and borrowed */
+    size_t drift_cap;          /* drift, outdated, sigma, sigma_likely, gather_level, unseen_stale and
+                                  borrowed */
     uint32_t *outdated_list;
     size_t outdated_n, outdated_cap;
     uint64_t regathered;       /* indirect values gathered again because they were outdated */
@@ -316,6 +321,8 @@ struct cache {
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
     int initialised;
     const atomic_int *stop;    /* cache_refine_desc.stop during a cache_refine call, else NULL */
+    const uint32_t *pixels;    /* cache_refine_desc.pixels during a cache_refine call, else NULL (what a
+                                  source rebuild bounds the drift of: cache_mark_outdated) */
     cache_startup_stats startup; /* written by cache.c, once (cache_create, the first init) */
     const uint32_t *first_pixels; /* the pixel counts cache_init_seen was given, while it runs */
     /* Which scene triangles take part (allocated by cache.c's cache_init_seen;
@@ -469,6 +476,9 @@ size_t cache_borrowed_waiting(const cache *c);
 
 /* Room for per-vertex drift, flags, noise and levels up to vertex id limit. */
 lm_result cache_grow_drift(cache_source_state *st, uint32_t limit, lm_error *err);
+/* The values a source rebuild left unbounded because no pixel saw them
+ * (cache_source_state.unseen_stale) and that a pixel sees now: flagged outdated. */
+lm_result cache_refresh_stale(cache *c, const uint32_t *pixels, lm_error *err);
 /* Flags vertex vid outdated (once) for cache_regather_outdated. */
 lm_result cache_push_outdated(cache_source_state *st, uint32_t vid, lm_error *err);
 /* L_dd at vertex vid: its own value in the direct mesh, else interpolated there. */

@@ -834,6 +834,8 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * for them): their light is sampled and the values recomputed by the
      * revision below, before the indirect values are gathered from them. */
     if (r == LM_OK) r = cache_borrowed_to_regions(c, 16 * allowance, err);
+    /* Values a rebuild left unbounded while unseen, seen now (a camera move). */
+    if (r == LM_OK) r = cache_refresh_stale(c, desc->pixels, err);
     /* Changes made outside refinement (coarse cache, a camera move). */
     if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
     int settled = 0, finer = 0;

@@ -50,6 +50,7 @@ void cache_source_free(cache_source_state *st)
     free(st->gather_level);
     free(st->sigma_likely);
     free(st->borrowed);
+    free(st->unseen_stale);
     free(st->outdated_list);
     free(st->leaf_buf);
     free(st->cut_err);
@@ -70,7 +71,7 @@ void cache_source_free(cache_source_state *st)
 size_t cache_source_bytes(const cache_source_state *st)
 {
     return st->cut_cap * (sizeof *st->cut_err + sizeof *st->cut_open + sizeof *st->cut_heap) +
-           (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (10 * sizeof(float) + 2) +
+           (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (10 * sizeof(float) + 3) +
            st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf +
            st->imp_cap * 3 * sizeof(float) + st->grown_cap * sizeof(uint32_t) +
            st->pilot_cap * (2 + CACHE_IMPORTANCE_RAYS * 2) * sizeof(uint32_t);
@@ -292,8 +293,10 @@ int64_t cache_direct_changes(const cache *c)
 /* Builds the source: kd·L_dd, and with further bounces kd·(L_dd + E_m/π), E_m
  * first brought up to date with the direct mesh (cache_bounces_update, no ray);
  * track: compare it with the previous source and flag the values it moved. */
+#include <stdio.h>
 static lm_result build_source(cache *c, int track, lm_error *err)
 {
+    if (getenv("LUMESH_DEBUG_SRC")) { fprintf(stderr, "build_source %.2f track %d settle %d changes %lld nodes %u\n", lm_now_seconds(), track, c->src.settle, (long long)(cache_direct_changes(c) - c->src.built_at), mesh_qmesh_node_count(c->direct)); }
     const scene *s = c->s;
     const int with_em = c->indirect1 != NULL;
     lm_result r = with_em ? cache_bounces_update(c, err) : LM_OK;
@@ -613,6 +616,8 @@ static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_
                 memset(c->src.drift + 3 * (size_t)vids[i], 0, 3 * sizeof *c->src.drift);
                 c->src.outdated[vids[i]] = 0;
                 c->src.borrowed[vids[i]] = 0.0f;
+                c->src.stale_n -= c->src.unseen_stale[vids[i]];
+                c->src.unseen_stale[vids[i]] = 0;
             }
     return r;
 }
