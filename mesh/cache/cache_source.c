@@ -293,10 +293,8 @@ int64_t cache_direct_changes(const cache *c)
 /* Builds the source: kd·L_dd, and with further bounces kd·(L_dd + E_m/π), E_m
  * first brought up to date with the direct mesh (cache_bounces_update, no ray);
  * track: compare it with the previous source and flag the values it moved. */
-#include <stdio.h>
 static lm_result build_source(cache *c, int track, lm_error *err)
 {
-    if (getenv("LUMESH_DEBUG_SRC")) { fprintf(stderr, "build_source %.2f track %d settle %d changes %lld nodes %u\n", lm_now_seconds(), track, c->src.settle, (long long)(cache_direct_changes(c) - c->src.built_at), mesh_qmesh_node_count(c->direct)); }
     const scene *s = c->s;
     const int with_em = c->indirect1 != NULL;
     lm_result r = with_em ? cache_bounces_update(c, err) : LM_OK;
