@@ -3,6 +3,7 @@
 #include "tests/test_util.h"
 
 #include <math.h>
+#include <stdio.h>
 
 static void test_srgb_known_values(void)
 {
@@ -228,6 +229,33 @@ static void test_delta_e(void)
     CHECK_NEAR(tm_delta_e(lw, lb), 100.0, 1e-3);
 }
 
+/* tm_linear_to_lab's cube root (a guess and Newton steps) against libm's cbrt in
+ * the same formula: every grey level from black to white and a spread of
+ * colours, within 1e-5 in L*, a* and b*. */
+static void test_lab_cube_root(void)
+{
+    static const double M[3][3] = {{0.4124564, 0.3575761, 0.1804375},
+                                   {0.2126729, 0.7151522, 0.0721750},
+                                   {0.0193339, 0.1191920, 0.9503041}};
+    static const double white[3] = {0.95047, 1.0, 1.08883};
+    const double d = 6.0 / 29.0;
+    double worst = 0.0;
+    for (int i = 0; i <= 20000; ++i) {
+        const float lin[3] = {(float)(i % 101) / 100.0f, (float)(i % 37) / 36.0f, (float)i / 20000.0f};
+        float lab[3];
+        tm_linear_to_lab(&(tm_desc){0}, lin, lab);
+        double f[3];
+        for (int r = 0; r < 3; ++r) {
+            double t = (M[r][0] * lin[0] + M[r][1] * lin[1] + M[r][2] * lin[2]) / white[r];
+            f[r] = t > d * d * d ? cbrt(t) : t / (3.0 * d * d) + 4.0 / 29.0;
+        }
+        const double ref[3] = {116.0 * f[1] - 16.0, 500.0 * (f[0] - f[1]), 200.0 * (f[1] - f[2])};
+        for (int k = 0; k < 3; ++k) worst = fmax(worst, fabs(lab[k] - ref[k]));
+    }
+    printf("Lab through the fast cube root: largest difference from cbrt %.3g\n", worst);
+    CHECK(worst < 1e-4);
+}
+
 int main(void)
 {
     test_srgb_known_values();
@@ -236,6 +264,7 @@ int main(void)
     test_to_display();
     test_to_rgb8();
     test_lab();
+    test_lab_cube_root();
     test_delta_e();
     return test_finish("tonemap_test");
 }

@@ -308,7 +308,8 @@ typedef struct cache_borrow_stats {
     uint64_t borrowed;          /* root corners that borrowed their first indirect value */
     uint64_t tests;             /* spans tested (a gather at the middle of each) */
     uint64_t splits;            /* ... split there (the difference seen, or too many pixels) */
-    uint64_t kept;              /* corners that kept a borrowed value after their span's test */
+    uint64_t kept;              /* corners that kept a borrowed value after their span's test (again at
+                                   each test a lower JND asks for) */
 } cache_borrow_stats;
 
 typedef struct cache_stats {

@@ -426,20 +426,48 @@ static void first_bounce(const cache *c, float *out)
  * and with what was shown one bounce before (CIELAB). Made for one evaluation
  * and freed after it: at a million triangles the tv entries are three million,
  * and a copy of these per entry held 150 MB for the cache's life. */
+/* At most this many seen points judge the bounces: every seen coarse vertex of
+ * every triangle up to it (the Cornell boxes, Water), evenly spread ones beyond
+ * it. A million-triangle scene has a coarse vertex at every root corner, and
+ * converting three million colours to CIELAB at every bounce kept its worker
+ * from refining for 5 s after the first image. */
+enum { BOUNCE_SEEN_POINTS = 1 << 16 };
+
 typedef struct seen_lab {
     float *block;                      /* one allocation holding the four */
-    float *ldd, *whole, *shown, *prev; /* 3 per seen entry each */
+    float *ldd, *whole, *shown, *prev; /* 3 per seen point each */
+    uint32_t *entry, *tri;             /* per seen point: its tv entry and triangle */
     uint32_t n;
 } seen_lab;
 
-static lm_result seen_lab_make(const cache_bounce_state *b, seen_lab *sl, lm_error *err)
+static lm_result seen_lab_make(const cache *c, seen_lab *sl, lm_error *err)
 {
+    const cache_bounce_state *b = &c->bnc;
     *sl = (seen_lab){0};
-    for (uint32_t e = 0; e < b->tv_n; ++e) sl->n += b->seen[b->tv_index[e]] != 0;
-    const size_t n3 = 3 * (size_t)(sl->n ? sl->n : 1);
+    uint64_t seen = 0;
+    for (uint32_t e = 0; e < b->tv_n; ++e) seen += b->seen[b->tv_index[e]] != 0;
+    const uint64_t step = seen > BOUNCE_SEEN_POINTS ? (seen + BOUNCE_SEEN_POINTS - 1) / BOUNCE_SEEN_POINTS : 1;
+    const uint32_t most = (uint32_t)((seen + step - 1) / step);
+    const size_t n3 = 3 * (size_t)(most ? most : 1);
     sl->block = malloc(4 * n3 * sizeof *sl->block);
-    if (!sl->block)
-        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing the bounces (%u seen points)", sl->n);
+    sl->entry = malloc((most ? most : 1) * sizeof *sl->entry);
+    sl->tri = malloc((most ? most : 1) * sizeof *sl->tri);
+    if (!sl->block || !sl->entry || !sl->tri) {
+        free(sl->block);
+        free(sl->entry);
+        free(sl->tri);
+        *sl = (seen_lab){0};
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory comparing the bounces (%u seen points)", most);
+    }
+    uint64_t k = 0;
+    for (uint32_t t = 0; t < c->s->tri_count; ++t)
+        for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
+            if (!b->seen[b->tv_index[e]]) continue;
+            if (k++ % step == 0 && sl->n < most) {
+                sl->entry[sl->n] = e;
+                sl->tri[sl->n++] = t;
+            }
+        }
     sl->ldd = sl->block;
     sl->whole = sl->block + n3;
     sl->shown = sl->block + 2 * n3;
@@ -447,39 +475,36 @@ static lm_result seen_lab_make(const cache_bounce_state *b, seen_lab *sl, lm_err
     return LM_OK;
 }
 
-/* L_dd from the direct mesh at every seen coarse vertex of every triangle (3 per
- * seen tv entry). */
-static void seen_direct(const cache *c, float *ldd)
+static void seen_lab_free(seen_lab *sl)
 {
-    const cache_bounce_state *b = &c->bnc;
-    const scene *s = c->s;
-    uint32_t j = 0;
-    for (uint32_t t = 0; t < s->tri_count; ++t)
-        for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
-            if (!b->seen[b->tv_index[e]]) continue;
-            float *l = ldd + 3 * (size_t)j++;
-            lm_error ignore;
-            if (mesh_qmesh_root(c->direct, t) == MESH_QMESH_NONE ||
-                mesh_qmesh_interpolate(c->direct, t, b->tv_bary[2 * (size_t)e], b->tv_bary[2 * (size_t)e + 1], l,
-                                       &ignore) != LM_OK)
-                l[0] = l[1] = l[2] = 0.0f;
-        }
+    free(sl->block);
+    free(sl->entry);
+    free(sl->tri);
 }
 
-/* The colour at every seen coarse vertex of every triangle (its material, L_dd
- * from seen_direct) with indirect irradiance E, into lab (3 per seen tv entry). */
-static void seen_colours(const cache *c, const float *ldd, const float *E, float *lab)
+/* L_dd from the direct mesh at the seen points (3 each). */
+static void seen_direct(const cache *c, const seen_lab *sl, float *ldd)
 {
     const cache_bounce_state *b = &c->bnc;
-    const scene *s = c->s;
-    uint32_t j = 0;
-    for (uint32_t t = 0; t < s->tri_count; ++t)
-        for (uint32_t e = b->tv_first[t]; e < b->tv_first[t + 1]; ++e) {
-            uint32_t i = b->tv_index[e];
-            if (!b->seen[i]) continue;
-            cache_seen_lab(c, t, ldd + 3 * (size_t)j, E + 3 * (size_t)i, NULL, lab + 3 * (size_t)j);
-            ++j;
-        }
+    for (uint32_t j = 0; j < sl->n; ++j) {
+        const uint32_t e = sl->entry[j], t = sl->tri[j];
+        float *l = ldd + 3 * (size_t)j;
+        lm_error ignore;
+        if (mesh_qmesh_root(c->direct, t) == MESH_QMESH_NONE ||
+            mesh_qmesh_interpolate(c->direct, t, b->tv_bary[2 * (size_t)e], b->tv_bary[2 * (size_t)e + 1], l,
+                                   &ignore) != LM_OK)
+            l[0] = l[1] = l[2] = 0.0f;
+    }
+}
+
+/* The colour at the seen points (their triangle's material, L_dd from
+ * seen_direct) with indirect irradiance E at their coarse vertices, into lab. */
+static void seen_colours(const cache *c, const seen_lab *sl, const float *E, float *lab)
+{
+    const cache_bounce_state *b = &c->bnc;
+    for (uint32_t j = 0; j < sl->n; ++j)
+        cache_seen_lab(c, sl->tri[j], sl->ldd + 3 * (size_t)j, E + 3 * (size_t)b->tv_index[sl->entry[j]], NULL,
+                       lab + 3 * (size_t)j);
 }
 
 /* The largest ΔE between two sets of n seen colours. */
@@ -555,11 +580,11 @@ lm_result cache_bounces_update(cache *c, lm_error *err)
     memcpy(b->b, b->shown, n3 * sizeof *b->b);
     memset(b->sum, 0, n3 * sizeof *b->sum);
     seen_lab sl;
-    r = seen_lab_make(b, &sl, err);
+    r = seen_lab_make(c, &sl, err);
     if (r != LM_OK) return r;
-    seen_direct(c, sl.ldd);
-    seen_colours(c, sl.ldd, b->whole, sl.whole);
-    seen_colours(c, sl.ldd, b->shown, sl.shown);
+    seen_direct(c, &sl, sl.ldd);
+    seen_colours(c, &sl, b->whole, sl.whole);
+    seen_colours(c, &sl, b->shown, sl.shown);
     int K = 1;
     for (;;) {
         st->rest_de = largest_change(sl.n, sl.shown, sl.whole);
@@ -596,12 +621,12 @@ lm_result cache_bounces_update(cache *c, lm_error *err)
         tmp = sl.prev;
         sl.prev = sl.shown;
         sl.shown = tmp;
-        seen_colours(c, sl.ldd, b->shown, sl.shown);
+        seen_colours(c, &sl, b->shown, sl.shown);
         st->de[K + 1] = largest_change(sl.n, sl.prev, sl.shown);
         st->seconds[K + 1] += lm_now_seconds() - tk;
         K++;
     }
-    free(sl.block);
+    seen_lab_free(&sl);
     st->bounces = K;
     st->automatic = automatic;
     for (uint32_t i = 0; r == LM_OK && i < b->nv; ++i)

@@ -449,6 +449,7 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
     for (uint32_t vid = 0; r == LM_OK && any && vid < id_limit; ++vid) {
         float e[3];
         if (c->src.outdated[vid] || mesh_qmesh_get_value(c->indirect, vid, e) != 1) continue;
+        if (isinf(c->src.borrowed[vid])) continue; /* borrowed, not tested yet: its test judges it */
         if (seen && !seen[vid]) {
             c->src.stale_n += !c->src.unseen_stale[vid];
             c->src.unseen_stale[vid] = 1;

@@ -741,6 +741,10 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
 static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, lm_error *err)
 {
     lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
+    /* Indirect values wait while the first image's borrowed light is recomputed:
+     * the source moves under them until it is (a million-triangle scene's first
+     * rebuilds, bounded value by value, took 8 s each and flagged most values). */
+    if (c->vis.borrowed_released && cache_borrowed_waiting(c)) return r;
     if (r == LM_OK) r = cache_regather_outdated(c, requeue_changed, (void *)pixels, allowance, err);
     /* The first image's borrowed values, tested once their donors are up to date. */
     if (r == LM_OK && !c->src.outdated_n) r = cache_borrow_test(c, pixels, requeue_changed, (void *)pixels, allowance, err);
