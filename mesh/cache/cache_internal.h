@@ -28,9 +28,9 @@
  * struct cache is a shared core (the scene, the sampler, the meshes; set by
  * cache.c) and one part per file that writes it: cache_light_state
  * (cache_light.c), cache_source_state (cache_source.c; its drift and outdated flags also
- * cache_drift.c), cache_outlines
- * (cache_specular.c), cache_borrow_state (cache_borrow.c), cache_sched (cache_refine.c). A part's fields are written
- * by its owner only; other files may read them where said.
+ * cache_drift.c), cache_outlines (cache_specular.c), cache_borrow_state
+ * (cache_borrow.c), cache_sched (cache_refine.c). A part's fields are written by
+ * its owner only; other files may read them where said.
  *
  * Threads: a cache and everything in it belongs to the thread that refines it
  * (the refinement worker, cache_worker.c, or a test's own thread). Nothing here
@@ -192,11 +192,12 @@ typedef struct cache_source_state {
  * "Borrowed values tested"). The first image's root corners in a Morton order of
  * their positions, each either gathered (a donor) or borrowed from the donors
  * beside it in that order; a span is a run of borrowed corners with the two
- * nearest donors on either side. A span is tested by gathering its middle corner
- * and comparing that with what it borrows: it splits there (the middle becomes a
- * donor) where the difference can be seen and the noise does not explain it, or
- * while it covers more pixels than an indirect leaf may; else its corners keep
- * borrowed values, with the ΔE the test left as their error (the estimate's). */
+ * nearest donors on either side. A span is tested by gathering the corner its
+ * donors support least and comparing that with what it borrows: it splits there
+ * (the corner becomes a donor) where the difference can be seen and the noise
+ * does not explain it, while it covers more pixels than an indirect leaf may, or
+ * where a corner has no donor facing its way; else its corners keep borrowed
+ * values, with the ΔE the test left as their error (the estimate's). */
 enum { CACHE_BORROW_NONE = UINT32_MAX };
 /* Indirect leaves stop this many times larger (in pixels) than the size criterion
  * (cache_desc.min_leaf_pixels) unless their ΔE test asks for more: indirect
@@ -605,8 +606,6 @@ lm_result cache_borrow_start(cache *c, uint32_t *order, uint32_t n, const uint32
                              double span, lm_error *err);
 /* From now on cache_borrow_test tests the spans (the first image's regather). */
 void cache_borrow_release(cache *c);
-/* Spans are waiting (released or not). */
-int cache_borrow_any(const cache *c);
 /* Borrowed corners whose span waits for a test, once released (0 before). */
 uint64_t cache_borrow_pending(const cache *c);
 /* Tests pending spans, at most *allowance gathers (taken off it; NULL: all):
@@ -615,7 +614,7 @@ uint64_t cache_borrow_pending(const cache *c);
  * every triangle a million: every span splits to single corners). */
 lm_result cache_borrow_test(cache *c, const uint32_t *pixels, cache_changed_fn changed, void *user,
                             uint64_t *allowance, lm_error *err);
-/* The JND changed: accepted spans whose ΔE it is now below are tested again. */
+/* The JND changed: accepted spans whose ΔE is now above it are tested again. */
 lm_result cache_borrow_jnd_changed(cache *c, lm_error *err);
 /* Everything gathered now (a full regather): the spans go. */
 void cache_borrow_free(cache_borrow_state *b);
