@@ -76,6 +76,7 @@ lm_result cache_set_light(cache *c, uint32_t light, const float value[3], lm_err
     lm_result r = cache_relight_direct(c, err);
     cache_bounces_touch(c); /* L_dd changed everywhere, the direct mesh's shape did not */
     if (r == LM_OK && c->initialised) r = cache_regather_all(c, err);
+    if (r == LM_OK && c->initialised) cache_borrow_free(&c->brw); /* every value gathered: nothing is borrowed */
     if (r != LM_OK) return r;
     /* What was below the JND may not be now (a shadow no longer masked by another
      * light): every leaf is tested again, without new light samples unless the
