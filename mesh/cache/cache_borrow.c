@@ -108,21 +108,23 @@ lm_result cache_borrow_start(cache *c, uint32_t *order, uint32_t n, const uint32
 void cache_borrow_release(cache *c) { c->brw.released = c->brw.head < c->brw.pending_n; }
 uint64_t cache_borrow_pending(const cache *c) { return c->brw.released ? c->brw.pending_corners : 0; }
 
-/* What vertex vid borrows from the span's donors `left` and `right` (order
- * positions, nearest first): the weighted mean of their values, and its standard
- * errors (edge test's and likely) from theirs. Returns 0 if it has no donor. */
-static int borrow_value(const cache *c, uint32_t vid, const uint32_t left[2], const uint32_t right[2], float E[3],
-                        float sg[3], float sl[3])
+/* The span's donors (vertex ids), left then right, nearest last then first. */
+static int span_donors(const cache_borrow_state *b, const uint32_t left[2], const uint32_t right[2], uint32_t d[4])
 {
-    const cache_borrow_state *b = &c->brw;
-    uint32_t d[4];
-    int nd = 0, q[4];
+    int nd = 0;
     for (int k = 1; k >= 0; --k)
         if (left[k] != CACHE_BORROW_NONE) d[nd++] = b->order[left[k]];
     for (int k = 0; k < 2; ++k)
         if (right[k] != CACHE_BORROW_NONE) d[nd++] = b->order[right[k]];
+    return nd;
+}
+
+int cache_borrow_mean(const cache *c, uint32_t vid, const uint32_t *d, int nd, double span, float E[3], float sg[3],
+                      float sl[3])
+{
+    int q[4];
     double w[4], wsum = 0.0, e[3] = {0, 0, 0}, v1[3] = {0, 0, 0}, v2[3] = {0, 0, 0};
-    int nb = cache_borrow_weights(c, vid, d, nd, b->span, q, w);
+    int nb = cache_borrow_weights(c, vid, d, nd, span, q, w);
     for (int i = 0; i < nb; ++i) wsum += w[i];
     if (!(wsum > 0.0)) return 0;
     for (int i = 0; i < nb; ++i) {
@@ -143,6 +145,16 @@ static int borrow_value(const cache *c, uint32_t vid, const uint32_t left[2], co
         sl[k] = (float)sqrt(v2[k]);
     }
     return 1;
+}
+
+/* What vertex vid borrows from the span's donors `left` and `right` (order
+ * positions, nearest first): cache_borrow_mean. */
+static int borrow_value(const cache *c, uint32_t vid, const uint32_t left[2], const uint32_t right[2], float E[3],
+                        float sg[3], float sl[3])
+{
+    uint32_t d[4];
+    const int nd = span_donors(&c->brw, left, right, d);
+    return cache_borrow_mean(c, vid, d, nd, c->brw.span, E, sg, sl);
 }
 
 /* What the viewer sees at vertex vid with indirect irradiance e (CIELAB). */
@@ -191,11 +203,8 @@ static uint32_t least_supported(const cache *c, const cache_borrow_span *s, int 
 {
     const cache_borrow_state *b = &c->brw;
     uint32_t d[4], best = s->lo + (s->hi - s->lo) / 2;
-    int nd = 0, q[4];
-    for (int k = 1; k >= 0; --k)
-        if (s->left[k] != CACHE_BORROW_NONE) d[nd++] = b->order[s->left[k]];
-    for (int k = 0; k < 2; ++k)
-        if (s->right[k] != CACHE_BORROW_NONE) d[nd++] = b->order[s->right[k]];
+    int q[4];
+    const int nd = span_donors(b, s->left, s->right, d);
     double least = INFINITY;
     *coherent = 1;
     for (uint32_t p = s->lo; p <= s->hi; ++p) {

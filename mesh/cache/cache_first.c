@@ -193,20 +193,27 @@ static lm_result pick_corners(const cache *c, const mesh_qmesh *m, const uint32_
     return LM_OK;
 }
 
-/* The chosen corners a corner at order position i borrows from, and their
- * weights: of the two chosen ones on either side of it in the order, those
- * whose normal is within 72° of its own, weighted (n·n_g)² over the distance;
- * the nearest one if none is (cache_borrow_weights). q: indices into
- * pk->chosen. Returns how many (0 only with nothing chosen). */
-static int borrow_from(const cache *c, const first_pick *pk, uint32_t vid, uint32_t i, uint32_t q[4], double w[4])
+/* The chosen corners beside order position i: two on either side (vertex ids
+ * into d, their indices in pk->chosen into j0). Returns how many. */
+static int donors_of(const first_pick *pk, uint32_t i, uint32_t d[4], uint32_t j0[4])
 {
-    uint32_t d[4], j0[4];
-    int nd = 0, k[4];
+    int nd = 0;
     for (int64_t j = (int64_t)pk->before[i] - 2; j < (int64_t)pk->before[i] + 2; ++j) {
         if (j < 0 || j >= pk->nchosen) continue;
         j0[nd] = (uint32_t)j;
         d[nd++] = pk->chosen[j];
     }
+    return nd;
+}
+
+/* The chosen corners a corner at order position i borrows from, and their
+ * weights (cache_borrow_weights). q: indices into pk->chosen. Returns how many
+ * (0 only with nothing chosen). */
+static int borrow_from(const cache *c, const first_pick *pk, uint32_t vid, uint32_t i, uint32_t q[4], double w[4])
+{
+    uint32_t d[4], j0[4];
+    int k[4];
+    const int nd = donors_of(pk, i, d, j0);
     int n = cache_borrow_weights(c, vid, d, nd, pk->span, k, w);
     for (int b = 0; b < n; ++b) q[b] = j0[k[b]];
     return n;
@@ -223,6 +230,9 @@ lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E,
     uint32_t *order = malloc((size_t)n * sizeof *order);
     r = Er && order ? cache_sample_indirect(c, pk.chosen, pk.nchosen, Er, err)
                     : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's gathers");
+    /* The gathered values in the mesh first: the others borrow from them there. */
+    for (uint32_t j = 0; r == LM_OK && j < pk.nchosen; ++j)
+        r = mesh_qmesh_set_value(c->indirect, pk.chosen[j], Er + 3 * (size_t)j, err);
     for (uint32_t i = 0, j = 0; r == LM_OK && i < n; ++i) {
         const uint32_t vid = v[pk.kv[i].index];
         float *out = E + 3 * (size_t)pk.kv[i].index;
@@ -233,27 +243,11 @@ lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E,
         }
         /* Borrowed, with the standard errors of the weighted mean (tested after
          * the first image: cache_borrow.c). */
-        uint32_t q[4];
-        double w[4], sum[3] = {0, 0, 0}, v1[3] = {0, 0, 0}, v2[3] = {0, 0, 0}, wsum = 0.0;
-        int nb = borrow_from(c, &pk, vid, i, q, w);
-        for (int b = 0; b < nb; ++b) wsum += w[b];
-        for (int b = 0; b < nb && wsum > 0.0; ++b) {
-            float s1[3], s2[3];
-            cache_indirect_sigma(c, pk.chosen[q[b]], s1);
-            cache_indirect_likely_sigma(c, pk.chosen[q[b]], s2);
-            const double a = w[b] / wsum;
-            for (int k = 0; k < 3; ++k) {
-                sum[k] += a * Er[3 * (size_t)q[b] + (size_t)k];
-                v1[k] += a * a * s1[k] * s1[k];
-                v2[k] += a * a * s2[k] * s2[k];
-            }
-        }
+        uint32_t d[4], j0[4];
         float sg[3], sl[3];
-        for (int k = 0; k < 3; ++k) {
-            out[k] = (float)sum[k];
-            sg[k] = (float)sqrt(v1[k]);
-            sl[k] = (float)sqrt(v2[k]);
-        }
+        const int nd = donors_of(&pk, i, d, j0);
+        if (!cache_borrow_mean(c, vid, d, nd, pk.span, out, sg, sl))
+            out[0] = out[1] = out[2] = sg[0] = sg[1] = sg[2] = sl[0] = sl[1] = sl[2] = 0.0f;
         r = cache_set_borrowed(c, vid, out, sg, sl, INFINITY, err);
     }
     if (r == LM_OK) {

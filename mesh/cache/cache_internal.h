@@ -598,6 +598,12 @@ void cache_bounces_free(cache_bounce_state *b);
  * that keeps the distance off 0); the nearest if none is. Writes the donors'
  * indices into q and their weights into w; returns how many (0: nd was 0). */
 int cache_borrow_weights(const cache *c, uint32_t vid, const uint32_t *d, int nd, double span, int q[4], double w[4]);
+/* What vertex vid borrows from donors d[0..nd) (vertex ids with indirect values
+ * and σ): their mean with cache_borrow_weights, into E, and its standard errors
+ * (the edge test's and the likely one, as cache_indirect_sigma) from theirs.
+ * Returns 0, writing nothing, when no donor weighs. */
+int cache_borrow_mean(const cache *c, uint32_t vid, const uint32_t *d, int nd, double span, float E[3], float sg[3],
+                      float sl[3]);
 /* Takes the first image's order (n vertex ids, Morton order; the array is the
  * cache's from now on) and its donors' positions at[0..nchosen) (ascending):
  * every other corner is borrowed (untested) and its span waits for
