@@ -107,10 +107,11 @@ typedef struct cache_desc {
                                  seen"): the coarse cache gathers indirect light at no more root
                                  corners than this, spread over the scene, and the other corners
                                  borrow from the gathered ones near them, until the first
-                                 cache_regather_indirect or cache_set_bounces: that flags every
-                                 value, and cache_refine gathers them again, a bounded number a
-                                 call, before it refines (from then on every corner is gathered
-                                 at once); 0 = every corner */
+                                 cache_regather_indirect or cache_set_bounces: that flags the
+                                 gathered values, and cache_refine gathers them again and tests
+                                 the borrowed ones (cache_borrow.c: kept where a gather in their
+                                 run agrees), a bounded number a call, before it refines (from
+                                 then on every corner is gathered at once); 0 = every corner */
     cache_scheduler scheduler;
     uint32_t seed;            /* the random scheduler's picks */
     int single_mesh;          /* ablation: one combined radiance mesh (Tole et al. 2002): no
@@ -223,7 +224,8 @@ void cache_set_sampler(cache *c, samp_sampler *sp);
 /* Gathers every vertex of the indirect mesh(es) again with the current sampler
  * (after cache_set_sampler: the coarse cache's quick gathers replaced): at once,
  * or, after a first image made with cache_desc.coarse_gathers, by the next
- * cache_refine calls (see coarse_gathers). */
+ * cache_refine calls, which gather the gathered values again and test the
+ * borrowed ones (see coarse_gathers). */
 lm_result cache_regather_indirect(cache *c, lm_error *err);
 /* The pixel counts given to cache_refine changed (a new view): every mesh's
  * leaves are scheduled again by the new priorities at the next cache_refine. */
