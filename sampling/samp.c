@@ -147,6 +147,24 @@ int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *m, lm_err
     return 1;
 }
 
+lm_result samp_radiance_mesh_prepare(const scene *s, const samp_radiance_mesh *m, samp_radiance_index *ix,
+                                     lm_error *err)
+{
+    memset(ix, 0, sizeof *ix);
+    if (!s) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_radiance_mesh_prepare: no scene");
+    if (!samp_radiance_mesh_valid(s, m, err)) return LM_ERR_INVALID_ARG;
+    samp_radiance_index_build(s, m, ix); /* without it (no memory): linear search */
+    ix->checked = 1;
+    return LM_OK;
+}
+
+/* A mesh a call may use: prepared (checked once) or checked now. */
+static int mesh_ok(const samp_sampler *sp, const samp_radiance_mesh *mesh, lm_error *err)
+{
+    if (mesh && mesh->index && mesh->index->checked) return 1;
+    return samp_radiance_mesh_valid(sp->s, mesh, err);
+}
+
 lm_result samp_create(const samp_desc *desc, samp_sampler **out, lm_error *err)
 {
     *out = NULL;
@@ -266,7 +284,7 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
                         float *E, lm_error *err)
 {
     if (!sp || (n && (!pts || !E))) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect: missing arguments");
-    if (!samp_radiance_mesh_valid(sp->s, mesh, err)) return LM_ERR_INVALID_ARG;
+    if (!mesh_ok(sp, mesh, err)) return LM_ERR_INVALID_ARG;
     if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect: non-finite point or normal");
     if (n == 0) return LM_OK;
     double t0 = lm_now_seconds();
@@ -287,7 +305,7 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
         if (r == LM_OK) memset(std_err, 0, 3 * (size_t)n * sizeof *std_err);
         return r;
     }
-    if (!samp_radiance_mesh_valid(sp->s, mesh, err)) return LM_ERR_INVALID_ARG;
+    if (!mesh_ok(sp, mesh, err)) return LM_ERR_INVALID_ARG;
     if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_noise: non-finite point or normal");
     if (n == 0) return LM_OK;
     double t0 = lm_now_seconds();
@@ -309,7 +327,7 @@ lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_sources: missing arguments");
     if (out->rays < 1 || out->rays > 4096)
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_sources: %u rays a point (1..4096)", out->rays);
-    if (!samp_radiance_mesh_valid(sp->s, mesh, err)) return LM_ERR_INVALID_ARG;
+    if (!mesh_ok(sp, mesh, err)) return LM_ERR_INVALID_ARG;
     if (!points_valid(pts, n))
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_sources: non-finite point or normal");
     /* The cache's pilot rays are indirect work: timed as such (not counted as samples). */

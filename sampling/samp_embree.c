@@ -205,11 +205,11 @@ static lm_result embree_indirect_noise(void *impl, const samp_radiance_mesh *mes
 {
     (void)err;
     const embree_impl *e = impl;
-    samp_radiance_index ix;
-    samp_radiance_index_build(e->s, mesh, &ix); /* without it (no memory): linear search */
+    samp_radiance_index ix = {0};
+    if (!mesh->index) samp_radiance_index_build(e->s, mesh, &ix); /* without it (no memory): linear search */
     int k = e->indirect_k * (int)ceil(sqrt((double)(scale ? scale : 1)) - 1e-9);
-    batch b = {.e = impl, .mesh = mesh, .index = &ix, .pts = pts, .n = n, .out = E, .std_err = std_err, .k = k,
-               .pass = pass};
+    batch b = {.e = impl, .mesh = mesh, .index = mesh->index ? mesh->index : &ix, .pts = pts, .n = n, .out = E,
+               .std_err = std_err, .k = k, .pass = pass};
     run_batch(impl, &b);
     samp_radiance_index_free(&ix);
     return LM_OK;

@@ -85,30 +85,55 @@ int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_
     return 1;
 }
 
+/* Barycentrics l of (w1, w2) in sub-triangle i's 2D triangle; 0 when it is degenerate. */
+static int sub_bary(const samp_radiance_mesh *m, uint32_t i, float w1, float w2, float l[3])
+{
+    const float *b = m->bary + 6 * (size_t)i;
+    float ax = b[0], ay = b[1], bx = b[2], by = b[3], cx = b[4], cy = b[5];
+    float det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
+    if (det == 0.0f) return 0;
+    l[1] = ((w1 - ax) * (cy - ay) - (cx - ax) * (w2 - ay)) / det;
+    l[2] = ((bx - ax) * (w2 - ay) - (w1 - ax) * (by - ay)) / det;
+    l[0] = 1.0f - l[1] - l[2];
+    return 1;
+}
+
 /* Among sub-triangles [ids or lo..hi), the one containing (w1, w2) or least outside
- * of it; its barycentrics in l. Returns the best minimum barycentric (−∞: none). */
+ * of it; its barycentrics in l. Returns the best minimum barycentric (−∞: none).
+ * First without a division: the point's three edge functions all on the side of
+ * the triangle's orientation (or on an edge) mean it is inside (almost every
+ * look-up ends there, at its first such triangle); only when none holds it are the
+ * barycentrics of every candidate compared. */
 static float locate(const samp_radiance_mesh *m, const uint32_t *ids, uint32_t lo, uint32_t hi, float w1, float w2,
                     uint32_t *best, float l[3])
 {
-    float best_min = -INFINITY;
     for (uint32_t j = lo; j < hi; ++j) {
         uint32_t i = ids ? ids[j] : j;
         const float *b = m->bary + 6 * (size_t)i;
-        /* Barycentrics of (w1, w2) in the 2D triangle (b0, b1, b2). */
-        float ax = b[0], ay = b[1], bx = b[2], by = b[3], cx = b[4], cy = b[5];
-        float det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
-        if (det == 0.0f) continue;
-        float l1 = ((w1 - ax) * (cy - ay) - (cx - ax) * (w2 - ay)) / det;
-        float l2 = ((bx - ax) * (w2 - ay) - (w1 - ax) * (by - ay)) / det;
-        float l0 = 1.0f - l1 - l2;
-        float mn = fminf(l0, fminf(l1, l2));
+        float e0 = (b[2] - b[0]) * (w2 - b[1]) - (w1 - b[0]) * (b[3] - b[1]);
+        float e1 = (b[4] - b[2]) * (w2 - b[3]) - (w1 - b[2]) * (b[5] - b[3]);
+        float e2 = (b[0] - b[4]) * (w2 - b[5]) - (w1 - b[4]) * (b[1] - b[5]);
+        int inside = (e0 >= 0.0f && e1 >= 0.0f && e2 >= 0.0f) || (e0 <= 0.0f && e1 <= 0.0f && e2 <= 0.0f);
+        float t[3];
+        if (inside && sub_bary(m, i, w1, w2, t)) {
+            float mn = fminf(t[0], fminf(t[1], t[2]));
+            if (mn >= 0.0f) {
+                *best = i;
+                memcpy(l, t, sizeof t);
+                return mn;
+            }
+        }
+    }
+    float best_min = -INFINITY;
+    for (uint32_t j = lo; j < hi; ++j) {
+        uint32_t i = ids ? ids[j] : j;
+        float t[3];
+        if (!sub_bary(m, i, w1, w2, t)) continue;
+        float mn = fminf(t[0], fminf(t[1], t[2]));
         if (mn > best_min) {
             best_min = mn;
             *best = i;
-            l[0] = l0;
-            l[1] = l1;
-            l[2] = l2;
-            if (mn >= 0.0f) break;
+            memcpy(l, t, sizeof t);
         }
     }
     return best_min;

@@ -90,10 +90,10 @@ static void sources_one(void *user, uint32_t i)
 void samp_sources_trace(const scene *s, const rt_scene *rt, uint32_t seed, int threads, const samp_radiance_mesh *mesh,
                         const samp_point *pts, uint32_t n, const samp_source_hits *out)
 {
-    samp_radiance_index ix;
-    samp_radiance_index_build(s, mesh, &ix); /* without it (no memory): linear search */
+    samp_radiance_index ix = {0};
+    if (!mesh->index) samp_radiance_index_build(s, mesh, &ix); /* without it (no memory): linear search */
     int k = (int)floor(sqrt((double)out->rays));
-    sources_job job = {.s = s, .rt = rt, .mesh = mesh, .index = &ix, .pts = pts, .out = out, .seed = seed,
+    sources_job job = {.s = s, .rt = rt, .mesh = mesh, .index = mesh->index ? mesh->index : &ix, .pts = pts, .out = out, .seed = seed,
                        .k = k < 1 ? 1 : k};
     samp_parallel_for(samp_thread_count(threads), n, sources_one, &job);
     samp_radiance_index_free(&ix);

@@ -528,6 +528,110 @@ static void test_determinism_and_garbage(void)
     scene_destroy(s);
 }
 
+/* Point location in a radiance mesh (samp_radiance_at): scene triangle 0 cut into
+ * the 4^5 triangles of a midpoint lattice (a grid index), radiance linear in
+ * (w1, w2), so every look-up must give the linear value exactly where it is
+ * (inside, on an edge, at a corner), with the index and by linear search alike.
+ * And a prepared mesh (samp_radiance_mesh_prepare) gives the same gathers as one
+ * checked and indexed per call; a non-finite one is refused. */
+static void lattice(const float a[2], const float b[2], const float c[2], int depth, float *bary, uint32_t *n)
+{
+    if (depth == 0) {
+        const float *v[3] = {a, b, c};
+        for (int k = 0; k < 3; ++k) {
+            bary[6 * *n + 2 * (uint32_t)k] = v[k][0];
+            bary[6 * *n + 2 * (uint32_t)k + 1] = v[k][1];
+        }
+        ++*n;
+        return;
+    }
+    const float ab[2] = {(a[0] + b[0]) / 2, (a[1] + b[1]) / 2}, bc[2] = {(b[0] + c[0]) / 2, (b[1] + c[1]) / 2},
+                ca[2] = {(c[0] + a[0]) / 2, (c[1] + a[1]) / 2};
+    lattice(a, ab, ca, depth - 1, bary, n);
+    lattice(ab, b, bc, depth - 1, bary, n);
+    lattice(ca, bc, c, depth - 1, bary, n);
+    lattice(bc, ca, ab, depth - 1, bary, n); /* the middle one, turned */
+}
+
+static float linear_L(float w1, float w2, int ch) { return 1.0f + (float)(ch + 1) * w1 + 2.0f * w2; }
+
+static void test_radiance_index(void)
+{
+    scene *s = load("room_ix.json", inside_light(), NULL);
+    if (!s) return;
+    enum { DEPTH = 5, SUBS = 1024 };
+    uint32_t *first = calloc(s->tri_count + 1, sizeof *first);
+    float *bary = malloc(6 * SUBS * sizeof *bary), *rad = malloc(9 * SUBS * sizeof *rad);
+    uint32_t n = 0;
+    lattice((const float[2]){0, 0}, (const float[2]){1, 0}, (const float[2]){0, 1}, DEPTH, bary, &n);
+    CHECK(n == SUBS);
+    for (uint32_t t = 1; t <= s->tri_count; ++t) first[t] = SUBS;
+    for (uint32_t i = 0; i < SUBS; ++i)
+        for (int k = 0; k < 3; ++k)
+            for (int ch = 0; ch < 3; ++ch)
+                rad[9 * i + 3 * (uint32_t)k + (uint32_t)ch] = linear_L(bary[6 * i + 2 * (uint32_t)k], bary[6 * i + 2 * (uint32_t)k + 1], ch);
+    samp_radiance_mesh m = {.tri_count = SUBS, .first = first, .bary = bary, .radiance = rad};
+    samp_radiance_index ix, none = {0};
+    lm_error err;
+    CHECK(samp_radiance_mesh_prepare(s, &m, &ix, &err) == LM_OK && ix.checked && ix.res && ix.res[0] > 0);
+    lm_rng g;
+    lm_rng_seed(&g, 7, 0, 0);
+    double worst = 0.0, outside = 0.0;
+    int differ = 0;
+    for (int q = 0; q < 4000; ++q) {
+        float w1, w2;
+        if (q < 1000) { /* lattice points and edge midpoints at depth DEPTH + 1: on corners and edges */
+            int i = q % 65, j = (q / 65) % 65;
+            if (i + j > 64) continue;
+            w1 = (float)i / 64.0f;
+            w2 = (float)j / 64.0f;
+        } else {
+            w1 = lm_rng_float(&g);
+            w2 = lm_rng_float(&g) * (1.0f - w1);
+        }
+        float a[3], b[3];
+        uint32_t ta = samp_radiance_at(&m, &ix, 0, w1, w2, a), tb = samp_radiance_at(&m, &none, 0, w1, w2, b);
+        CHECK(ta < SUBS && tb < SUBS);
+        if (ta < SUBS) { /* the point is in the sub-triangle found (or on its edge) */
+            const float *b3 = bary + 6 * ta;
+            double det = (b3[2] - b3[0]) * (b3[5] - b3[1]) - (b3[4] - b3[0]) * (b3[3] - b3[1]);
+            double l1 = ((w1 - b3[0]) * (b3[5] - b3[1]) - (b3[4] - b3[0]) * (w2 - b3[1])) / det;
+            double l2 = ((b3[2] - b3[0]) * (w2 - b3[1]) - (w1 - b3[0]) * (b3[3] - b3[1])) / det;
+            outside = fmax(outside, -fmin(1.0 - l1 - l2, fmin(l1, l2)));
+        }
+        for (int ch = 0; ch < 3; ++ch) {
+            worst = fmax(worst, fabs(a[ch] - linear_L(w1, w2, ch)));
+            worst = fmax(worst, fabs(b[ch] - linear_L(w1, w2, ch)));
+            differ += fabsf(a[ch] - b[ch]) > 1e-5f;
+        }
+    }
+    printf("radiance index: worst error of a linear field %.2e, %d values differ from the linear search\n", worst,
+           differ);
+    CHECK_MSG(worst < 1e-5, "point location: %.3e from the linear field", worst);
+    CHECK_MSG(outside < 1e-6, "point location: a point %.3e outside the sub-triangle found", outside);
+    CHECK(differ == 0);
+
+    /* A prepared mesh gathers what an unprepared one does, ray for ray. */
+    samp_sampler *sp = make(s, 64, 0, 2);
+    samp_point pts[16];
+    uint32_t np = floor_points(pts);
+    float E0[48], E1[48];
+    CHECK(samp_indirect(sp, &m, pts, np, E0, &err) == LM_OK);
+    samp_radiance_mesh mp = m;
+    mp.index = &ix;
+    CHECK(samp_indirect(sp, &mp, pts, np, E1, &err) == LM_OK);
+    CHECK(memcmp(E0, E1, 3 * np * sizeof *E0) == 0);
+    samp_radiance_index_free(&ix);
+    rad[5] = NAN;
+    CHECK(samp_radiance_mesh_prepare(s, &m, &ix, &err) == LM_ERR_INVALID_ARG && !ix.checked);
+    CHECK(strstr(err.msg, "finite") != NULL);
+    samp_destroy(sp);
+    free(first);
+    free(bary);
+    free(rad);
+    scene_destroy(s);
+}
+
 int main(void)
 {
     init_rotation();
@@ -539,5 +643,6 @@ int main(void)
     test_sources();
     test_strat_var();
     test_determinism_and_garbage();
+    test_radiance_index();
     return test_finish("samp_embree_test");
 }

@@ -367,11 +367,9 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
 {
     const scene *s = c->s;
     const samp_radiance_mesh old = {.tri_count = (uint32_t)c->src.rp_count, .first = c->src.rp_first, .bary = c->src.rp_bary,
-                                    .radiance = c->src.rp_rad};
+                                    .radiance = c->src.rp_rad, .index = &c->src.rp_index};
     const samp_radiance_mesh *cur = &c->src.rmesh;
-    samp_radiance_index ix_old, ix_new;
-    samp_radiance_index_build(s, &old, &ix_old);
-    samp_radiance_index_build(s, cur, &ix_new);
+    const samp_radiance_index *ix_old = &c->src.rp_index, *ix_new = &c->src.rm_index;
     float *d = calloc(3 * (size_t)(cur->tri_count ? cur->tri_count : 1), sizeof *d);
     /* The mean change at each new triangle's corners (its ∫ change dA over its
      * area where the old source is linear over it), and whether it is not: an old
@@ -387,7 +385,7 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
             for (int k = 0; k < 3; ++k) {
                 const float *b = cur->bary + 6 * (size_t)i, *rad = cur->radiance + 9 * (size_t)i;
                 float was[3];
-                samp_radiance_at(&old, &ix_old, t, b[2 * k], b[2 * k + 1], was);
+                samp_radiance_at(&old, ix_old, t, b[2 * k], b[2 * k + 1], was);
                 for (int chn = 0; chn < 3; ++chn) {
                     d[3 * i + (uint32_t)chn] = fmaxf(d[3 * i + (uint32_t)chn], fabsf(rad[3 * k + chn] - was[chn]));
                     sd[3 * i + (uint32_t)chn] += (rad[3 * k + chn] - was[chn]) / 3.0f;
@@ -398,7 +396,7 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
             for (int k = 0; k < 3; ++k) {
                 const float *b = old.bary + 6 * (size_t)i, *rad = old.radiance + 9 * (size_t)i;
                 float now[3];
-                uint32_t at = samp_radiance_at(cur, &ix_new, t, b[2 * k], b[2 * k + 1], now);
+                uint32_t at = samp_radiance_at(cur, ix_new, t, b[2 * k], b[2 * k + 1], now);
                 if (at == UINT32_MAX) continue;
                 const float *nb = cur->bary + 6 * (size_t)at;
                 int corner = 0;
@@ -490,7 +488,5 @@ lm_result cache_mark_outdated(cache *c, lm_error *err)
     free(d);
     free(sd);
     free(nonlinear);
-    samp_radiance_index_free(&ix_old);
-    samp_radiance_index_free(&ix_new);
     return r;
 }

@@ -124,7 +124,9 @@ typedef struct cache_outlines {
 typedef struct cache_source_state {
     /* The radiance source of indirect samples: kd·L_dd over a cut of the direct
      * mesh, rebuilt when the direct mesh has changed enough. */
-    samp_radiance_mesh rmesh;
+    samp_radiance_mesh rmesh;  /* rmesh.index = &rm_index */
+    samp_radiance_index rm_index; /* rmesh checked and indexed once a build (samp_radiance_mesh_prepare) */
+    samp_radiance_index rp_index; /* the same for the previous source (rm_index of the build before) */
     uint32_t *rm_first;
     float *rm_bary, *rm_rad;
     size_t rm_cap;             /* triangles allocated */

@@ -42,6 +42,8 @@ struct source_pick {
 
 void cache_source_free(cache_source_state *st)
 {
+    samp_radiance_index_free(&st->rm_index);
+    samp_radiance_index_free(&st->rp_index);
     free(st->rm_first);
     free(st->rm_bary);
     free(st->rm_rad);
@@ -309,6 +311,12 @@ static lm_result build_source(cache *c, int track, lm_error *err)
         if (root != MESH_QMESH_NONE && cache_tri_active(c, t)) r = collect_source(c, root, &count, err);
     }
     if (r != LM_OK) return r;
+    /* The current index describes the previous source now (keep_previous copied
+     * the arrays it was made for): it moves there, and the new one is made below. */
+    samp_radiance_index_free(&c->src.rp_index);
+    c->src.rp_index = c->src.rm_index;
+    memset(&c->src.rm_index, 0, sizeof c->src.rm_index);
+    c->src.rmesh.index = NULL;
     r = grow_source(s, &c->src.rm_first, &c->src.rm_bary, &c->src.rm_rad, &c->src.rm_cap, count, err);
     if (r != LM_OK) return r;
     /* Counting sort by scene triangle (the cut is collected in scene order already,
@@ -339,6 +347,10 @@ static lm_result build_source(cache *c, int track, lm_error *err)
     }
     c->src.rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->src.rm_first, .bary = c->src.rm_bary,
                                     .radiance = c->src.rm_rad};
+    /* Checked and indexed once here, not by every gather batch. */
+    r = samp_radiance_mesh_prepare(s, &c->src.rmesh, &c->src.rm_index, err);
+    if (r != LM_OK) return r;
+    c->src.rmesh.index = &c->src.rm_index;
     c->src.built_at = cache_direct_changes(c);
     c->src.built_nodes = mesh_qmesh_node_count(c->direct);
     /* The single-mesh ablation keeps what it gathered. Before the first image
