@@ -299,8 +299,10 @@ float samp_point_epsilon(const samp_sampler *sp, const samp_point *x);
 int samp_radiance_mesh_valid(const scene *s, const samp_radiance_mesh *mesh, lm_error *err);
 
 /* Point location in a radiance mesh. A scene triangle with more than 16
- * sub-triangles gets a res×res grid over its barycentric square (w1, w2) ∈ [0,1]²,
- * res = ⌈√count⌉, each cell listing the sub-triangles whose bounding box meets it;
+ * sub-triangles gets a grid over its barycentric square (w1, w2) ∈ [0,1]²: res ×
+ * res squares (res the power of two at or above √count), each halved along its
+ * anti-diagonal, each half listing the sub-triangles that overlap it (the halves
+ * are the midpoint lattice's triangles, which the cache's sources are cut from);
  * others are searched linearly. Built in time linear in the mesh; valid while the
  * mesh is unchanged. Pure data: any thread may read a built index. */
 struct samp_radiance_index {

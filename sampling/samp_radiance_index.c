@@ -8,6 +8,10 @@
 #include <string.h>
 
 enum { GRID_MIN = 16 };
+/* How far outside a sub-triangle (in its own barycentrics) rounding may put a
+ * point in it: a hit with w1 + w2 a little over 1, or on a deep sub-triangle
+ * (2^-13 across), whose barycentrics float's 2^-24 moves by ~10^-3 of it. */
+#define LOCATE_ROUNDING 1e-3f
 
 void samp_radiance_index_free(samp_radiance_index *ix)
 {
@@ -18,23 +22,77 @@ void samp_radiance_index_free(samp_radiance_index *ix)
     memset(ix, 0, sizeof *ix);
 }
 
-static uint32_t grid_cell(float w, uint32_t res)
+/* The grid of a scene triangle: res × res squares over (w1, w2) ∈ [0,1]², res a
+ * power of two, each square cut along its anti-diagonal into a lower half
+ * (u + v < 1 inside the square) and an upper half: cell 2·(y·res + x) + upper.
+ * These halves are the triangles of the midpoint lattice at depth log2(res), which
+ * is where the cache's source comes from (a cut of its quadtree meshes): a
+ * sub-triangle of depth ≤ log2(res) covers whole halves and a deeper one lies in
+ * one, so a half lists only the sub-triangles that overlap it (not ones that touch
+ * it along an edge), one where the cut is coarse. With res = ⌈√count⌉ and the
+ * square cells of bounding boxes used before, a look-up on the 116k box met 14
+ * candidates on average. Other meshes get a correct, if less tight, index. */
+static uint32_t grid_coord(float w, uint32_t res)
 {
     float f = floorf(w * (float)res);
     return f <= 0.0f ? 0u : f >= (float)(res - 1) ? res - 1 : (uint32_t)f;
 }
 
-/* Grid cells [x0, x1] × [y0, y1] that sub-triangle i's bounding box meets. */
-static void sub_cells(const samp_radiance_mesh *m, uint32_t i, uint32_t res, uint32_t *x0, uint32_t *x1, uint32_t *y0,
-                      uint32_t *y1)
+static size_t grid_half(float w1, float w2, uint32_t res)
+{
+    uint32_t x = grid_coord(w1, res), y = grid_coord(w2, res);
+    float u = w1 * (float)res - (float)x, v = w2 * (float)res - (float)y;
+    /* On the triangle's long edge the upper half is outside it: a point there
+     * (w1 + w2 > 1 by rounding) belongs to the lower one. */
+    int upper = u + v > 1.0f && x + y + 1 < res;
+    return 2 * ((size_t)y * res + x) + (size_t)upper;
+}
+
+/* Do triangles a and b (3 points each, 2D) overlap in more than an edge or a
+ * point? Separating axes: the six edge normals; a gap of at most tol counts as
+ * separated (touching). */
+static int overlaps(const float a[6], const float b[6], float tol)
+{
+    const float *tri[2] = {a, b};
+    for (int s = 0; s < 2; ++s)
+        for (int e = 0; e < 3; ++e) {
+            const float *p = tri[s] + 2 * e, *q = tri[s] + 2 * ((e + 1) % 3);
+            float nx = q[1] - p[1], ny = p[0] - q[0];
+            float amin = INFINITY, amax = -INFINITY, bmin = INFINITY, bmax = -INFINITY;
+            for (int k = 0; k < 3; ++k) {
+                float pa = nx * a[2 * k] + ny * a[2 * k + 1], pb = nx * b[2 * k] + ny * b[2 * k + 1];
+                amin = fminf(amin, pa);
+                amax = fmaxf(amax, pa);
+                bmin = fminf(bmin, pb);
+                bmax = fmaxf(bmax, pb);
+            }
+            float scale = fabsf(nx) + fabsf(ny);
+            if (amax <= bmin + tol * scale || bmax <= amin + tol * scale) return 0;
+        }
+    return 1;
+}
+
+/* Counts (fill 0) or lists (fill 1) sub-triangle i in every half cell it overlaps. */
+static void sub_cells(const samp_radiance_mesh *m, uint32_t i, uint32_t res, size_t base, uint32_t *cell_first,
+                      uint32_t *items, int fill)
 {
     const float *b = m->bary + 6 * (size_t)i, eps = 1e-6f;
     float lo1 = fminf(b[0], fminf(b[2], b[4])) - eps, hi1 = fmaxf(b[0], fmaxf(b[2], b[4])) + eps;
     float lo2 = fminf(b[1], fminf(b[3], b[5])) - eps, hi2 = fmaxf(b[1], fmaxf(b[3], b[5])) + eps;
-    *x0 = grid_cell(lo1, res);
-    *x1 = grid_cell(hi1, res);
-    *y0 = grid_cell(lo2, res);
-    *y1 = grid_cell(hi2, res);
+    uint32_t x0 = grid_coord(lo1, res), x1 = grid_coord(hi1, res), y0 = grid_coord(lo2, res), y1 = grid_coord(hi2, res);
+    const float h = 1.0f / (float)res, tol = 1e-6f * h;
+    for (uint32_t y = y0; y <= y1; ++y)
+        for (uint32_t x = x0; x <= x1; ++x)
+            for (int upper = 0; upper < 2; ++upper) {
+                float X = (float)x * h, Y = (float)y * h;
+                const float lower_half[6] = {X, Y, X + h, Y, X, Y + h}, upper_half[6] = {X + h, Y, X + h, Y + h, X, Y + h};
+                if (!overlaps(b, upper ? upper_half : lower_half, tol)) continue;
+                size_t cell = base + 2 * ((size_t)y * res + x) + (size_t)upper;
+                if (fill)
+                    items[cell_first[cell]++] = i;
+                else
+                    cell_first[cell + 1]++;
+            }
 }
 
 /* 0 and an empty index (linear search everywhere) when memory runs out. */
@@ -49,9 +107,11 @@ int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_
     for (uint32_t t = 0; t < nt; ++t) {
         uint32_t count = m->first[t + 1] - m->first[t];
         if (count <= GRID_MIN) continue;
-        ix->res[t] = (uint32_t)ceil(sqrt((double)count));
+        uint32_t res = 1, want = (uint32_t)ceil(sqrt((double)count));
+        while (res < want) res *= 2;
+        ix->res[t] = res;
         ix->base[t] = (uint32_t)cells;
-        cells += (size_t)ix->res[t] * ix->res[t];
+        cells += 2 * (size_t)res * res;
     }
     if (cells == 0) return samp_radiance_index_free(ix), 0;
     ix->cell_first = calloc(cells + 1, sizeof *ix->cell_first);
@@ -60,18 +120,8 @@ int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_
         for (uint32_t t = 0; t < nt; ++t) {
             uint32_t res = ix->res[t];
             if (!res) continue;
-            for (uint32_t i = m->first[t]; i < m->first[t + 1]; ++i) {
-                uint32_t x0, x1, y0, y1;
-                sub_cells(m, i, res, &x0, &x1, &y0, &y1);
-                for (uint32_t y = y0; y <= y1; ++y)
-                    for (uint32_t x = x0; x <= x1; ++x) {
-                        size_t cell = ix->base[t] + (size_t)y * res + x;
-                        if (pass == 0)
-                            ix->cell_first[cell + 1]++;
-                        else
-                            ix->items[ix->cell_first[cell]++] = i;
-                    }
-            }
+            for (uint32_t i = m->first[t]; i < m->first[t + 1]; ++i)
+                sub_cells(m, i, res, ix->base[t], ix->cell_first, ix->items, pass);
         }
         if (pass == 0) {
             for (size_t k = 0; k < cells; ++k) ix->cell_first[k + 1] += ix->cell_first[k];
@@ -150,10 +200,12 @@ uint32_t samp_radiance_at(const samp_radiance_mesh *m, const samp_radiance_index
     float best_l[3] = {0, 0, 0}, best_min = -INFINITY;
     if (ix->res && ix->res[t]) {
         uint32_t res = ix->res[t];
-        size_t cell = ix->base[t] + (size_t)grid_cell(w2, res) * res + grid_cell(w1, res);
+        size_t cell = ix->base[t] + grid_half(w1, w2, res);
         best_min = locate(m, ix->items, ix->cell_first[cell], ix->cell_first[cell + 1], w1, w2, &best, best_l);
     }
-    if (best_min < 0.0f) { /* no grid, or rounding put the point outside its cell's triangles */
+    /* No grid, or the point is outside its cell's triangles by more than rounding
+     * (a point outside the scene triangle): every sub-triangle is searched. */
+    if (best_min < -LOCATE_ROUNDING) {
         uint32_t b2 = UINT32_MAX;
         float l2[3];
         if (locate(m, NULL, m->first[t], m->first[t + 1], w1, w2, &b2, l2) > best_min) {
