@@ -181,11 +181,23 @@ static void test_id_first(const GladGLContext *gl, const scene *s, float *want, 
                                                            .sampler = {.backend = SAMP_BACKEND_EMBREE}},
                                       &rs, &err);
     CHECK_MSG(r == LM_OK, "%s", err.msg);
+    /* As `render` does: the GL context released while refining (made again by the
+     * draw), the image and the id image the same as without. */
+    uint32_t *ids = calloc((size_t)W * H, sizeof *ids), *ids_again = calloc((size_t)W * H, sizeof *ids_again);
+    CHECK(rend_session_read_ids(rs, ids, &err) == LM_OK);
+    rend_session_release_gl(rs);
+    rend_session_release_gl(rs); /* twice: nothing left to release */
     if (r == LM_OK) same_as_hand(rs, cam, want, want_tested, got, "ID first");
     rend_session_info in;
     rend_session_get_info(rs, &in);
     CHECK(in.id_passes == 1 && in.id_seconds > 0 && in.draws[REND_SESSION_FINAL] == 1);
     CHECK(in.times[REND_SESSION_FINAL].supersample == SS && in.width == W && in.height == H);
+    CHECK(rend_session_read_ids(rs, ids_again, &err) == LM_OK); /* the ID pass again, at the same camera */
+    CHECK(memcmp(ids, ids_again, (size_t)W * H * sizeof *ids) == 0);
+    rend_session_get_info(rs, &in);
+    CHECK(in.id_passes == 2);
+    free(ids);
+    free(ids_again);
     rend_session_destroy(rs);
 }
 
@@ -204,6 +216,7 @@ static void test_worker_first(glctx *ctx, const scene *s, float *want, float *go
                                       &rs, &err);
     CHECK_MSG(r == LM_OK, "%s", err.msg);
     if (r != LM_OK) goto done;
+    rend_session_release_gl(rs); /* a borrowed context is the caller's: kept */
     CHECK(rend_session_gl(rs) == gl);
     const cache_snapshot *snap = NULL;
     r = rend_session_wait(rs, &(rend_session_wait_desc){.first = 1, .nap = 0.001}, &snap, &err);

@@ -186,6 +186,9 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     const cache_snapshot *snap = NULL;
     double limit = opts[1].seen ? seconds : DEFAULT_SECONDS_LIMIT;
     r = rend_session_create(&sd, &rs, &err);
+    /* Nothing is drawn until the refinement ends: the ID pass's GL context is not
+     * held meanwhile (docs/memory.md, "Sixth session"). */
+    if (r == LM_OK) rend_session_release_gl(rs);
     render_progress prog = {.t0 = t0, .limit = opts[1].seen ? seconds : 0, .tty = isatty(STDERR_FILENO)};
     if (r == LM_OK)
         r = rend_session_wait(rs, &(rend_session_wait_desc){.until = t0 + limit, .on_look = show_progress, .user = &prog},

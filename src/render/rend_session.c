@@ -16,6 +16,8 @@ struct rend_session {
     glctx *ctx;                       /* NULL when d.gl is borrowed */
     const GladGLContext *gl;
     rend_id *ip;
+    scene_camera id_cam;              /* the last ID pass's camera (id_done): made again after release_gl */
+    int id_done;
     cache_worker *wk;
     rend_frame *frame[REND_SESSION_RENDERER_COUNT];
     const cache_snapshot *snap;       /* the last acquired */
@@ -61,6 +63,7 @@ static lm_result check_desc(const rend_session_desc *d, lm_error *err)
 
 static lm_result make_context(rend_session *rs, lm_error *err)
 {
+    if (rs->gl) return LM_OK; /* made, or borrowed, already */
     if (rs->d.gl) {
         rs->gl = rs->d.gl;
         return LM_OK;
@@ -93,8 +96,8 @@ static lm_result id_pass(rend_session *rs, const scene_camera *cam, rend_id_resu
     if (!cam) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session: no camera for the ID pass");
     if (rs->info.width <= 0)
         return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session: no image size yet (rend_session_resize)");
-    lm_result r = LM_OK;
-    if (!rs->ip)
+    lm_result r = make_context(rs, err);
+    if (r == LM_OK && !rs->ip)
         r = rend_id_create(rs->gl, &(rend_id_desc){.scene = rs->d.scene, .width = rs->info.width,
                                                    .height = rs->info.height},
                            &rs->ip, err);
@@ -102,6 +105,8 @@ static lm_result id_pass(rend_session *rs, const scene_camera *cam, rend_id_resu
     if (r == LM_OK) {
         rs->info.id_passes++;
         rs->info.id_seconds = out->seconds;
+        rs->id_cam = *cam;
+        rs->id_done = 1;
     }
     return r;
 }
@@ -169,6 +174,15 @@ void rend_session_destroy(rend_session *rs)
     free(rs);
 }
 
+void rend_session_release_gl(rend_session *rs)
+{
+    if (!rs || !rs->ctx) return; /* a borrowed context (desc.gl) is the client's */
+    drop_gl_objects(rs);
+    glctx_destroy(rs->ctx);
+    rs->ctx = NULL;
+    rs->gl = NULL;
+}
+
 void rend_session_retire_worker(rend_session *rs)
 {
     if (rs) cache_worker_retire(rs->wk);
@@ -182,6 +196,7 @@ lm_result rend_session_resize(rend_session *rs, int width, int height, lm_error 
                        width, height);
     if (width == rs->info.width && height == rs->info.height) return LM_OK;
     drop_gl_objects(rs);
+    rs->id_done = 0;
     rs->info.width = width;
     rs->info.height = height;
     return LM_OK;
@@ -206,8 +221,14 @@ lm_result rend_session_set_pixels(rend_session *rs, const scene_camera *cam, lm_
 lm_result rend_session_read_ids(rend_session *rs, uint32_t *ids, lm_error *err)
 {
     if (!rs || !ids) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_read_ids: no session or no buffer");
-    if (!rs->ip) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_read_ids: no ID pass has run at this size");
-    return rend_id_read_image(rs->ip, ids, err);
+    if (!rs->id_done) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_read_ids: no ID pass has run at this size");
+    lm_result r = LM_OK;
+    if (!rs->ip) { /* released since (rend_session_release_gl): the same pass again */
+        rend_id_result again;
+        const scene_camera cam = rs->id_cam;
+        r = id_pass(rs, &cam, &again, err);
+    }
+    return r == LM_OK ? rend_id_read_image(rs->ip, ids, err) : r;
 }
 
 lm_result rend_session_acquire(rend_session *rs, const cache_snapshot **snap, lm_error *err)
@@ -255,7 +276,9 @@ lm_result rend_session_renderer(rend_session *rs, rend_session_renderer_kind kin
         return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_renderer: no image size yet (rend_session_resize)");
     if (!rs->frame[kind]) {
         int s = kind == REND_SESSION_FINAL ? rs->d.supersample : 1;
-        lm_result r = rend_frame_create(rs->gl, &(rend_frame_desc){.scene = rs->d.scene, .width = rs->info.width,
+        lm_result r = make_context(rs, err);
+        if (r != LM_OK) return r;
+        r = rend_frame_create(rs->gl, &(rend_frame_desc){.scene = rs->d.scene, .width = rs->info.width,
                                                                    .height = rs->info.height, .supersample = s},
                                         &rs->frame[kind], err);
         if (r != LM_OK) return r;

@@ -136,6 +136,13 @@ void rend_session_destroy(rend_session *rs);
  * held (rend_session_snapshot) stays valid and drawable; acquire, views and edits
  * bring nothing new after it. For a client done refining that only draws. */
 void rend_session_retire_worker(rend_session *rs);
+/* Frees the session's GL objects and the context it made (a borrowed one,
+ * desc.gl, is left as it is) until a call needs GL again (an ID pass, a renderer,
+ * read_ids), which makes them anew. For a client that waits long between draws:
+ * `render` refining holds no llvmpipe context (~40 MB on the 116k box;
+ * docs/memory.md). Renderers configured before (components, jitter) are made
+ * again with their defaults. */
+void rend_session_release_gl(rend_session *rs);
 
 /* A new size for the ID pass and the renderers (a window resized): both are made
  * again at their next use; the worker keeps the counts of the last view until

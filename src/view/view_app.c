@@ -358,6 +358,7 @@ static lm_result run_script(view_state *v, lm_error *err)
             return lm_fail(err, r, "script line %d: %s", c->line, why);
         }
         v->si++;
+        v->start_changed = 1; /* a command may change what is drawn */
         v->cmd_started = 0;
     }
     return LM_OK;
@@ -393,7 +394,10 @@ static lm_result frame(view_state *v, lm_error *err)
     if (in.close) v->quit = 1;
     lm_result r = LM_OK;
     for (int a = 0; a < VIEW_ACTION_COUNT; ++a)
-        for (int k = 0; r == LM_OK && k < in.actions[a]; ++k) r = apply_action(v, (view_action)a, err);
+        for (int k = 0; r == LM_OK && k < in.actions[a]; ++k) {
+            r = apply_action(v, (view_action)a, err);
+            v->start_changed = 1;
+        }
     if (r != LM_OK) return r;
     if (in.drag_dx != 0 || in.drag_dy != 0) {
         /* Dragging right turns the scene right: the camera goes left. */
@@ -440,6 +444,7 @@ static lm_result frame(view_state *v, lm_error *err)
     double now_m = lm_now_seconds();
     if (v->camera_moved) {
         v->camera_moved = 0;
+        v->start_changed = 1;
         v->view_pending = 1;
         v->last_motion = now_m;
         v->ov_stale = 1;
@@ -460,6 +465,7 @@ static lm_result frame(view_state *v, lm_error *err)
         v->id_passes++;
         v->view_pending = 0;
         v->fresh_view = 1;
+        v->start_changed = 1;
     }
     if (r != LM_OK) return r;
     double now_s = lm_now_seconds();
@@ -484,6 +490,12 @@ static lm_result frame(view_state *v, lm_error *err)
         }
         if (r != LM_OK) return r; /* refinement failed */
     }
+    /* Until the first snapshot the picture is the geometry alone, which changes
+     * only with the view, the window or a key: drawn once for each, and otherwise
+     * left, so that the worker's start (all of it CPU-bound) has the cores (116k
+     * box, `view` 640×480: first image 0.61-0.72 -> 0.49-0.65 s; docs/viewer.md). */
+    if (!v->snap && v->frames > 0 && !v->start_changed && !v->shot[0] && !v->window_shot[0]) return LM_OK;
+    v->start_changed = 0;
     /* Moving: the half-size renderer, its picture stretched by the tone mapping;
      * made at the first move after a resize (its shaders cost start-up time). */
     if (v->view_pending && !v->motion_frame) {

@@ -31,6 +31,7 @@ typedef struct view_state {
     int camera_moved;               /* the camera moved this frame */
     int view_pending;               /* it moved since the last ID pass (which waits for it to rest) */
     int fresh_view;                 /* the camera moved: take the next snapshot at once */
+    int start_changed;              /* before the first snapshot: something drawn changed since the last frame */
     double snap_taken;              /* when the snapshot drawn was acquired */
     double last_input;              /* when the last frame's input was taken (fly speed) */
     int paused;                     /* P: the user paused refinement */
