@@ -94,12 +94,9 @@ lm_vec3 samp_frame_cosine(const samp_frame *f, float u, float v);
 int samp_stratum_front_hit(const scene *s, const rt_scene *rt, const samp_frame *f, const float origin[3], lm_rng *g,
                            int a, int b, int k, rt_hit *h);
 
-/* Worker threads for `threads` asked (0: every core; at most SAMP_MAX_THREADS). */
-enum { SAMP_MAX_THREADS = 64 };
+/* lm_thread_count and lm_parallel_for (src/base/parallel.h), by the names the
+ * back ends use. */
 int samp_thread_count(int threads);
-/* Calls fn(user, i) for every i < n, spread over `threads` threads (the caller's
- * among them) in chunks of 16 taken from an atomic counter; returns when all are
- * done. If threads cannot be started, the caller does it all. */
 void samp_parallel_for(int threads, uint32_t n, void (*fn)(void *user, uint32_t i), void *user);
 /* samp_point_epsilon from the ray tracing scene (the back ends hold no sampler). */
 float samp_point_eps_rt(const rt_scene *rt, const samp_point *x);
