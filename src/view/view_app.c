@@ -31,6 +31,7 @@ static const double k_snapshot_period = 0.25;
  * radiance images and the composite. This long after the last move, the ID pass
  * runs, the worker gets the new view and resumes, and frames are full size again. */
 static const double k_motion_rest = 0.15;
+static const double k_start_poll = 0.002; /* s between looks for the first snapshot (nothing is drawn meanwhile) */
 
 
 static cache_worker *worker(const view_state *v)
@@ -578,6 +579,9 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
          * rather than drawing a burst to catch up. */
         next += period;
         if (next < now) next = now;
+        /* Waiting for the first snapshot, nothing is drawn (frame): look again
+         * within 2 ms, not at the next tick, so that it is drawn when it comes. */
+        if (!v.snap && v.frames > 0 && next > now + k_start_poll) next = now + k_start_poll;
         lm_sleep_seconds(next - now);
     }
     if (r == LM_OK && d->finished) {
