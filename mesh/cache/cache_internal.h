@@ -106,6 +106,11 @@ typedef struct cache_light_state {
     uint64_t borrowed_revised; /* of them, made regions so far */
     cache_mesh_stats *light_stats;               /* light_count; .mesh filled by cache_get_stats */
     cache_mesh_stats direct_stats, specular_stats; /* samples (.mesh filled by cache_get_stats) */
+    /* Per vertex id: 1 while in the batch of corners a visibility round samples
+     * (cache_fetch_visibility), 0 again after it: the batch's duplicate check,
+     * which was a scan of the batch for each corner. */
+    uint8_t *wanted;
+    size_t wanted_cap;
 } cache_light_state;
 
 /* The area lights' outlines for the specular integral (written by cache_specular.c,

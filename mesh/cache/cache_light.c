@@ -32,13 +32,14 @@ void cache_light_state_free(cache_light_state *st)
     free(st->falsified);
     free(st->borrowed);
     free(st->light_stats);
+    free(st->wanted);
     memset(st, 0, sizeof *st);
 }
 
 size_t cache_light_state_bytes(const cache_light_state *st, uint32_t light_count)
 {
     return st->falsified_cap * sizeof(cache_region) + st->vertex_G_cap * light_count * sizeof(float) +
-           st->borrowed_cap * sizeof *st->borrowed;
+           st->borrowed_cap * sizeof *st->borrowed + st->wanted_cap;
 }
 
 /* ---- visibility (§4.3.4) ----------------------------------------------------- */
@@ -108,24 +109,30 @@ lm_result cache_sample_light(cache *c, uint32_t l, const uint32_t *vids, uint32_
     return r;
 }
 
-/* Appends to *need (deduplicated by a sampled check) the corners of node that
- * light mesh m uses but has not sampled. */
-static lm_result want_unsampled(const mesh_qmesh *m, const mesh_qnode *n, uint32_t **need, uint32_t *count,
-                                uint32_t *cap, lm_error *err)
+/* Appends to *need the corners of node that light mesh m uses but has not
+ * sampled, each once (st->wanted marks those in *need). */
+static lm_result want_unsampled(cache_light_state *st, const mesh_qmesh *m, const mesh_qnode *n, uint32_t **need,
+                                uint32_t *count, uint32_t *cap, lm_error *err)
 {
     for (int k = 0; k < 3; ++k) {
         float dummy;
-        if (mesh_qmesh_get_value(m, n->v[k], &dummy) == 1) continue;
-        int dup = 0;
-        for (uint32_t i = 0; i < *count && !dup; ++i) dup = (*need)[i] == n->v[k];
-        if (dup) continue;
+        const uint32_t vid = n->v[k];
+        if (mesh_qmesh_get_value(m, vid, &dummy) == 1) continue;
+        if (vid >= st->wanted_cap) {
+            size_t wc = lm_grow_capacity(st->wanted_cap, (size_t)vid + 1, 4096, SIZE_MAX);
+            if (!wc || !lm_realloc_array(&st->wanted, st->wanted_cap, wc, 1))
+                return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining a light mesh");
+            st->wanted_cap = wc;
+        }
+        if (st->wanted[vid]) continue;
         if (*count == *cap) { /* a uint32_t capacity */
             size_t nc = lm_grow_capacity(*cap, (size_t)*count + 1, 64, UINT32_MAX);
             if (!nc || !lm_realloc_array(need, *cap, nc, sizeof **need))
                 return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining a light mesh");
             *cap = (uint32_t)nc;
         }
-        (*need)[(*count)++] = n->v[k];
+        (*need)[(*count)++] = vid;
+        st->wanted[vid] = 1;
     }
     return LM_OK;
 }
@@ -206,7 +213,7 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
                 if (!corners_known) {
                     /* Split earlier in this round: its corners are in this round's
                      * batch; ask again once they are sampled. */
-                    r = want_unsampled(m, ln, &need, &need_n, &need_cap, err);
+                    r = want_unsampled(&c->vis, m, ln, &need, &need_n, &need_cap, err);
                     continue;
                 }
                 float cv = confident_V(c, m, ln, st->depth, st->vid);
@@ -234,9 +241,11 @@ lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, 
                 if (r == LM_OK) {
                     const mesh_qnode *p = mesh_qmesh_node(m, leaf);
                     for (uint32_t k = 0; r == LM_OK && k < 4; ++k)
-                        r = want_unsampled(m, mesh_qmesh_node(m, p->child + k), &need, &need_n, &need_cap, err);
+                        r = want_unsampled(&c->vis, m, mesh_qmesh_node(m, p->child + k), &need, &need_n, &need_cap,
+                                           err);
                 }
             }
+            for (uint32_t j = 0; j < need_n; ++j) c->vis.wanted[need[j]] = 0;
             /* A split whose new corners all have values already (shared with a
              * neighbour that sampled them) needs no samples, but its sites are
              * not resolved yet: another round, else their V would be left unset. */
