@@ -2,7 +2,8 @@
  *   - determinism: a worker with a leaf budget ends with the same statistics as
  *     the same refinement done synchronously, and its last snapshot holds as many
  *     triangles as the synchronous cache's leaves give;
- *   - pause: no commit while paused; resume: refinement goes on;
+ *   - pause: no commit while paused; resume: refinement goes on; a pause asked
+ *     before the first snapshot holds the worker right after publishing it;
  *   - a light edit through the worker: new values, no new light sample;
  *   - a camera move through the worker (set_view): the specular mesh starts again
  *     for the new eye (its values there change), the direct mesh keeps every node;
@@ -340,6 +341,37 @@ int main(void)
         CHECK(g1 == g0);
         CHECK(g2 > g1);
         cache_worker_destroy(w); /* mid-refinement: must cancel and join */
+    }
+    /* Paused before its first snapshot (the viewer, to draw it with both cores):
+     * the worker publishes it, then waits; the first refinement step comes only
+     * after resume. */
+    w = NULL;
+    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = pixels, .step_budget = 64},
+                              &w, &err) == LM_OK);
+    if (w) {
+        cache_worker_request_pause(w);
+        const cache_snapshot *first = NULL;
+        double t0 = lm_now_seconds();
+        while (!(first = cache_worker_acquire(w)) && lm_now_seconds() - t0 < 30.0) sleep_ms(2);
+        CHECK(first != NULL);
+        cache_worker_pause(w); /* returns once the worker is parked: at the first snapshot */
+        uint64_t g0 = first ? first->generation : 0, t_first = first ? first->tested : 0;
+        sleep_ms(200);
+        const cache_snapshot *still = cache_worker_acquire(w);
+        uint64_t g1 = still ? still->generation : 0;
+        cache_worker_resume(w);
+        uint64_t g2 = g1;
+        t0 = lm_now_seconds();
+        while (g2 == g1 && lm_now_seconds() - t0 < 10.0) {
+            sleep_ms(2);
+            g2 = cache_worker_acquire(w)->generation;
+        }
+        printf("paused before the first snapshot: generation %llu (%llu leaves tested) held over 200 ms (%llu); "
+               "%llu after resume\n",
+               (unsigned long long)g0, (unsigned long long)t_first, (unsigned long long)g1, (unsigned long long)g2);
+        CHECK(g0 == 1 && g1 == g0);
+        CHECK(g2 > g1);
+        cache_worker_destroy(w);
     }
     /* Retired mid-refinement: the snapshot held keeps its bytes (ASan would see a
      * freed one), nothing newer comes, and edits, pauses and destroy still work. */

@@ -364,6 +364,17 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
     w->first_publish_seconds = lm_now_seconds() - t;
     if (r == LM_OK) commit(w);
+    /* A client that paused before it (the viewer, until it has drawn it) has the
+     * cores while it draws the first image: what follows (the refining sampler,
+     * a calibration, the first regathers) waits, as any step waits for a pause. */
+    pthread_mutex_lock(&w->lock);
+    while (r == LM_OK && w->paused && !w->cancel) {
+        w->parked = 1;
+        pthread_cond_broadcast(&w->cond);
+        pthread_cond_wait(&w->cond, &w->lock);
+    }
+    w->parked = 0;
+    pthread_mutex_unlock(&w->lock);
     if (r == LM_OK && !w->desc.no_quick_start) samp_get_stats(first, &w->quick_stats);
     if (w->desc.no_quick_start) {
         *sp = first;

@@ -132,7 +132,14 @@ static lm_result start_session(view_state *v, lm_error *err)
     d.gl = v->gl;
     d.supersample = 1;
     d.publish_debug = v->overlay != 0;
-    return rend_session_create(&d, &v->rs, err);
+    lm_result r = rend_session_create(&d, &v->rs, err);
+    /* The first image drawn with both cores: the worker publishes it and waits
+     * (cache_worker_request_pause) until frame() has drawn it. */
+    if (r == LM_OK && !v->paused) {
+        cache_worker_request_pause(worker(v));
+        v->start_paused = 1;
+    }
+    return r;
 }
 
 /* Per light, power relative to the scene's: all 1 for a new scene. */
@@ -387,6 +394,15 @@ static lm_result fit_size(view_state *v, int w, int h, lm_error *err)
     return LM_OK;
 }
 
+/* The rest after the first image (start_session) ends: refinement goes on,
+ * unless the user or a move has paused it since. */
+static void end_start_pause(view_state *v)
+{
+    if (!v->start_paused) return;
+    v->start_paused = 0;
+    if (!v->paused && !v->motion_paused) cache_worker_resume(worker(v));
+}
+
 /* One frame: input, script, ID pass after a move, the latest snapshot, draw, present. */
 static lm_result frame(view_state *v, lm_error *err)
 {
@@ -435,7 +451,10 @@ static lm_result frame(view_state *v, lm_error *err)
 
     int w, h;
     view_window_framebuffer_size(v->win, &w, &h);
-    if (w <= 0 || h <= 0) return LM_OK; /* minimised: nothing to draw into; the worker goes on */
+    if (w <= 0 || h <= 0) { /* minimised: nothing to draw into; the worker goes on */
+        end_start_pause(v);
+        return LM_OK;
+    }
     r = fit_size(v, w, h, err);
     if (r == LM_OK && v->emission_dirty) r = apply_emission(v, err);
     if (r == LM_OK) {
@@ -528,6 +547,7 @@ static lm_result frame(view_state *v, lm_error *err)
     rend_frame_get_times(f, &v->times);
     v->frames++;
     if (v->first_image < 0 && v->snap) v->first_image = lm_now_seconds() - v->t_open;
+    if (v->snap) end_start_pause(v); /* drawn: refinement goes on */
     if (v->shot[0]) r = view_app_take_screenshot(v, err);
     if (r == LM_OK && v->window_shot[0]) {
         uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);

@@ -36,6 +36,7 @@ typedef struct view_state {
     double last_input;              /* when the last frame's input was taken (fly speed) */
     int paused;                     /* P: the user paused refinement */
     int motion_paused;              /* the camera is moving: refinement rests (not the user's pause) */
+    int start_paused;               /* refinement rests until the first snapshot is drawn (start_session) */
     double last_motion;
     float exposure;                 /* stops */
     uint32_t light_count, light;    /* the scene's lights; the one the keys edit */
