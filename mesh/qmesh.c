@@ -23,6 +23,7 @@
 #include "mesh/qmesh.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -61,7 +62,11 @@ struct mesh_qmesh {
     uint32_t nodes_live, leaves, used, sampled_count;
     uint32_t hist[MESH_QMESH_DEPTHS];
     uint64_t splits, merges;
+    uint64_t serial;        /* unique among the meshes made in this process */
+    uint64_t changes;       /* splits, merges and values written (mesh_qmesh_version) */
 };
+
+static _Atomic uint64_t next_serial;
 
 mesh_bary mesh_qmesh_node_corner(const mesh_qnode *n, int c)
 {
@@ -166,6 +171,7 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
 
     mesh_qmesh *m = calloc(1, sizeof *m);
     if (!m) return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
+    m->serial = atomic_fetch_add(&next_serial, 1) + 1;
     m->vt = desc->vtable;
     m->s = s;
     m->channels = channels;
@@ -355,6 +361,7 @@ lm_result mesh_qmesh_split(mesh_qmesh *m, uint32_t node, lm_error *err)
     m->hist[p.depth]--;
     m->hist[p.depth + 1] += 4;
     m->splits++;
+    m->changes++;
     return LM_OK;
 }
 
@@ -383,6 +390,7 @@ lm_result mesh_qmesh_merge(mesh_qmesh *m, uint32_t node, lm_error *err)
     m->hist[pn->depth + 1] -= 4;
     m->hist[pn->depth]++;
     m->merges++;
+    m->changes++;
     return LM_OK;
 }
 
@@ -401,6 +409,7 @@ lm_result mesh_qmesh_set_value(mesh_qmesh *m, uint32_t id, const float *value, l
     memcpy(m->values + (size_t)id * m->channels, value, m->channels * sizeof *value);
     if (!m->sampled[id]) m->sampled_count++;
     m->sampled[id] = 1;
+    m->changes++;
     return LM_OK;
 }
 
@@ -639,6 +648,11 @@ lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, s
 uint32_t mesh_qmesh_node_count(const mesh_qmesh *m) { return m ? m->nodes_live : 0; }
 
 int64_t mesh_qmesh_net_splits(const mesh_qmesh *m) { return m ? (int64_t)m->splits - (int64_t)m->merges : 0; }
+
+mesh_qmesh_version mesh_qmesh_get_version(const mesh_qmesh *m)
+{
+    return m ? (mesh_qmesh_version){m->serial, m->changes} : (mesh_qmesh_version){0, 0};
+}
 
 void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out)
 {

@@ -183,6 +183,16 @@ void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out);
 uint32_t mesh_qmesh_node_count(const mesh_qmesh *m);
 int64_t mesh_qmesh_net_splits(const mesh_qmesh *m);
 
+/* Which mesh, and how far it has changed: serial is unique among the meshes made
+ * in this process (never 0), changes counts every split, merge and value written
+ * (a value written again the same counts too). Equal versions: the same leaves
+ * and values, so a copy made at the first still holds (the worker's snapshots
+ * skip a mesh that has not changed). NULL: {0, 0}. */
+typedef struct mesh_qmesh_version {
+    uint64_t serial, changes;
+} mesh_qmesh_version;
+mesh_qmesh_version mesh_qmesh_get_version(const mesh_qmesh *m);
+
 #ifdef __cplusplus
 }
 #endif
