@@ -647,6 +647,38 @@ static void test_roots_like(scene *s, mesh_vtable *vt)
     CHECK(st1.live > st0.live && st2.live == st0.live); /* every reference given back */
 }
 
+/* The version: unique serials, and every split, merge and value written counted
+ * (a snapshot copy is kept while the version stays); reading changes nothing. */
+static void test_version(scene *s, mesh_vtable *vt)
+{
+    (void)s;
+    lm_error err = {{0}};
+    mesh_qmesh *a = make_mesh(vt, NULL, 0, NULL, 1, 0), *b = make_mesh(vt, NULL, 0, NULL, 1, 0);
+    if (!a || !b) return;
+    mesh_qmesh_version va = mesh_qmesh_get_version(a), vb = mesh_qmesh_get_version(b), none = mesh_qmesh_get_version(NULL);
+    CHECK(va.serial != 0 && vb.serial != 0 && va.serial != vb.serial && va.changes == 0);
+    CHECK(none.serial == 0 && none.changes == 0);
+    const uint32_t root = mesh_qmesh_root(a, 0);
+    const float one = 1.0f;
+    float got;
+    CHECK(mesh_qmesh_split(a, root, &err) == LM_OK);
+    mesh_qmesh_version v1 = mesh_qmesh_get_version(a);
+    CHECK(v1.serial == va.serial && v1.changes == va.changes + 1);
+    const uint32_t corner = mesh_qmesh_node(a, mesh_qmesh_node(a, root)->child + 3)->v[0];
+    CHECK(mesh_qmesh_set_value(a, corner, &one, &err) == LM_OK);
+    CHECK(mesh_qmesh_get_value(a, corner, &got) == 1 && got == 1.0f);
+    mesh_qmesh_version v2 = mesh_qmesh_get_version(a);
+    CHECK(v2.changes == v1.changes + 1);
+    CHECK(mesh_qmesh_merge(a, root, &err) == LM_OK);
+    CHECK(mesh_qmesh_get_version(a).changes == v2.changes + 1);
+    CHECK(mesh_qmesh_get_version(b).changes == 0); /* the other mesh: untouched */
+    mesh_qmesh_destroy(a);
+    mesh_qmesh *c = make_mesh(vt, NULL, 0, NULL, 1, 0); /* made after a is gone: a serial of its own */
+    if (c) CHECK(mesh_qmesh_get_version(c).serial != va.serial && mesh_qmesh_get_version(c).serial != vb.serial);
+    mesh_qmesh_destroy(b);
+    mesh_qmesh_destroy(c);
+}
+
 int main(void)
 {
     scene *s = load_cornell();
@@ -661,6 +693,7 @@ int main(void)
         test_fan_small(s, vt);
         test_roots_like(s, vt);
         test_limits(s, vt);
+        test_version(s, vt);
     }
     mesh_vtable_destroy(vt);
     scene_destroy(s);
