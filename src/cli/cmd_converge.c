@@ -216,6 +216,9 @@ static void keep_final(conv_ctx *c, const cache_snapshot *snap)
 static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rgb, lm_error *err)
 {
     const scene_camera *cam = &c->s->cameras[c->cam];
+    /* As the viewer does: the worker publishes the first snapshot and rests until
+     * it is drawn, so the draw has both cores (docs/viewer.md). */
+    cache_worker_request_pause(rend_session_worker(rs));
     lm_result r = rend_session_renderer(rs, REND_SESSION_PREVIEW, NULL, err);
     const cache_snapshot *snap = NULL;
     if (r == LM_OK)
@@ -226,6 +229,7 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
         c->first_image = lm_now_seconds() - t0;
         c->frames++;
     }
+    cache_worker_resume(rend_session_worker(rs)); /* drawn, or none came: refinement goes on */
     if (r == LM_OK && snap) {
         /* Kept as DIR/first-image.png: what the user saw first. */
         char path[SCENE_PATH_MAX + 32];
