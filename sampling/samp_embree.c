@@ -17,7 +17,7 @@
  * Random numbers: a point's stream is seeded by (seed, light, the bits of its
  * position and normal), so a value depends on the point alone, not on the batch
  * it came in or the thread that computed it.
- * Threads: a batch is split over desc.threads workers (samp_parallel_for);
+ * Threads: a batch is split over desc.threads workers (lm_parallel_for);
  * the caller's thread waits for them.
  */
 #include <math.h>
@@ -26,6 +26,7 @@
 
 #include "sampling/ref_shading.h"
 #include "sampling/samp_internal.h"
+#include "src/base/parallel.h"
 #include "src/base/vecmath.h"
 
 
@@ -189,7 +190,7 @@ static void batch_one(void *user, uint32_t i)
         b->out[i] = direct_one(b->e, b->light, &b->pts[i]);
 }
 
-static void run_batch(const embree_impl *e, batch *b) { samp_parallel_for(e->threads, b->n, batch_one, b); }
+static void run_batch(const embree_impl *e, batch *b) { lm_parallel_for(e->threads, b->n, batch_one, b); }
 
 static lm_result embree_direct(void *impl, uint32_t light, const samp_point *pts, uint32_t n, float *G,
                                lm_error *err)
@@ -289,7 +290,7 @@ lm_result samp_embree_create(const samp_desc *desc, const rt_scene *rt, const sa
     e->desc = *desc;
     e->s = desc->scene;
     e->rt = rt;
-    e->threads = samp_thread_count(desc->threads);
+    e->threads = lm_thread_count(desc->threads);
     e->direct_k = strata_per_side(desc->direct_rays);
     e->indirect_k = strata_per_side(desc->indirect_rays);
     const scene *s = e->s;

@@ -11,7 +11,6 @@
 
 #include "sampling/analytic.h"
 #include "sampling/samp_internal.h"
-#include "src/base/parallel.h"
 #include "src/base/vecmath.h"
 
 double samp_area_light_unoccluded(const scene *s, uint32_t light, const float p[3], const float n[3])
@@ -129,9 +128,3 @@ int samp_stratum_front_hit(const scene *s, const rt_scene *rt, const samp_frame 
            v3_dot(v3_load(s->tri_normals + 3 * (size_t)h->tri), d) < 0.0f;
 }
 
-int samp_thread_count(int threads) { return lm_thread_count(threads); }
-
-void samp_parallel_for(int threads, uint32_t n, void (*fn)(void *user, uint32_t i), void *user)
-{
-    lm_parallel_for(threads, n, fn, user);
-}

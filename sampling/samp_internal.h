@@ -94,10 +94,6 @@ lm_vec3 samp_frame_cosine(const samp_frame *f, float u, float v);
 int samp_stratum_front_hit(const scene *s, const rt_scene *rt, const samp_frame *f, const float origin[3], lm_rng *g,
                            int a, int b, int k, rt_hit *h);
 
-/* lm_thread_count and lm_parallel_for (src/base/parallel.h), by the names the
- * back ends use. */
-int samp_thread_count(int threads);
-void samp_parallel_for(int threads, uint32_t n, void (*fn)(void *user, uint32_t i), void *user);
 /* samp_point_epsilon from the ray tracing scene (the back ends hold no sampler). */
 float samp_point_eps_rt(const rt_scene *rt, const samp_point *x);
 #ifdef __cplusplus

@@ -16,6 +16,7 @@
 #include <stdlib.h>
 
 #include "sampling/samp_internal.h"
+#include "src/base/parallel.h"
 
 typedef struct sources_job {
     const scene *s;
@@ -95,7 +96,7 @@ void samp_sources_trace(const scene *s, const rt_scene *rt, uint32_t seed, int t
     int k = (int)floor(sqrt((double)out->rays));
     sources_job job = {.s = s, .rt = rt, .mesh = mesh, .index = mesh->index ? mesh->index : &ix, .pts = pts, .out = out, .seed = seed,
                        .k = k < 1 ? 1 : k};
-    samp_parallel_for(samp_thread_count(threads), n, sources_one, &job);
+    lm_parallel_for(lm_thread_count(threads), n, sources_one, &job);
     samp_radiance_index_free(&ix);
 }
 
@@ -140,5 +141,5 @@ void samp_surface_hits_run(const scene *s, const rt_scene *rt, uint32_t seed, in
     int k = (int)floor(sqrt((double)out->rays));
     hits_job job = {.s = s, .rt = rt, .pts = pts, .out = out, .seed = seed,
                     .k = k < 1 ? 1 : k};
-    samp_parallel_for(samp_thread_count(threads), n, hits_one, &job);
+    lm_parallel_for(lm_thread_count(threads), n, hits_one, &job);
 }
