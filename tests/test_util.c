@@ -110,7 +110,8 @@ struct scene *test_plane_load(const test_plane *p, const char *name)
     snprintf(file, sizeof file, "%s.obj", name);
     {
         char vs[1024];
-        const double a = in_file ? T - 4.0 * S : -4.0, b = in_file ? T + 4.0 * S : 4.0, y = in_file ? T : 0.0;
+        const double h = p->plane_half > 0.0 ? p->plane_half : 4.0;
+        const double a = in_file ? T - h * S : -h, b = in_file ? T + h * S : h, y = in_file ? T : 0.0;
         /* counter-clockwise seen from +y */
         int n = snprintf(vs, sizeof vs,
                          "v %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\nv %.17g %.17g %.17g\n"
@@ -128,12 +129,12 @@ struct scene *test_plane_load(const test_plane *p, const char *name)
     /* edge1 × edge2 = (1,0,0) × (0,0,1) = (0,-1,0): the light faces the plane. */
     snprintf(text, sizeof text,
              "{\"meshes\": [{\"file\": \"%s\", \"material\": \"paint\"%s}],"
-             " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g]}},"
+             " \"materials\": {\"paint\": {\"kd\": [%g, %g, %g], \"ks\": [%g, %g, %g], \"n\": %.17g}},"
              " \"lights\": [{\"type\": \"quad\", \"corner\": [%.17g, %.17g, %.17g], \"edge1\": [%.17g, 0, 0],"
              " \"edge2\": [0, 0, %.17g], \"radiance\": [%g, %g, %g]}],"
              " \"cameras\": [{\"position\": [%.17g, %.17g, %.17g], \"target\": [%.17g, %.17g, %.17g], \"up\": [0, 0, -1],"
              " \"fov_y\": %g, \"width\": %d, \"height\": %d}]}",
-             file, tf, p->kd[0], p->kd[1], p->kd[2], T + S * (p->light_x - p->light_half), T + S * p->light_height,
+             file, tf, p->kd[0], p->kd[1], p->kd[2], p->ks[0], p->ks[1], p->ks[2], p->n > 0.0 ? p->n : 1.0, T + S * (p->light_x - p->light_half), T + S * p->light_height,
              T + S * (p->light_z - p->light_half), S * 2 * p->light_half, S * 2 * p->light_half, p->le[0], p->le[1],
              p->le[2], T, T + S * p->cam_height, T, T, T, T, p->fov_y, p->width, p->height);
     snprintf(file, sizeof file, "%s.json", name);
@@ -151,7 +152,8 @@ struct scene *test_load_json(const char *name, const char *text)
     return s;
 }
 
-double test_plane_pixel_G(const test_plane *p, int px, int py, int sub)
+/* Mean of the light's G (specular 0) or S (1) over pixel (px, py)'s sub×sub grid. */
+static double plane_pixel_mean(const test_plane *p, int px, int py, int sub, int specular)
 {
     const double x0 = p->light_x - p->light_half, x1 = p->light_x + p->light_half;
     const double z0 = p->light_z - p->light_half, z1 = p->light_z + p->light_half, y = p->light_height;
@@ -165,10 +167,15 @@ double test_plane_pixel_G(const test_plane *p, int px, int py, int sub)
             double sx = 2.0 * (px + (i + 0.5) / sub) / p->width - 1.0;
             double sy = 1.0 - 2.0 * (py + (j + 0.5) / sub) / p->height;
             double x[3] = {p->cam_height * sx * tx, 0.0, -p->cam_height * sy * ty};
-            sum += samp_polygon_G(light, 4, x, up);
+            const double wo[3] = {-x[0], p->cam_height - x[1], -x[2]}; /* towards the camera */
+            sum += specular ? samp_polygon_phong(light, 4, x, up, wo, p->n) : samp_polygon_G(light, 4, x, up);
         }
     return sum / (sub * sub);
 }
+
+double test_plane_pixel_G(const test_plane *p, int px, int py, int sub) { return plane_pixel_mean(p, px, py, sub, 0); }
+
+double test_plane_pixel_S(const test_plane *p, int px, int py, int sub) { return plane_pixel_mean(p, px, py, sub, 1); }
 
 const cache_snapshot *test_wait_finished(cache_worker *w, double seconds)
 {

@@ -59,6 +59,8 @@ double test_write_icosphere(int level, double radius, const char *path);
  * Lambert's formula: the bounce adds nothing (the light's kd is 0). */
 typedef struct test_plane {
     double kd[3], le[3];
+    double ks[3], n;           /* the plane's modified Phong lobe; ks 0: none */
+    double plane_half;         /* half the plane's side; 0 = 4 */
     double light_x, light_z;   /* the light's centre */
     double light_half;         /* half its side */
     double light_height, cam_height, fov_y;
@@ -83,6 +85,9 @@ struct scene *test_load_json(const char *name, const char *text);
 /* Mean G over the sub×sub grid of centres in pixel (px, py), top row 0, as the
  * renderer's s×s samples (and a midpoint rule for a box-filtered pixel). */
 double test_plane_pixel_G(const test_plane *p, int px, int py, int sub);
+/* The same mean of the specular integral S (samp_polygon_phong: the plane's
+ * Phong lobe over the light, seen from the camera): radiance ks·Le·S. */
+double test_plane_pixel_S(const test_plane *p, int px, int py, int sub);
 
 /* Waits up to `seconds` for a snapshot that is finished (or failed); the last one
  * acquired otherwise (NULL if none). */

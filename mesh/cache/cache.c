@@ -136,6 +136,9 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounce_rays must be a square up to 4096, not %u", rays);
     if (!(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f) || (unsigned)desc->scheduler >= CACHE_SCHED_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache: the JND and leaf size must be non-negative");
+    if (!(desc->sample_pixels >= 0.0f && desc->sample_pixels <= 1.0f))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache: sample_pixels (a sample's area in pixels) must be 0..1, not %g",
+                       (double)desc->sample_pixels);
     const double t_create = lm_now_seconds();
     cache *c = calloc(1, sizeof *c);
     if (!c) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
@@ -144,6 +147,7 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     if (c->desc.bounces == 0) c->desc.bounces = 1;
     c->desc.bounce_rays = rays;
     if (c->desc.min_leaf_pixels == 0.0f) c->desc.min_leaf_pixels = 16.0f;
+    if (c->desc.sample_pixels == 0.0f) c->desc.sample_pixels = 1.0f;
     c->s = desc->scene;
     c->sp = desc->sampler;
     cache_sched_init(&c->sched, desc->seed);

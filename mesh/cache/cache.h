@@ -95,6 +95,11 @@ typedef struct cache_desc {
     uint32_t bounce_rays;     /* bounces beyond the first: rays per coarse vertex of their transport,
                                  a square; 0 = CACHE_BOUNCE_RAYS_DEFAULT */
     float min_leaf_pixels;    /* size criterion: leaves above this many pixels split anyway; 0 = 16 */
+    float sample_pixels;      /* area of one sample of the picture drawn from the cache, in pixels
+                                 (1/s² for s×s samples a pixel), 0 < it ≤ 1: no leaf this small or
+                                 smaller is tested, and a leaf smaller than a pixel is judged by its
+                                 share of its pixel (docs/cache.md, "Leaves smaller than a pixel");
+                                 0 = 1 (one sample a pixel) */
     uint32_t node_cap;        /* most nodes over all meshes; 0 = no cap */
     uint32_t coarse_lights;   /* the first image's budget of light samples: light is sampled at no
                                  more of the direct mesh's root corners than this, chosen as the

@@ -71,17 +71,20 @@ float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node
     return fabsf(v) - 1.0f;
 }
 
-/* A leaf's interpolation and noise estimates (ΔE); returns whether the leaf's own
- * test gave the interpolation (a leaf of a pixel or less, never tested by design,
- * counts as tested). */
+/* A leaf's interpolation and noise estimates (ΔE; a leaf smaller than a pixel
+ * by its share of the pixel, as its test judges it: cache_refine.c); returns
+ * whether the leaf's own test gave the interpolation (a leaf no test may split,
+ * cache_leaf_below_sample, counts as tested). */
 static int leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n, double px, float *interp_out,
                          float *noise_out)
 {
     int tested, untested_borrowed = 0;
+    const int one_sample = cache_leaf_below_sample(w->c, w->kind, px, n);
+    const float share = px < 1.0 ? (float)px : 1.0f;
     float interp = cache_sched_residual(&w->c->sched, w->kind, node, &tested);
     if (interp < 0.0f) { /* never tested: what its corners' contrast allows */
-        interp = cache_leaf_contrast(w->c, w->m, w->kind, n);
-        if (px <= 1.0) interp *= 0.25f;
+        interp = share * cache_leaf_contrast(w->c, w->m, w->kind, n);
+        if (one_sample) interp *= 0.25f;
     }
     if (w->kind == CACHE_KIND_INDIRECT && w->c->desc.single_mesh) interp = 0.0f; /* judged with direct */
     if (w->kind == CACHE_KIND_INDIRECT) {
@@ -96,8 +99,8 @@ static int leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n, 
         interp = sqrtf(interp * interp + b * b);
     }
     *interp_out = interp;
-    *noise_out = w->kind == CACHE_KIND_INDIRECT ? leaf_noise(w, n) : 0.0f;
-    return (tested || px <= 1.0) && !untested_borrowed;
+    *noise_out = w->kind == CACHE_KIND_INDIRECT ? share * leaf_noise(w, n) : 0.0f;
+    return (tested || one_sample) && !untested_borrowed;
 }
 
 static void visit_leaf(const est_walk *w, uint32_t node, const mesh_qnode *n, double px)

@@ -670,6 +670,10 @@ size_t cache_sched_bytes(const cache_sched *st);
 void cache_sched_requeue(cache_sched *st, int kind);
 /* Forgets every residual of one mesh (its tree was made anew: cache_set_camera). */
 void cache_sched_forget(cache_sched *st, cache_kind kind);
+/* A leaf of `kind` covering px pixels that no test splits: no larger than a
+ * sample of the picture (cache_desc.sample_pixels), or smaller than a pixel and
+ * a root, or indirect (docs/cache.md, "Leaves smaller than a pixel"). */
+int cache_leaf_below_sample(const cache *c, cache_kind kind, double px, const mesh_qnode *n);
 /* cache_refine (cache.h) on an initialised cache. */
 lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
 

@@ -1,0 +1,142 @@
+/* rend_highlight_test — a highlight whose rim is narrower than a pixel, through
+ * the whole pipeline (ID pass, refinement worker, material, radiance and
+ * composite passes), against the image known in closed form.
+ *
+ * A plane with a sharp modified Phong lobe (n = 2000, ks 0.6) and a little
+ * diffuse albedo under the square light of rend_exact_test, the camera between
+ * them looking down: the plane mirrors the light as a bright square whose edge
+ * falls off within about a pixel. Every sample of the image is
+ *     kd/π · Le · G(x) + ks · Le · S(x, ωo)
+ * (samp_polygon_G, samp_polygon_phong: the specular mesh stores S exactly at its
+ * vertices, the light being wholly visible), averaged over each pixel's s×s
+ * sample centres as the renderer's box filter does.
+ *
+ * A leaf of one pixel interpolates linearly between a vertex on the plateau and
+ * one off it, and spreads the rim over its pixel (docs/cache.md, "Leaves smaller
+ * than a pixel"). With leaves allowed down to one of the picture's samples
+ * (cache_desc.sample_pixels = 1/s², what a render session asks) the converged
+ * image must be within the JND of the exact one at all but 1% of the pixels,
+ * and its relMSE a quarter or less of the image refined with leaves stopped at
+ * a pixel (sample_pixels = 1, the viewer's one sample a pixel), which must show
+ * the rim (4× the pixels above the JND).
+ *
+ * The plane is cut to about the view (half side 1.3 against a footprint of
+ * 1.27 × 0.95): the cache takes a leaf's pixels as its root's count shared by
+ * area, and a root mostly outside the view makes its leaves look smaller than
+ * they are (docs/cache.md).
+ */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "mesh/cache/cache_worker.h"
+#include "src/base/tonemap.h"
+#include "src/base/vecmath.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
+#include "tests/test_util.h"
+
+enum { W = 64, H = 48, SS = 3 };
+#define JND 2.0f
+static const test_plane plane = {.kd = {0.5, 0.4, 0.3}, .ks = {0.5, 0.5, 0.5}, .n = 2000.0, .le = {1.2, 1.4, 1.6},
+                                 .light_x = 0.3, .light_z = -0.2, .light_half = 0.5, .light_height = 1.0,
+                                 .cam_height = 0.8, .fov_y = 100.0, .width = W, .height = H, .plane_half = 1.3};
+
+typedef struct highlight_error {
+    double mean_de, max_de, relmse;
+    int above, worst;
+    unsigned long long tested, specular_leaves;
+} highlight_error;
+
+/* Refines the plane to convergence with leaves down to sample_pixels, draws it
+ * and measures it against the closed form. 0 on a failed step. */
+static int refine_and_measure(rend_frame *f, const scene *s, const uint32_t *pixels, float sample_pixels, float *img,
+                              highlight_error *e)
+{
+    lm_error err;
+    cache_worker *wk = NULL;
+    *e = (highlight_error){0};
+    if (cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = {.backend = SAMP_BACKEND_EMBREE},
+                                                 .pixels = pixels, .cache = {.sample_pixels = sample_pixels}},
+                            &wk, &err) != LM_OK) {
+        CHECK_MSG(0, "worker: %s", err.msg);
+        return 0;
+    }
+    const cache_snapshot *snap = test_wait_finished(wk, 120.0);
+    int ok = snap && snap->converged && !snap->failed;
+    CHECK_MSG(ok, "sample_pixels %g: the worker did not converge", (double)sample_pixels);
+    if (ok) ok = rend_frame_draw(f, &s->cameras[0], snap, img, &err) == LM_OK;
+    if (ok) {
+        e->tested = snap->tested;
+        e->specular_leaves = snap->specular.triangle_count;
+    }
+    cache_worker_destroy(wk);
+    if (!ok) return 0;
+    tm_desc tm = {.exposure = s->exposure};
+    for (int py = 0; py < H; ++py)
+        for (int px = 0; px < W; ++px) {
+            double G = test_plane_pixel_G(&plane, px, py, SS), S = test_plane_pixel_S(&plane, px, py, SS);
+            float exact[3], d_a[3], d_b[3], lab_a[3], lab_b[3];
+            for (int k = 0; k < 3; ++k)
+                exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G + plane.ks[k] * plane.le[k] * S);
+            const float *got = img + 3 * ((size_t)py * W + (size_t)px);
+            tm_to_display(&tm, got, d_a);
+            tm_to_display(&tm, exact, d_b);
+            tm_display_to_lab(d_a, lab_a);
+            tm_display_to_lab(d_b, lab_b);
+            double de = tm_delta_e(lab_a, lab_b);
+            e->mean_de += de / (W * H);
+            if (de > e->max_de) e->max_de = de, e->worst = py * W + px;
+            e->above += de > JND;
+            for (int k = 0; k < 3; ++k)
+                e->relmse += (got[k] - exact[k]) * (got[k] - exact[k]) / (exact[k] * exact[k] + 0.01) / (3.0 * W * H);
+        }
+    return 1;
+}
+
+int main(void)
+{
+    glctx *ctx = NULL;
+    lm_error err;
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
+    const GladGLContext *gl = glctx_gl(ctx);
+    scene *s = test_plane_load(&plane, "highlight_plane");
+    rend_id *ip = NULL;
+    rend_frame *f = NULL;
+    rend_id_result ids;
+    float *img = malloc((size_t)W * H * 3 * sizeof *img);
+    CHECK(img != NULL);
+    if (s) CHECK(rend_id_create(gl, &(rend_id_desc){.scene = s, .width = W, .height = H}, &ip, &err) == LM_OK);
+    if (ip) CHECK(rend_id_render(ip, &s->cameras[0], &ids, &err) == LM_OK);
+    if (ip)
+        CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = SS}, &f,
+                                &err) == LM_OK);
+    highlight_error fine = {0}, pixel = {0};
+    int ok = f && img && refine_and_measure(f, s, ids.pixels, 1.0f / (SS * SS), img, &fine) &&
+             refine_and_measure(f, s, ids.pixels, 1.0f, img, &pixel);
+    CHECK(ok);
+    const highlight_error *r[2] = {&fine, &pixel};
+    const char *what[2] = {"leaves down to a sample (1/9 pixel)", "leaves stopped at a pixel"};
+    for (int i = 0; ok && i < 2; ++i)
+        printf("%s: %llu leaves tested, %llu specular leaves; mean ΔE %.4f, max %.3f at (%d, %d), %d pixels above "
+               "the JND, relMSE %.3g\n",
+               what[i], r[i]->tested, r[i]->specular_leaves, r[i]->mean_de, r[i]->max_de, r[i]->worst % W,
+               r[i]->worst / W, r[i]->above, r[i]->relmse);
+    /* Measured: 9 pixels of 3,072 above the JND (worst ΔE 2.8), relMSE 6.9e-5,
+     * against 76 (worst 9.6) and 1.0e-3 with leaves stopped at a pixel. */
+    if (ok) {
+        CHECK_MSG(fine.above <= W * H / 100, "leaves down to a sample: %d pixels above the JND", fine.above);
+        CHECK_MSG(fine.max_de <= 2.0 * JND, "leaves down to a sample: worst pixel ΔE %.3f", fine.max_de);
+        CHECK_MSG(pixel.above >= 4 * (fine.above + 1), "leaves stopped at a pixel: %d pixels above the JND, %d below "
+                  "a pixel: the rim is not seen", pixel.above, fine.above);
+        CHECK_MSG(fine.relmse <= 0.25 * pixel.relmse, "relMSE %.3g with leaves below a pixel, %.3g without",
+                  fine.relmse, pixel.relmse);
+    }
+    rend_frame_destroy(f);
+    rend_id_destroy(ip);
+    free(img);
+    scene_destroy(s);
+    glctx_destroy(ctx);
+    return test_finish("rend_highlight_test");
+}
