@@ -11,6 +11,9 @@
 # The direct mesh's leaf overlay (key o) and the HUD change the window (window-shot
 # against the screenshot of the same frame); a reload (key r) gives a new worker
 # that refines again (a screenshot after it has direct samples).
+# The resting picture: paused on a converged snapshot, the picture shown (and
+# rest.exr) is the mean of all 16 jittered draws; on one not converged, a plain
+# draw (0).
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -69,6 +72,10 @@ restore
 resize 640 360
 wait 1
 screenshot ${DIR}/resized.png
+wait 4
+key p
+wait 2
+screenshot ${DIR}/rest.exr
 quit
 ")
 execute_process(
@@ -206,3 +213,16 @@ endif()
 if(NOT out MATCHES "screenshot [^\n]*/resized\\.png: 640x360,")
   message(FATAL_ERROR "the screenshot after 'resize 640 360' is not 640x360")
 endif()
+
+# The resting picture (view_app.c, draw_picture): complete after 2 s paused on a
+# converged snapshot, none on one still refining.
+if(NOT out MATCHES "screenshot [^\n]*/rest\\.exr: [^\n]*converged ([01]), rest draws ([0-9]+)")
+  message(FATAL_ERROR "no screenshot line for rest.exr")
+endif()
+if(CMAKE_MATCH_1 EQUAL 1 AND NOT CMAKE_MATCH_2 EQUAL 16)
+  message(FATAL_ERROR "paused on a converged snapshot, the picture averages ${CMAKE_MATCH_2} draws, not 16")
+endif()
+if(CMAKE_MATCH_1 EQUAL 0 AND NOT CMAKE_MATCH_2 EQUAL 0)
+  message(FATAL_ERROR "on a snapshot still refining, the picture averages ${CMAKE_MATCH_2} draws, not one plain draw")
+endif()
+message("rest.exr: converged ${CMAKE_MATCH_1}, ${CMAKE_MATCH_2} draws averaged")

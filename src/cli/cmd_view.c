@@ -30,11 +30,12 @@ static void print_screenshot(const char *path, const view_app_report *rep, void 
     unsigned long long light_samples = 0;
     for (uint32_t l = 0; snap && l < snap->stats.light_count; ++l) light_samples += snap->stats.lights[l].samples;
     printf("screenshot %s: %dx%d, frame %llu, %.2f s, direct samples %llu, light samples %llu, indirect samples %llu, "
-           "generation %llu, bounces %d\n",
+           "generation %llu, bounces %d, converged %d, rest draws %u\n",
            path, rep->width, rep->height, (unsigned long long)rep->frames, rep->seconds,
            snap ? (unsigned long long)snap->stats.direct.samples : 0ull, light_samples,
            snap ? (unsigned long long)snap->stats.indirect.samples : 0ull,
-           snap ? (unsigned long long)snap->generation : 0ull, snap ? snap->stats.bounces.bounces : 0);
+           snap ? (unsigned long long)snap->generation : 0ull, snap ? snap->stats.bounces.bounces : 0,
+           snap ? snap->converged : 0, rep->rest_draws);
     fflush(stdout);
 }
 

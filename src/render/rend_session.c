@@ -80,7 +80,8 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t 
      * a strip of light narrower than a pixel is seen in its box filter. */
     cache_desc cd = {.single_mesh = d->single_mesh,
                      .bounces = d->bounces ? d->bounces : CACHE_BOUNCES_AUTO,
-                     .sample_pixels = 1.0f / (float)(d->supersample * d->supersample)};
+                     .sample_pixels = d->sample_pixels > 0.0f ? d->sample_pixels
+                                                              : 1.0f / (float)(d->supersample * d->supersample)};
     if (d->camera) { /* the specular mesh starts at this camera's eye, not the scene's first */
         cd.eye_set = 1;
         memcpy(cd.eye, d->camera->position, sizeof cd.eye);

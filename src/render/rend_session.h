@@ -105,6 +105,9 @@ typedef struct rend_session_desc {
                                       REND_SESSION_TARGET_ERROR_DEFAULT, backend 0 = auto */
     int supersample;               /* REND_SESSION_FINAL's s (rend_frame_desc); 0 =
                                       REND_FRAME_SUPERSAMPLE_DEFAULT */
+    float sample_pixels;           /* the area of one sample of the pictures drawn, in pixels: the
+                                      smallest leaf the cache tests (cache_desc.sample_pixels);
+                                      0 = 1/supersample² */
     uint64_t max_tested;           /* the worker stops after this many leaf tests; 0 = no limit */
     int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
     int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */

@@ -32,6 +32,10 @@ static const double k_snapshot_period = 0.25;
  * runs, the worker gets the new view and resumes, and frames are full size again. */
 static const double k_motion_rest = 0.15;
 static const double k_start_poll = 0.002; /* s between looks for the first snapshot (nothing is drawn meanwhile) */
+/* The resting picture's jittered draws take at most this share of the time
+ * (each redraws every leaf): on Water at 1280x720 one takes ~128 ms, and with
+ * a draw every frame the viewer fell from 41 to 18 fps while converging. */
+static const double k_rest_share = 0.4;
 
 
 static cache_worker *worker(const view_state *v)
@@ -44,7 +48,8 @@ void view_app_report_of(const view_state *v, view_app_report *r)
     *r = (view_app_report){.scene = v->s, .camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
                            .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
                            .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
-                           .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win)};
+                           .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win),
+                           .rest_draws = v->shown && v->shown == view_accum_texture(v->accum) ? v->accum_n : 0};
 }
 
 /* K's colours: multipliers of the scene's, about equal in luminance. */
@@ -131,6 +136,9 @@ static lm_result start_session(view_state *v, lm_error *err)
     }
     d.gl = v->gl;
     d.supersample = 1;
+    /* At rest the picture is the mean of VIEW_ACCUM_SIDE² jittered draws: leaves
+     * down to one of their samples are seen. */
+    d.sample_pixels = 1.0f / (float)(VIEW_ACCUM_SIDE * VIEW_ACCUM_SIDE);
     d.publish_debug = v->overlay != 0;
     lm_result r = rend_session_create(&d, &v->rs, err);
     /* The first image drawn with both cores: the worker publishes it and waits
@@ -403,6 +411,73 @@ static void end_start_pause(view_state *v)
     if (!v->paused && !v->motion_paused) cache_worker_resume(worker(v));
 }
 
+/* What the resting picture would show now. */
+static view_accum_key accum_key_now(const view_state *v, const scene_camera *cam)
+{
+    view_accum_key k;
+    memset(&k, 0, sizeof k); /* the key is compared with memcmp: no stray padding */
+    k.cam = *cam;
+    k.width = cam->width;
+    k.height = cam->height;
+    k.components = v->components;
+    for (uint32_t l = 0; l < v->s->area_light_count; ++l)
+        k.lights += (double)(l + 1) * (v->light_scale[l] + 3.0 * v->light_tint[3 * l] + 5.0 * v->light_tint[3 * l + 1] +
+                                       7.0 * v->light_tint[3 * l + 2]);
+    k.generation = v->snap ? v->snap->generation : 0;
+    return k;
+}
+
+/* The picture of this frame into v->shown. At rest on a snapshot converged at
+ * its JND, the frame's draws go into the resting picture, each with its samples
+ * moved to the next offset of a VIEW_ACCUM_SIDE² grid in the pixel, until it is
+ * complete; then nothing is drawn until something changes. A new snapshot of the
+ * same view that sharpens a converged one (it differs by less than the JND)
+ * keeps half of the draws' weight; anything else starts again. */
+static lm_result draw_picture(view_state *v, rend_frame *f, const scene_camera *cam, const rend_frame_output *o,
+                              lm_error *err)
+{
+    const uint32_t full = VIEW_ACCUM_SIDE * VIEW_ACCUM_SIDE;
+    int rest = f == v->frame && v->snap && v->snap->converged && !v->snap->failed && v->accum;
+    v->shown = o->texture;
+    if (!rest) {
+        v->accum_n = 0;
+        v->accum_key.generation = 0; /* no mean to sharpen */
+        return rend_frame_draw(f, cam, v->snap, NULL, err);
+    }
+    view_accum_key k = accum_key_now(v, cam);
+    if (memcmp(&k, &v->accum_key, sizeof k) != 0) {
+        uint64_t gen = v->accum_key.generation;
+        v->accum_key.generation = k.generation;
+        int sharpening = gen != 0 && memcmp(&k, &v->accum_key, sizeof k) == 0;
+        v->accum_n = sharpening && v->accum_n > full / 2 ? full / 2 : sharpening ? v->accum_n : 0;
+        if (!v->accum_n) v->accum_i = 0;
+        v->accum_key = k;
+    }
+    /* The draws after the first wait their turn: a jittered draw redraws every
+     * leaf (on Water at 1280×720, 180,000 leaf triangles: 128 ms), and the
+     * viewer keeps its frame rate (docs/viewer.md, "The resting picture"). */
+    double now = lm_now_seconds();
+    if (v->accum_n >= full || (v->accum_n > 0 && now < v->accum_next)) {
+        v->shown = view_accum_texture(v->accum);
+        return LM_OK;
+    }
+    float jx, jy;
+    /* The offsets go round the grid whatever the weights: a sharpening snapshot
+     * keeps the mean, and the next draws fill the offsets it lacks most. */
+    rend_frame_jitter_pattern((int)(v->accum_i++ % full), VIEW_ACCUM_SIDE, 1, &jx, &jy);
+    rend_frame_set_jitter(f, jx, jy);
+    lm_result r = rend_frame_draw(f, cam, v->snap, NULL, err);
+    rend_frame_set_jitter(f, 0.0f, 0.0f);
+    if (r == LM_OK) r = view_accum_add(v->accum, o->texture, o->width, o->height, v->accum_n, err);
+    if (r == LM_OK) {
+        v->accum_n++;
+        v->shown = view_accum_texture(v->accum);
+        double took = lm_now_seconds() - now;
+        v->accum_next = now + took / k_rest_share;
+    }
+    return r;
+}
+
 /* One frame: input, script, ID pass after a move, the latest snapshot, draw, present. */
 static lm_result frame(view_state *v, lm_error *err)
 {
@@ -533,10 +608,10 @@ static lm_result frame(view_state *v, lm_error *err)
     rend_frame_get_output(f, &o);
     cam.width = o.width;
     cam.height = o.height;
-    r = rend_frame_draw(f, &cam, v->snap, NULL, err);
+    r = draw_picture(v, f, &cam, &o, err);
     tm_desc tm = {.exposure = v->exposure};
-    if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, o.texture, &tm, err);
-    if (r == LM_OK && v->overlay && v->snap && f == v->frame) r = view_app_draw_overlay(v, w, h, o.texture, &tm, err);
+    if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, v->shown, &tm, err);
+    if (r == LM_OK && v->overlay && v->snap && f == v->frame) r = view_app_draw_overlay(v, w, h, v->shown, &tm, err);
     if (r == LM_OK && v->hud) {
         char text[2048];
         view_app_hud_text(v, text, sizeof text);
@@ -586,6 +661,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     r = start_session(&v, err);
     if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
     if (r == LM_OK) r = view_hud_create(v.gl, &v.hud, err);
+    if (r == LM_OK) r = view_accum_create(v.gl, &v.accum, err);
     double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
     double next = lm_now_seconds(), next_title = next;
     while (r == LM_OK && !v.quit) {
@@ -613,6 +689,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     rend_session_destroy(v.rs); /* cancels the refinement and joins the thread, then its GL objects */
     view_tm_destroy(v.tm);
     view_hud_destroy(v.hud);
+    view_accum_destroy(v.accum);
     rend_frame_destroy(v.motion_frame);
     view_window_destroy(v.win);
     free(v.light_scale);

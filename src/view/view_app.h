@@ -56,6 +56,8 @@ typedef struct view_app_report {
     const cache_snapshot *snap;        /* the last snapshot drawn; NULL = none yet */
     const rend_frame_times *frame;     /* the last frame's passes; NULL = none drawn */
     const char *renderer;              /* GL_RENDERER / GL_VERSION of the window */
+    uint32_t rest_draws;               /* jittered draws averaged in the picture shown (0: one plain draw;
+                                          the resting picture, docs/viewer.md) */
 } view_app_report;
 
 typedef struct view_app_desc {

@@ -8,10 +8,25 @@
 
 #include "src/base/tonemap.h"
 #include "src/render/rend_session.h"
+#include "src/view/view_accum.h"
 #include "src/view/view_app.h"
 #include "src/view/view_glfw.h"
 #include "src/view/view_hud.h"
 #include "src/view/view_tonemap.h"
+
+/* The resting picture: the mean of VIEW_ACCUM_SIDE² draws on a regular grid of
+ * offsets in each pixel (rend_frame_jitter_pattern), made while the camera rests
+ * on a snapshot converged at its JND (docs/viewer.md, "The resting picture"). */
+enum { VIEW_ACCUM_SIDE = 4 };
+/* What the mean shows: it starts again when any of this changes (a snapshot
+ * sharpening one converged before keeps part of it: view_app.c). */
+typedef struct view_accum_key {
+    scene_camera cam;
+    int width, height;
+    unsigned components;
+    double lights;                  /* a sum over the lights' scales and tints */
+    uint64_t generation;            /* the snapshot's */
+} view_accum_key;
 
 /* Everything the loop owns; all of it display thread only (the worker's state is
  * behind cache_worker's API, reached through rend_session_worker). */
@@ -64,6 +79,12 @@ typedef struct view_state {
     double t_open, first_image, id_seconds;
     rend_frame_times times;
     int drawn;                      /* a frame with the current sizes exists */
+    view_accum *accum;              /* the resting picture (view_accum.h) */
+    uint32_t accum_n;               /* draws in it by weight (VIEW_ACCUM_SIDE²: complete) */
+    uint32_t accum_i;               /* draws since it started: the next offset */
+    double accum_next;              /* when the next draw into it may start */
+    view_accum_key accum_key;       /* what it shows */
+    GLuint shown;                   /* the linear picture the last frame showed: the frame's or the mean */
     /* The script: the command running and when it started. */
     size_t si;
     int cmd_started;

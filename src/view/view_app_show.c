@@ -17,15 +17,18 @@ static int ends_with(const char *s, const char *suffix)
     return n >= k && strcmp(s + n - k, suffix) == 0;
 }
 
-/* The linear radiance behind the picture (the same snapshot drawn again and read
- * back: the renderer redraws only what changed, i.e. nothing). */
+/* The linear radiance behind the picture: the resting picture read back, or the
+ * same snapshot drawn again and read back (the renderer redraws only what
+ * changed, i.e. nothing). */
 static lm_result write_exr(view_state *v, const char *path, lm_error *err)
 {
     rend_frame_output o;
     rend_frame_get_output(v->frame, &o);
     float *rgb = malloc((size_t)o.width * (size_t)o.height * 3 * sizeof *rgb);
     if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-    lm_result r = rend_session_draw(v->rs, REND_SESSION_FINAL, &v->cam, rgb, err);
+    lm_result r = v->shown && v->shown == view_accum_texture(v->accum)
+                      ? view_accum_read(v->accum, rgb, err)
+                      : rend_session_draw(v->rs, REND_SESSION_FINAL, &v->cam, rgb, err);
     if (r == LM_OK)
         r = img_write(&(img_write_desc){.path = path, .width = o.width, .height = o.height, .channels = 3, .pixels = rgb},
                       err);
@@ -43,7 +46,8 @@ lm_result view_app_take_screenshot(view_state *v, lm_error *err)
     } else {
         uint8_t *rgb = malloc((size_t)o.width * (size_t)o.height * 3);
         if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-        r = view_tm_read(v->tm, o.texture, o.width, o.height, &(tm_desc){.exposure = v->exposure}, rgb, err);
+        r = view_tm_read(v->tm, v->shown ? v->shown : o.texture, o.width, o.height, &(tm_desc){.exposure = v->exposure},
+                         rgb, err);
         if (r == LM_OK)
             r = img_write(&(img_write_desc){.path = v->shot, .width = o.width, .height = o.height, .channels = 3,
                                             .pixels8 = rgb},
@@ -153,9 +157,15 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
                                                           : "running";
         k += (size_t)snprintf(out + k, size - k,
                               "refinement: %s, %.0f samples/s, %.1f MB; estimated mean dE %.2f, %.1f%% above the JND "
-                              "(%.3g), %.0f%% untested\nsamples:",
+                              "(%.3g), %.0f%% untested\n",
                               state, v->rate, s->stats.bytes / 1048576.0, s->estimate.mean,
                               100.0 * s->estimate.above_jnd, (double)s->jnd, 100.0 * s->estimate.untested);
+        view_app_report rep;
+        view_app_report_of(v, &rep);
+        if (rep.rest_draws && k < size) /* the resting picture (view_app.c, draw_picture) */
+            k += (size_t)snprintf(out + k, size - k, "picture: %u of %d draws averaged\n", rep.rest_draws,
+                                  VIEW_ACCUM_SIDE * VIEW_ACCUM_SIDE);
+        if (k < size) k += (size_t)snprintf(out + k, size - k, "samples:");
         for (uint32_t l = 0; l < s->stats.light_count && l < 8 && k < size; ++l)
             k += (size_t)snprintf(out + k, size - k, " light%u %llu,", l, (unsigned long long)s->stats.lights[l].samples);
         if (k < size)
