@@ -635,7 +635,8 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     if (!ref_path || !dir || !opts[1].seen)
         return app_usage_error(cmd, "--reference, --seconds and --out are required");
     rend_session_desc sd = {.order = REND_SESSION_WORKER_FIRST, .single_mesh = single,
-                            .supersample = (int)supersample, .first_budget = REND_SESSION_FIRST_BUDGET_VIEWER};
+                            .supersample = (int)supersample, .first_budget = REND_SESSION_FIRST_BUDGET_VIEWER,
+                            .sample_pixels = 1.0f / (float)(supersample * accumulate * supersample * accumulate)};
     if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;
     static conv_ctx c; /* large (rows, statistics): not on the stack */
     static conv_run runs[2];

@@ -107,7 +107,7 @@ typedef struct rend_session_desc {
                                       REND_FRAME_SUPERSAMPLE_DEFAULT */
     float sample_pixels;           /* the area of one sample of the pictures drawn, in pixels: the
                                       smallest leaf the cache tests (cache_desc.sample_pixels);
-                                      0 = 1/supersample² */
+                                      0 = 1/supersample²; drawn accumulated k×k, 1/(k·supersample)² */
     uint64_t max_tested;           /* the worker stops after this many leaf tests; 0 = no limit */
     int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
     int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */
