@@ -55,14 +55,10 @@ static int measure(rend_frame *f, const scene *s, const cache_snapshot *snap, fl
     for (int py = 0; py < H; ++py)
         for (int px = 0; px < W; ++px) {
             double G = test_plane_pixel_G(&plane, px, py, SS);
-            float exact[3], d_a[3], d_b[3], lab_a[3], lab_b[3];
+            float exact[3];
             for (int k = 0; k < 3; ++k) exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G);
             const float *got = img + 3 * ((size_t)py * W + (size_t)px);
-            tm_to_display(&tm, got, d_a);
-            tm_to_display(&tm, exact, d_b);
-            tm_display_to_lab(d_a, lab_a);
-            tm_display_to_lab(d_b, lab_b);
-            double de = tm_delta_e(lab_a, lab_b);
+            double de = test_tone_delta_e(&tm, got, exact);
             e->mean_de += de / (W * H);
             if (de > e->max_de) e->max_de = de, e->worst = py * W + px;
             e->above += de > JND;
@@ -84,28 +80,21 @@ static double samples_taken(const cache_snapshot *snap)
 
 int main(void)
 {
-    glctx *ctx = NULL;
     lm_error err;
-    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
-    const GladGLContext *gl = glctx_gl(ctx);
-    scene *s = test_plane_load(&plane, "exact_plane");
-    rend_id *ip = NULL;
-    rend_frame *f = NULL;
+    test_plane_gl t;
+    int open = test_plane_gl_open(&plane, "exact_plane", SS, &t);
+    if (open == 77) return 77;
+    scene *s = t.s;
+    rend_frame *f = t.f;
     cache_worker *wk = NULL;
-    rend_id_result ids;
     float *img = malloc((size_t)W * H * 3 * sizeof *img);
     CHECK(img != NULL);
-    if (s) CHECK(rend_id_create(gl, &(rend_id_desc){.scene = s, .width = W, .height = H}, &ip, &err) == LM_OK);
-    if (ip) CHECK(rend_id_render(ip, &s->cameras[0], &ids, &err) == LM_OK);
-    if (ip)
+    if (open == 0)
         CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = {.backend = SAMP_BACKEND_EMBREE},
-                                                       .pixels = ids.pixels},
+                                                       .pixels = t.pixels},
                                   &wk, &err) == LM_OK);
     const cache_snapshot *snap = test_wait_finished(wk, 60.0);
     CHECK(snap && snap->converged && !snap->failed);
-    if (wk)
-        CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = SS}, &f,
-                                &err) == LM_OK);
     exact_error e1 = {0};
     int measured = f && snap && img && measure(f, s, snap, img, &e1);
     CHECK(measured);
@@ -180,9 +169,9 @@ int main(void)
     double n1 = snap ? samples_taken(snap) : 0;
     cache_worker_destroy(wk);
     wk = NULL;
-    if (ip)
+    if (open == 0)
         CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = {.backend = SAMP_BACKEND_EMBREE},
-                                                       .pixels = ids.pixels, .jnd_floor = JND / 8},
+                                                       .pixels = t.pixels, .jnd_floor = JND / 8},
                                   &wk, &err) == LM_OK);
     snap = test_wait_finished(wk, 120.0);
     CHECK(snap && snap->converged && !snap->failed && snap->jnd == JND / 8);
@@ -200,10 +189,7 @@ int main(void)
         CHECK(e2.max_de <= e1.max_de);
     }
     free(img);
-    rend_frame_destroy(f);
     cache_worker_destroy(wk);
-    rend_id_destroy(ip);
-    scene_destroy(s);
-    glctx_destroy(ctx);
+    test_plane_gl_close(&t);
     return test_finish("rend_exact_test");
 }

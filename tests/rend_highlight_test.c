@@ -77,15 +77,11 @@ static int refine_and_measure(rend_frame *f, const scene *s, const uint32_t *pix
     for (int py = 0; py < H; ++py)
         for (int px = 0; px < W; ++px) {
             double G = test_plane_pixel_G(&plane, px, py, SS), S = test_plane_pixel_S(&plane, px, py, SS);
-            float exact[3], d_a[3], d_b[3], lab_a[3], lab_b[3];
+            float exact[3];
             for (int k = 0; k < 3; ++k)
                 exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G + plane.ks[k] * plane.le[k] * S);
             const float *got = img + 3 * ((size_t)py * W + (size_t)px);
-            tm_to_display(&tm, got, d_a);
-            tm_to_display(&tm, exact, d_b);
-            tm_display_to_lab(d_a, lab_a);
-            tm_display_to_lab(d_b, lab_b);
-            double de = tm_delta_e(lab_a, lab_b);
+            double de = test_tone_delta_e(&tm, got, exact);
             e->mean_de += de / (W * H);
             if (de > e->max_de) e->max_de = de, e->worst = py * W + px;
             e->above += de > JND;
@@ -97,24 +93,14 @@ static int refine_and_measure(rend_frame *f, const scene *s, const uint32_t *pix
 
 int main(void)
 {
-    glctx *ctx = NULL;
-    lm_error err;
-    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &ctx, &err) != LM_OK) return test_no_gl(err.msg);
-    const GladGLContext *gl = glctx_gl(ctx);
-    scene *s = test_plane_load(&plane, "highlight_plane");
-    rend_id *ip = NULL;
-    rend_frame *f = NULL;
-    rend_id_result ids;
+    test_plane_gl t;
+    int open = test_plane_gl_open(&plane, "highlight_plane", SS, &t);
+    if (open == 77) return 77;
     float *img = malloc((size_t)W * H * 3 * sizeof *img);
     CHECK(img != NULL);
-    if (s) CHECK(rend_id_create(gl, &(rend_id_desc){.scene = s, .width = W, .height = H}, &ip, &err) == LM_OK);
-    if (ip) CHECK(rend_id_render(ip, &s->cameras[0], &ids, &err) == LM_OK);
-    if (ip)
-        CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = SS}, &f,
-                                &err) == LM_OK);
     highlight_error fine = {0}, pixel = {0};
-    int ok = f && img && refine_and_measure(f, s, ids.pixels, 1.0f / (SS * SS), img, &fine) &&
-             refine_and_measure(f, s, ids.pixels, 1.0f, img, &pixel);
+    int ok = open == 0 && img && refine_and_measure(t.f, t.s, t.pixels, 1.0f / (SS * SS), img, &fine) &&
+             refine_and_measure(t.f, t.s, t.pixels, 1.0f, img, &pixel);
     CHECK(ok);
     const highlight_error *r[2] = {&fine, &pixel};
     const char *what[2] = {"leaves down to a sample (1/9 pixel)", "leaves stopped at a pixel"};
@@ -133,10 +119,7 @@ int main(void)
         CHECK_MSG(fine.relmse <= 0.25 * pixel.relmse, "relMSE %.3g with leaves below a pixel, %.3g without",
                   fine.relmse, pixel.relmse);
     }
-    rend_frame_destroy(f);
-    rend_id_destroy(ip);
     free(img);
-    scene_destroy(s);
-    glctx_destroy(ctx);
+    test_plane_gl_close(&t);
     return test_finish("rend_highlight_test");
 }

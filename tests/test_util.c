@@ -8,7 +8,11 @@
 
 #include "mesh/cache/cache_worker.h"
 #include "sampling/analytic.h"
+#include "src/base/tonemap.h"
 #include "src/base/vecmath.h"
+#include "src/gpu/gl_context.h"
+#include "src/render/rend_frame.h"
+#include "src/render/rend_id.h"
 #include "src/scene/scene.h"
 
 int test_failures = 0;
@@ -194,4 +198,42 @@ int test_no_gl(const char *why)
 {
     printf("no GL context: %s\n", why);
     return getenv("LUMESH_REQUIRE_GL") ? 1 : 77;
+}
+
+int test_plane_gl_open(const test_plane *p, const char *name, int ss, test_plane_gl *t)
+{
+    lm_error err;
+    memset(t, 0, sizeof *t);
+    if (glctx_create(&(glctx_desc){.platform = GLCTX_EGL}, &t->ctx, &err) != LM_OK) return test_no_gl(err.msg);
+    const GladGLContext *gl = glctx_gl(t->ctx);
+    const int w = p->width, h = p->height;
+    rend_id_result ids; /* its arrays are t->ip's */
+    t->s = test_plane_load(p, name);
+    int ok = t->s != NULL;
+    if (ok) CHECK(ok = rend_id_create(gl, &(rend_id_desc){.scene = t->s, .width = w, .height = h}, &t->ip, &err) == LM_OK);
+    if (ok) CHECK(ok = rend_id_render(t->ip, &t->s->cameras[0], &ids, &err) == LM_OK);
+    if (ok)
+        CHECK(ok = rend_frame_create(gl, &(rend_frame_desc){.scene = t->s, .width = w, .height = h, .supersample = ss},
+                                     &t->f, &err) == LM_OK);
+    t->pixels = ok ? ids.pixels : NULL;
+    return ok ? 0 : 1;
+}
+
+void test_plane_gl_close(test_plane_gl *t)
+{
+    rend_frame_destroy(t->f);
+    rend_id_destroy(t->ip);
+    scene_destroy(t->s);
+    glctx_destroy(t->ctx);
+    memset(t, 0, sizeof *t);
+}
+
+double test_tone_delta_e(const tm_desc *tm, const float a[3], const float b[3])
+{
+    float da[3], db[3], la[3], lb[3];
+    tm_to_display(tm, a, da);
+    tm_to_display(tm, b, db);
+    tm_display_to_lab(da, la);
+    tm_display_to_lab(db, lb);
+    return tm_delta_e(la, lb);
 }

@@ -41,6 +41,7 @@ extern int test_checks;
     } while (0)
 
 #include <stddef.h>
+#include <stdint.h>
 
 /* Writes text to LUMESH_TMP_DIR/name (the test's build directory) and puts the
  * full path into path_out. A failure to write is a failed check. */
@@ -88,6 +89,26 @@ double test_plane_pixel_G(const test_plane *p, int px, int py, int sub);
 /* The same mean of the specular integral S (samp_polygon_phong: the plane's
  * Phong lobe over the light, seen from the camera): radiance ks·Le·S. */
 double test_plane_pixel_S(const test_plane *p, int px, int py, int sub);
+
+/* The GL side of a closed-form plane test: an EGL context, the plane loaded as
+ * NAME, its ID pass at the plane's image size (ids.pixels: the worker's pixel
+ * counts) and a renderer with ss×ss samples a pixel. test_plane_gl_open returns
+ * 77 (skipped) without any GL, 1 when a step failed (a failed check), else 0. */
+struct glctx;
+struct rend_id;
+struct rend_frame;
+typedef struct test_plane_gl {
+    struct glctx *ctx;
+    struct scene *s;
+    struct rend_id *ip;
+    struct rend_frame *f;
+    const uint32_t *pixels;
+} test_plane_gl;
+int test_plane_gl_open(const test_plane *p, const char *name, int ss, test_plane_gl *t);
+void test_plane_gl_close(test_plane_gl *t);
+/* CIE76 ΔE between two linear colours after the display's tone mapping. */
+struct tm_desc;
+double test_tone_delta_e(const struct tm_desc *tm, const float a[3], const float b[3]);
 
 /* Waits up to `seconds` for a snapshot that is finished (or failed); the last one
  * acquired otherwise (NULL if none). */
