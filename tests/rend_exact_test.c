@@ -42,8 +42,8 @@ static const test_plane plane = {.kd = {0.6, 0.4, 0.2}, .le = {5.0, 7.0, 9.0}, .
  * the JND, relMSE as `lumesh compare` computes it (linear, (a−b)²/(b²+0.01) over
  * pixels and channels), and the range of the exact green values. */
 typedef struct exact_error {
-    double mean_de, max_de, relmse, lo, hi;
-    int worst, above;
+    test_pixel_error px;
+    double lo, hi;
 } exact_error;
 
 static int measure(rend_frame *f, const scene *s, const cache_snapshot *snap, float *img, exact_error *e)
@@ -57,13 +57,7 @@ static int measure(rend_frame *f, const scene *s, const cache_snapshot *snap, fl
             double G = test_plane_pixel_G(&plane, px, py, SS);
             float exact[3];
             for (int k = 0; k < 3; ++k) exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G);
-            const float *got = img + 3 * ((size_t)py * W + (size_t)px);
-            double de = test_tone_delta_e(&tm, got, exact);
-            e->mean_de += de / (W * H);
-            if (de > e->max_de) e->max_de = de, e->worst = py * W + px;
-            e->above += de > JND;
-            for (int k = 0; k < 3; ++k)
-                e->relmse += (got[k] - exact[k]) * (got[k] - exact[k]) / (exact[k] * exact[k] + 0.01) / (3.0 * W * H);
+            test_pixel_error_add(&e->px, &tm, img + 3 * ((size_t)py * W + (size_t)px), exact, py * W + px, W * H, JND);
             e->lo = fmin(e->lo, exact[1]);
             e->hi = fmax(e->hi, exact[1]);
         }
@@ -101,9 +95,9 @@ int main(void)
     if (measured) {
         printf("exact plane %dx%d (%dx%d samples a pixel), %llu leaves tested, %u direct triangles: mean ΔE %.4f, "
                "max %.4f at pixel (%d, %d), %d pixels above the JND, relMSE %.3g; exact values span %.3f..%.3f\n",
-               W, H, SS, SS, (unsigned long long)snap->tested, snap->direct.triangle_count, e1.mean_de, e1.max_de,
-               e1.worst % W, e1.worst / W, e1.above, e1.relmse, e1.lo, e1.hi);
-        CHECK_MSG(e1.max_de <= JND, "worst pixel ΔE %.3f above the JND", e1.max_de);
+               W, H, SS, SS, (unsigned long long)snap->tested, snap->direct.triangle_count, e1.px.mean_de, e1.px.max_de,
+               e1.px.worst % W, e1.px.worst / W, e1.px.above, e1.px.relmse, e1.lo, e1.hi);
+        CHECK_MSG(e1.px.max_de <= JND, "worst pixel ΔE %.3f above the JND", e1.px.max_de);
         CHECK(e1.hi > 3.0 * e1.lo); /* the image is far from uniform */
     }
     /* Never plateau (cache_worker_desc.jnd_floor): converged at the JND, the
@@ -177,16 +171,16 @@ int main(void)
     CHECK(snap && snap->converged && !snap->failed && snap->jnd == JND / 8);
     exact_error e2 = {0};
     measured = measured && snap && measure(f, s, snap, img, &e2);
-    CHECK(measured && e1.relmse > 0);
-    if (measured && e1.relmse > 0) {
-        double n2 = samples_taken(snap), mc = e1.relmse * (n1 / n2);
+    CHECK(measured && e1.px.relmse > 0);
+    if (measured && e1.px.relmse > 0) {
+        double n2 = samples_taken(snap), mc = e1.px.relmse * (n1 / n2);
         printf("refined on to ΔE %.2f: %.0f samples (%.2fx), relMSE %.3g (%.3g of the JND's; a Monte Carlo "
                "estimate's %.3g), mean ΔE %.4f, max %.4f\n",
-               (double)snap->jnd, n2, n2 / n1, e2.relmse, e2.relmse / e1.relmse, mc, e2.mean_de, e2.max_de);
-        CHECK_MSG(e2.relmse <= 0.5 * e1.relmse, "relMSE %.3g after tightening, %.3g before", e2.relmse, e1.relmse);
-        CHECK_MSG(e2.relmse <= mc * 4.0 / 3.0, "relMSE %.3g with %.2fx the samples: slower than 1/N", e2.relmse,
+               (double)snap->jnd, n2, n2 / n1, e2.px.relmse, e2.px.relmse / e1.px.relmse, mc, e2.px.mean_de, e2.px.max_de);
+        CHECK_MSG(e2.px.relmse <= 0.5 * e1.px.relmse, "relMSE %.3g after tightening, %.3g before", e2.px.relmse, e1.px.relmse);
+        CHECK_MSG(e2.px.relmse <= mc * 4.0 / 3.0, "relMSE %.3g with %.2fx the samples: slower than 1/N", e2.px.relmse,
                   n2 / n1);
-        CHECK(e2.max_de <= e1.max_de);
+        CHECK(e2.px.max_de <= e1.px.max_de);
     }
     free(img);
     cache_worker_destroy(wk);

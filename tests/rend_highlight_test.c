@@ -44,8 +44,7 @@ static const test_plane plane = {.kd = {0.5, 0.4, 0.3}, .ks = {0.5, 0.5, 0.5}, .
                                  .cam_height = 0.8, .fov_y = 100.0, .width = W, .height = H, .plane_half = 1.3};
 
 typedef struct highlight_error {
-    double mean_de, max_de, relmse;
-    int above, worst;
+    test_pixel_error px;
     unsigned long long tested, specular_leaves;
 } highlight_error;
 
@@ -80,13 +79,7 @@ static int refine_and_measure(rend_frame *f, const scene *s, const uint32_t *pix
             float exact[3];
             for (int k = 0; k < 3; ++k)
                 exact[k] = (float)(plane.kd[k] / M_PI * plane.le[k] * G + plane.ks[k] * plane.le[k] * S);
-            const float *got = img + 3 * ((size_t)py * W + (size_t)px);
-            double de = test_tone_delta_e(&tm, got, exact);
-            e->mean_de += de / (W * H);
-            if (de > e->max_de) e->max_de = de, e->worst = py * W + px;
-            e->above += de > JND;
-            for (int k = 0; k < 3; ++k)
-                e->relmse += (got[k] - exact[k]) * (got[k] - exact[k]) / (exact[k] * exact[k] + 0.01) / (3.0 * W * H);
+            test_pixel_error_add(&e->px, &tm, img + 3 * ((size_t)py * W + (size_t)px), exact, py * W + px, W * H, JND);
         }
     return 1;
 }
@@ -107,17 +100,17 @@ int main(void)
     for (int i = 0; ok && i < 2; ++i)
         printf("%s: %llu leaves tested, %llu specular leaves; mean ΔE %.4f, max %.3f at (%d, %d), %d pixels above "
                "the JND, relMSE %.3g\n",
-               what[i], r[i]->tested, r[i]->specular_leaves, r[i]->mean_de, r[i]->max_de, r[i]->worst % W,
-               r[i]->worst / W, r[i]->above, r[i]->relmse);
+               what[i], r[i]->tested, r[i]->specular_leaves, r[i]->px.mean_de, r[i]->px.max_de, r[i]->px.worst % W,
+               r[i]->px.worst / W, r[i]->px.above, r[i]->px.relmse);
     /* Measured: 9 pixels of 3,072 above the JND (worst ΔE 2.8), relMSE 6.9e-5,
      * against 76 (worst 9.6) and 1.0e-3 with leaves stopped at a pixel. */
     if (ok) {
-        CHECK_MSG(fine.above <= W * H / 100, "leaves down to a sample: %d pixels above the JND", fine.above);
-        CHECK_MSG(fine.max_de <= 2.0 * JND, "leaves down to a sample: worst pixel ΔE %.3f", fine.max_de);
-        CHECK_MSG(pixel.above >= 4 * (fine.above + 1), "leaves stopped at a pixel: %d pixels above the JND, %d below "
-                  "a pixel: the rim is not seen", pixel.above, fine.above);
-        CHECK_MSG(fine.relmse <= 0.25 * pixel.relmse, "relMSE %.3g with leaves below a pixel, %.3g without",
-                  fine.relmse, pixel.relmse);
+        CHECK_MSG(fine.px.above <= W * H / 100, "leaves down to a sample: %d pixels above the JND", fine.px.above);
+        CHECK_MSG(fine.px.max_de <= 2.0 * JND, "leaves down to a sample: worst pixel ΔE %.3f", fine.px.max_de);
+        CHECK_MSG(pixel.px.above >= 4 * (fine.px.above + 1), "leaves stopped at a pixel: %d pixels above the JND, %d below "
+                  "a pixel: the rim is not seen", pixel.px.above, fine.px.above);
+        CHECK_MSG(fine.px.relmse <= 0.25 * pixel.px.relmse, "relMSE %.3g with leaves below a pixel, %.3g without",
+                  fine.px.relmse, pixel.px.relmse);
     }
     free(img);
     test_plane_gl_close(&t);

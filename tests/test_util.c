@@ -237,3 +237,14 @@ double test_tone_delta_e(const tm_desc *tm, const float a[3], const float b[3])
     tm_display_to_lab(db, lb);
     return tm_delta_e(la, lb);
 }
+
+void test_pixel_error_add(test_pixel_error *e, const tm_desc *tm, const float got[3], const float exact[3], int pixel,
+                          int count, double jnd)
+{
+    double de = test_tone_delta_e(tm, got, exact);
+    e->mean_de += de / count;
+    if (de > e->max_de) e->max_de = de, e->worst = pixel;
+    e->above += de > jnd;
+    for (int k = 0; k < 3; ++k)
+        e->relmse += (got[k] - exact[k]) * (got[k] - exact[k]) / (exact[k] * exact[k] + 0.01) / (3.0 * count);
+}

@@ -109,6 +109,16 @@ void test_plane_gl_close(test_plane_gl *t);
 /* CIE76 ΔE between two linear colours after the display's tone mapping. */
 struct tm_desc;
 double test_tone_delta_e(const struct tm_desc *tm, const float a[3], const float b[3]);
+/* An image's error against the exact one, pixel by pixel (test_pixel_error_add
+ * for each of `count` pixels): mean and largest tone-mapped ΔE, where the largest
+ * is, the pixels above `jnd`, and relMSE as `lumesh compare` computes it
+ * (linear, (a−b)²/(b²+0.01) over pixels and channels). Zero it to start. */
+typedef struct test_pixel_error {
+    double mean_de, max_de, relmse;
+    int above, worst;
+} test_pixel_error;
+void test_pixel_error_add(test_pixel_error *e, const struct tm_desc *tm, const float got[3], const float exact[3],
+                          int pixel, int count, double jnd);
 
 /* Waits up to `seconds` for a snapshot that is finished (or failed); the last one
  * acquired otherwise (NULL if none). */
