@@ -414,17 +414,21 @@ static void end_start_pause(view_state *v)
 /* What the resting picture would show now. */
 static view_accum_key accum_key_now(const view_state *v, const scene_camera *cam)
 {
-    view_accum_key k;
-    memset(&k, 0, sizeof k); /* the key is compared with memcmp: no stray padding */
-    k.cam = *cam;
-    k.width = cam->width;
-    k.height = cam->height;
-    k.components = v->components;
-    for (uint32_t l = 0; l < v->s->area_light_count; ++l)
+    view_accum_key k = {.cam = *cam, .components = v->components, .generation = v->snap ? v->snap->generation : 0};
+    for (uint32_t l = 0; l < v->light_count; ++l)
         k.lights += (double)(l + 1) * (v->light_scale[l] + 3.0 * v->light_tint[3 * l] + 5.0 * v->light_tint[3 * l + 1] +
                                        7.0 * v->light_tint[3 * l + 2]);
-    k.generation = v->snap ? v->snap->generation : 0;
     return k;
+}
+
+/* The same view, lights and terms (field by field: the camera's name has padding after it). */
+static int accum_same_view(const view_accum_key *a, const view_accum_key *b)
+{
+    const scene_camera *p = &a->cam, *q = &b->cam;
+    for (int i = 0; i < 3; ++i)
+        if (p->position[i] != q->position[i] || p->target[i] != q->target[i] || p->up[i] != q->up[i]) return 0;
+    return p->fov_y_deg == q->fov_y_deg && p->width == q->width && p->height == q->height &&
+           a->components == b->components && a->lights == b->lights;
 }
 
 /* The picture of this frame into v->shown. At rest on a snapshot converged at
@@ -445,10 +449,9 @@ static lm_result draw_picture(view_state *v, rend_frame *f, const scene_camera *
         return rend_frame_draw(f, cam, v->snap, NULL, err);
     }
     view_accum_key k = accum_key_now(v, cam);
-    if (memcmp(&k, &v->accum_key, sizeof k) != 0) {
-        uint64_t gen = v->accum_key.generation;
-        v->accum_key.generation = k.generation;
-        int sharpening = gen != 0 && memcmp(&k, &v->accum_key, sizeof k) == 0;
+    int same_view = accum_same_view(&k, &v->accum_key);
+    if (!same_view || k.generation != v->accum_key.generation) {
+        int sharpening = same_view && v->accum_key.generation != 0;
         v->accum_n = sharpening && v->accum_n > full / 2 ? full / 2 : sharpening ? v->accum_n : 0;
         if (!v->accum_n) v->accum_i = 0;
         v->accum_key = k;

@@ -21,8 +21,7 @@ enum { VIEW_ACCUM_SIDE = 4 };
 /* What the mean shows: it starts again when any of this changes (a snapshot
  * sharpening one converged before keeps part of it: view_app.c). */
 typedef struct view_accum_key {
-    scene_camera cam;
-    int width, height;
+    scene_camera cam;               /* with the picture's size */
     unsigned components;
     double lights;                  /* a sum over the lights' scales and tints */
     uint64_t generation;            /* the snapshot's */
