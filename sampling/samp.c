@@ -353,4 +353,25 @@ lm_result samp_surface_hits_trace(samp_sampler *sp, const samp_point *pts, uint3
     return LM_OK;
 }
 
+lm_result samp_lobe_visibility(samp_sampler *sp, uint32_t light, const samp_point *pts, const float *wo,
+                               const float *exponent, uint32_t n, uint32_t rays, float *V, lm_error *err)
+{
+    if (!sp || (n && (!pts || !wo || !exponent || !V)))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: missing arguments");
+    if (light >= sp->s->area_light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: %u is not an area light", light);
+    uint32_t side = (uint32_t)floor(sqrt((double)rays));
+    if (rays < 1 || rays > 4096 || side * side != rays)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: %u rays a point (a square, 1..4096)", rays);
+    if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: non-finite point or normal");
+    for (uint32_t i = 0; i < n; ++i)
+        if (!(exponent[i] >= 0.0f) || !isfinite(exponent[i]) || !isfinite(wo[3 * i]) || !isfinite(wo[3 * i + 1]) ||
+            !isfinite(wo[3 * i + 2]))
+            return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: a bad exponent or view direction");
+    double t0 = lm_now_seconds();
+    samp_lobe_run(sp->s, sp->rt, light, pts, wo, exponent, n, side, V);
+    sp->stats.direct_seconds += lm_now_seconds() - t0;
+    return LM_OK;
+}
+
 void samp_get_stats(const samp_sampler *sp, samp_stats *out) { *out = sp->stats; }

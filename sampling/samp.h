@@ -213,6 +213,19 @@ typedef struct samp_surface_hits {
 lm_result samp_surface_hits_trace(samp_sampler *sp, const samp_point *pts, uint32_t n, const samp_surface_hits *out,
                                   lm_error *err);
 
+/* The fraction of area light `light` visible from each point, weighted by the
+ * modified Phong lobe of exponent[i] about the mirror of wo[i] (3 floats a point,
+ * towards the viewer, any length) times the cosine at the point: what the
+ * specular integral needs where the light is partly hidden (docs/cache.md,
+ * "Leaves smaller than a pixel"; the cosine-weighted fraction of samp_direct
+ * misses an occluder that hides the part of the light a sharp lobe sees).
+ * rays (a square, 1..4096) directions a point, stratified in proportion to the
+ * lobe, traced with Embree whichever back end serves samp_direct. V[i] = −1
+ * where no ray of the lobe reaches the light (no information). Deterministic
+ * per point. */
+lm_result samp_lobe_visibility(samp_sampler *sp, uint32_t light, const samp_point *pts, const float *wo,
+                               const float *exponent, uint32_t n, uint32_t rays, float *V, lm_error *err);
+
 /* Which back ends serve a sampler. Decide by the enums (backend, gl_platform);
  * the names are for display and the statistics JSON only. A zeroed samp_stats
  * (backend AUTO, names NULL) stands for "no sampler". */

@@ -96,6 +96,9 @@ int samp_stratum_front_hit(const scene *s, const rt_scene *rt, const samp_frame 
 
 /* samp_point_epsilon from the ray tracing scene (the back ends hold no sampler). */
 float samp_point_eps_rt(const rt_scene *rt, const samp_point *x);
+/* samp_lobe_visibility's work (samp_lobe.c), side² rays a point. */
+void samp_lobe_run(const scene *s, const rt_scene *rt, uint32_t light, const samp_point *pts, const float *wo,
+                   const float *exponent, uint32_t n, uint32_t side, float *V);
 #ifdef __cplusplus
 }
 #endif

@@ -246,6 +246,8 @@ static void test_behind_and_touching(void)
     scene_destroy(s);
 }
 
+static void test_lobe_visibility(scene *s);
+
 static void test_half_blocker(void)
 {
     /* A blocker just under the light whose edge passes below the light's centre
@@ -297,7 +299,88 @@ static void test_half_blocker(void)
         CHECK_MSG(sqrt(rms) <= 1.5 * stated, "%d rays: rms %.3e > 1.5 x %.3e", rays[r], sqrt(rms), stated);
         samp_destroy(sp);
     }
+    test_lobe_visibility(s);
     scene_destroy(s);
+}
+
+/* The half blocker's scene seen in a sharp lobe (samp_lobe_visibility): the
+ * light's visible fraction weighted by the lobe, against a midpoint-rule sum over
+ * 400×400 points of the light with the blocker's half-plane tested exactly (in
+ * the room's own frame). The receiver faces up below the light's centre, where
+ * half of G is hidden; its lobe (n = 1000) is aimed 0.1 to either side of the
+ * blocker's edge and at the edge itself: the fraction the lobe sees is then
+ * about 1, 0 and ½ (measured 1.0000, 0.0039, 0.5039 against 0.9999, 0.0001,
+ * 0.5000), where the cosine-weighted one (samp_direct) is ½ each time. */
+static double lobe_visible_exact(const double x[3], const double r[3], double n)
+{
+    const double c[3] = {0.5, 0.9, 0.5}, q[3] = {-sin(M_PI / 6), 0, cos(M_PI / 6)};
+    double sum = 0.0, vis = 0.0;
+    enum { M = 400 };
+    for (int j = 0; j < M; ++j)
+        for (int i = 0; i < M; ++i) {
+            const double y[3] = {0.3 + 0.4 * (i + 0.5) / M, 0.95, 0.3 + 0.4 * (j + 0.5) / M};
+            double d[3], len = 0.0;
+            for (int k = 0; k < 3; ++k) {
+                d[k] = y[k] - x[k];
+                len += d[k] * d[k];
+            }
+            len = sqrt(len);
+            for (int k = 0; k < 3; ++k) d[k] /= len;
+            double ca = d[0] * r[0] + d[1] * r[1] + d[2] * r[2];
+            if (ca <= 0.0 || d[1] <= 0.0) continue;
+            double w = pow(ca, n) * d[1] * d[1] / (len * len); /* lobe · cos at x · cos at the light / r² */
+            double t = (0.9 - x[1]) / (y[1] - x[1]), p[3];
+            for (int k = 0; k < 3; ++k) p[k] = x[k] + t * (y[k] - x[k]);
+            int hidden = (p[0] - c[0]) * q[0] + (p[2] - c[2]) * q[2] > 0.0;
+            sum += w;
+            if (!hidden) vis += w;
+        }
+    return sum > 0.0 ? vis / sum : -1.0;
+}
+
+static void test_lobe_visibility(scene *s)
+{
+    samp_sampler *sp = make(s, 1024, 1, 2);
+    if (!sp) return;
+    const double x[3] = {0.5, 0.1, 0.5}, q[3] = {-sin(M_PI / 6), 0, cos(M_PI / 6)}, n = 1000.0;
+    enum { NP = 3 };
+    samp_point pts[NP];
+    float wo[3 * NP], ex[NP], V[NP], G[NP];
+    double want[NP];
+    for (int i = 0; i < NP; ++i) {
+        /* The lobe's axis at the light's centre moved by 0.1 across the edge (−, +) or on it. */
+        double off = i == 0 ? -0.1 : i == 1 ? 0.1 : 0.0, t[3] = {0.5 + off * q[0], 0.95, 0.5 + off * q[2]}, r[3], len = 0.0;
+        for (int k = 0; k < 3; ++k) {
+            r[k] = t[k] - x[k];
+            len += r[k] * r[k];
+        }
+        for (int k = 0; k < 3; ++k) r[k] /= sqrt(len);
+        const double w[3] = {-r[0], r[1], -r[2]}; /* its mirror about the up normal: towards the viewer */
+        double rw[3];
+        rot(w, rw);
+        for (int k = 0; k < 3; ++k) wo[3 * i + k] = (float)rw[k];
+        ex[i] = (float)n;
+        pts[i] = pt((float)x[0], (float)x[1], (float)x[2], 0, 1, 0, 0);
+        want[i] = lobe_visible_exact(x, r, n);
+    }
+    lm_error err;
+    CHECK(samp_lobe_visibility(sp, 0, pts, wo, ex, NP, 256, V, &err) == LM_OK);
+    CHECK(samp_direct(sp, 0, pts, NP, G, &err) == LM_OK);
+    for (int i = 0; i < NP; ++i) {
+        double cosine = G[i] / unocc(s, 0, &pts[i]);
+        printf("lobe aimed %s the blocker's edge: lobe-weighted visible %.4f (exact %.4f), cosine-weighted %.4f\n",
+               i == 0 ? "0.1 beside" : i == 1 ? "0.1 behind" : "at", V[i], want[i], cosine);
+        CHECK_MSG(fabs(V[i] - want[i]) <= 0.03, "lobe %d: %.4f against %.4f", i, V[i], want[i]);
+        CHECK_MSG(fabs(cosine - 0.5) <= 0.03, "cosine-weighted %.4f, not a half", cosine);
+    }
+    CHECK(want[0] > 0.95 && want[1] < 0.05 && fabs(want[2] - 0.5) < 0.05); /* the set-up itself */
+    /* Bad input is refused, a light that is not an area light too. */
+    ex[0] = -1.0f;
+    CHECK(samp_lobe_visibility(sp, 0, pts, wo, ex, 1, 256, V, &err) != LM_OK);
+    ex[0] = (float)n;
+    CHECK(samp_lobe_visibility(sp, 0, pts, wo, ex, 1, 250, V, &err) != LM_OK);
+    CHECK(samp_lobe_visibility(sp, 7, pts, wo, ex, 1, 256, V, &err) != LM_OK);
+    samp_destroy(sp);
 }
 
 /* Radiance mesh over the scene's triangles: one sub-triangle each (its corners),

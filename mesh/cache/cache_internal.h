@@ -567,6 +567,9 @@ lm_result cache_outdate_gathered(cache *c, lm_error *err);
  * the cache, valid until the next call), so the scheduler can refine the source
  * where the viewer now depends on it. */
 enum { CACHE_IMPORTANCE_RAYS = 256 };
+/* Rays of the lobe-weighted visible fraction at a specular vertex whose light is
+ * partly hidden (cache_light.c, samp_lobe_visibility): 16×16 strata of the lobe. */
+enum { CACHE_LOBE_RAYS = 256 };
 /* Gathers trace their pilot this many points at a time; only a gather of at most
  * this many keeps it for cache_record_importance (cache_source.c, trace_pilot). */
 enum { CACHE_PILOT_CHUNK = 4096 };

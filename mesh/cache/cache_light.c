@@ -300,6 +300,45 @@ lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, f
     return LM_OK;
 }
 
+/* Where an area light is partly hidden from a specular site (0 < V_ℓ < 1), the
+ * visible fraction weighted by the site's lobe replaces the cosine-weighted one
+ * of the light mesh: eq. 5 takes V_ℓ out of the lobe's integral, and an occluder
+ * that hides the part of the light a sharp lobe sees but little of what the
+ * cosine sees made a highlight on CornellBox-Water's ripples twice the
+ * reference's (docs/cache.md, "Leaves smaller than a pixel"). Wholly visible or
+ * hidden lights keep V_ℓ, exact there. */
+static lm_result lobe_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err)
+{
+    const scene *s = c->s;
+    const uint32_t L = c->light_count;
+    samp_point *pts = malloc((n ? n : 1) * sizeof *pts);
+    float *wo = malloc((n ? n : 1) * 3 * sizeof *wo), *ex = malloc((n ? n : 1) * sizeof *ex),
+          *out = malloc((n ? n : 1) * sizeof *out);
+    uint32_t *at = malloc((n ? n : 1) * sizeof *at);
+    lm_result r = pts && wo && ex && out && at ? LM_OK
+                                               : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for lobe visibility");
+    for (uint32_t l = 0; r == LM_OK && l < L && l < s->area_light_count; ++l) {
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            float v = V[(size_t)i * L + l];
+            if (!(v > 0.0f && v < 1.0f)) continue;
+            pts[m] = cache_vertex_point(c, sites[i].vid);
+            for (int k = 0; k < 3; ++k) wo[3 * m + (uint32_t)k] = c->eye[k] - pts[m].p[k];
+            ex[m] = s->materials[s->tris[pts[m].tri_plus_one - 1].material].n;
+            at[m++] = i;
+        }
+        if (m) r = samp_lobe_visibility(c->sp, l, pts, wo, ex, m, CACHE_LOBE_RAYS, out, err);
+        for (uint32_t k = 0; r == LM_OK && k < m; ++k)
+            if (out[k] >= 0.0f) V[(size_t)at[k] * L + l] = out[k];
+    }
+    free(pts);
+    free(wo);
+    free(ex);
+    free(out);
+    free(at);
+    return r;
+}
+
 /* The direct or specular values at the sites (cache_light_values, not counted). */
 static lm_result light_values(cache *c, cache_kind kind, const cache_site *sites, uint32_t n, float *rgb,
                               lm_error *err)
@@ -307,6 +346,7 @@ static lm_result light_values(cache *c, cache_kind kind, const cache_site *sites
     float *V = malloc(((size_t)n * c->light_count + 1) * sizeof *V);
     lm_result r = V ? cache_fetch_visibility(c, sites, n, V, err)
                     : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory fetching visibility");
+    if (r == LM_OK && kind == CACHE_KIND_SPECULAR) r = lobe_visibility(c, sites, n, V, err);
     for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
         const float *Vi = V + (size_t)i * c->light_count;
         if (kind == CACHE_KIND_DIRECT)
