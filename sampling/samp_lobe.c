@@ -20,7 +20,9 @@ typedef struct lobe_job {
 } lobe_job;
 
 /* Distance along (o, d) to light triangle `tri`'s front, or 0 when the ray misses
- * it (Möller–Trumbore; the light emits on its front only: scene.h). */
+ * it (Möller–Trumbore; the light emits on its front only: scene.h). Each lobe ray
+ * tries the light's triangles in turn: a quad lamp is two; a lamp of many
+ * triangles costs in proportion, on the few vertices it partly hides. */
 static float light_hit(const scene *s, uint32_t tri, lm_vec3 o, lm_vec3 d)
 {
     const uint32_t *v = s->tris[tri].v;

@@ -80,7 +80,7 @@ static int leaf_estimate(const est_walk *w, uint32_t node, const mesh_qnode *n, 
 {
     int tested, untested_borrowed = 0;
     const int one_sample = cache_leaf_below_sample(w->c, w->kind, px, n);
-    const float share = px < 1.0 ? (float)px : 1.0f;
+    const float share = cache_pixel_share(px);
     float interp = cache_sched_residual(&w->c->sched, w->kind, node, &tested);
     if (interp < 0.0f) { /* never tested: what its corners' contrast allows */
         interp = share * cache_leaf_contrast(w->c, w->m, w->kind, n);

@@ -677,6 +677,11 @@ void cache_sched_forget(cache_sched *st, cache_kind kind);
  * sample of the picture (cache_desc.sample_pixels), or smaller than a pixel and
  * a root, or indirect (docs/cache.md, "Leaves smaller than a pixel"). */
 int cache_leaf_below_sample(const cache *c, cache_kind kind, double px, const mesh_qnode *n);
+/* The part of a pixel a leaf of px pixels is seen in: a leaf smaller than a
+ * pixel is one of several in its box filter, and its ΔE counts by this share in
+ * its test, its residual and the estimate (docs/cache.md, "Leaves smaller than a
+ * pixel"). */
+static inline float cache_pixel_share(double px) { return px < 1.0 ? (float)px : 1.0f; }
 /* cache_refine (cache.h) on an initialised cache. */
 lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
 

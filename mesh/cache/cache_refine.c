@@ -105,11 +105,6 @@ static float leaf_pixels(const uint32_t *pixels, const mesh_qnode *n)
     return ldexpf(p, -2 * (int)n->depth);
 }
 
-/* The part of a pixel a leaf's error is seen in: a leaf smaller than a pixel
- * is one of several in its box filter (docs/cache.md, "Leaves smaller than a
- * pixel"). */
-static float pixel_share(float leaf_px) { return leaf_px < 1.0f ? leaf_px : 1.0f; }
-
 /* A leaf no test may split: one no larger than a sample of the picture, or a
  * root smaller than a pixel, or an indirect leaf smaller than a pixel. Below a
  * pixel only a split whose test found something goes on (a highlight's rim, a
@@ -613,13 +608,13 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 cache_seen_lab_with(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
                 cache_seen_lab_with(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
             }
-            float de = tm_delta_e(lf, li) * pixel_share(px);
+            float de = tm_delta_e(lf, li) * cache_pixel_share(px);
             found = de > c->desc.jnd;
             tested_mid++;
             sum_de += de;
             sum_de2 += de * de;
             if (kind == KIND_INDIRECT && !combined) {
-                float dn = pixel_share(px) * noise_delta_e(c, tri, leaves[i].mw1[k], leaves[i].mw2[k], corner[k],
+                float dn = cache_pixel_share(px) * noise_delta_e(c, tri, leaves[i].mw1[k], leaves[i].mw2[k], corner[k],
                                                            corner[(k + 1) % 3], leaves[i].mid[k], interp, li);
                 sum_dn2 += dn * dn;
             }

@@ -636,7 +636,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         return app_usage_error(cmd, "--reference, --seconds and --out are required");
     rend_session_desc sd = {.order = REND_SESSION_WORKER_FIRST, .single_mesh = single,
                             .supersample = (int)supersample, .first_budget = REND_SESSION_FIRST_BUDGET_VIEWER,
-                            .sample_pixels = 1.0f / (float)(supersample * accumulate * supersample * accumulate)};
+                            .sample_pixels = rend_session_sample_pixels((int)supersample, (int)accumulate)};
     if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;
     static conv_ctx c; /* large (rows, statistics): not on the stack */
     static conv_run runs[2];

@@ -154,7 +154,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
      * (rend_session_desc.jnd_floor); otherwise it stops there, as --samples does. */
     rend_session_desc sd = {.supersample = (int)supersample, .max_tested = (uint64_t)samples,
                             .publish_debug = debug_dir != NULL, .jnd_floor = opts[1].seen ? 0.0f : -1.0f,
-                            .sample_pixels = 1.0f / (float)(supersample * accumulate * supersample * accumulate)};
+                            .sample_pixels = rend_session_sample_pixels((int)supersample, (int)accumulate)};
     if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;
     /* Reproducible runs: a stop counted in leaf tests, not seconds, and no timing-based
      * calibration (auto picks its back ends by measured speed). */

@@ -73,6 +73,12 @@ static lm_result make_context(rend_session *rs, lm_error *err)
     return r;
 }
 
+float rend_session_sample_pixels(int supersample, int accumulate)
+{
+    const int s = supersample > 0 ? supersample : 1, k = accumulate > 0 ? accumulate : 1;
+    return 1.0f / (float)(s * k * s * k);
+}
+
 static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t first_budget, lm_error *err)
 {
     const rend_session_desc *d = &rs->d;
@@ -81,7 +87,7 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t 
     cache_desc cd = {.single_mesh = d->single_mesh,
                      .bounces = d->bounces ? d->bounces : CACHE_BOUNCES_AUTO,
                      .sample_pixels = d->sample_pixels > 0.0f ? d->sample_pixels
-                                                              : 1.0f / (float)(d->supersample * d->supersample)};
+                                                              : rend_session_sample_pixels(d->supersample, 1)};
     if (d->camera) { /* the specular mesh starts at this camera's eye, not the scene's first */
         cd.eye_set = 1;
         memcpy(cd.eye, d->camera->position, sizeof cd.eye);

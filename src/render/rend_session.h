@@ -126,6 +126,11 @@ typedef struct rend_session_desc {
 /* Fills d's zero fields with the defaults above (idempotent). */
 void rend_session_desc_defaults(rend_session_desc *d);
 
+/* The area in pixels of one sample of a picture drawn k×k times (jittered,
+ * averaged) with s×s samples a pixel: 1/(k·s)², rend_session_desc.sample_pixels
+ * for a front end that accumulates. */
+float rend_session_sample_pixels(int supersample, int accumulate);
+
 typedef struct rend_session rend_session;
 
 /* Makes what desc.order says, in that order. On failure nothing is left (out is

@@ -49,7 +49,7 @@ void view_app_report_of(const view_state *v, view_app_report *r)
                            .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
                            .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
                            .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win),
-                           .rest_draws = v->shown && v->shown == view_accum_texture(v->accum) ? v->accum_n : 0};
+                           .rest_draws = view_app_showing_mean(v) ? v->accum_n : 0};
 }
 
 /* K's colours: multipliers of the scene's, about equal in luminance. */
@@ -138,7 +138,7 @@ static lm_result start_session(view_state *v, lm_error *err)
     d.supersample = 1;
     /* At rest the picture is the mean of VIEW_ACCUM_SIDE² jittered draws: leaves
      * down to one of their samples are seen. */
-    d.sample_pixels = 1.0f / (float)(VIEW_ACCUM_SIDE * VIEW_ACCUM_SIDE);
+    d.sample_pixels = rend_session_sample_pixels(1, VIEW_ACCUM_SIDE);
     d.publish_debug = v->overlay != 0;
     lm_result r = rend_session_create(&d, &v->rs, err);
     /* The first image drawn with both cores: the worker publishes it and waits

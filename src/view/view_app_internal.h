@@ -100,6 +100,8 @@ typedef struct view_state {
 extern const char *const view_light_preset_names[];
 
 void view_app_report_of(const view_state *v, view_app_report *r);
+/* The last frame showed the resting picture (the mean of jittered draws). */
+static inline int view_app_showing_mean(const view_state *v) { return v->shown && v->shown == view_accum_texture(v->accum); }
 /* v->shot (PNG as shown, EXR linear; with shot_exr_too the EXR beside the PNG). */
 lm_result view_app_take_screenshot(view_state *v, lm_error *err);
 /* The mesh overlay over the picture in the window; nothing without data. */

@@ -26,8 +26,7 @@ static lm_result write_exr(view_state *v, const char *path, lm_error *err)
     rend_frame_get_output(v->frame, &o);
     float *rgb = malloc((size_t)o.width * (size_t)o.height * 3 * sizeof *rgb);
     if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-    lm_result r = v->shown && v->shown == view_accum_texture(v->accum)
-                      ? view_accum_read(v->accum, rgb, err)
+    lm_result r = view_app_showing_mean(v) ? view_accum_read(v->accum, rgb, err)
                       : rend_session_draw(v->rs, REND_SESSION_FINAL, &v->cam, rgb, err);
     if (r == LM_OK)
         r = img_write(&(img_write_desc){.path = path, .width = o.width, .height = o.height, .channels = 3, .pixels = rgb},
