@@ -31,7 +31,9 @@ struct ref_renderer {
     ref_lights lights;
     int width, height, threads;
     camera_basis cam;       /* the primary rays (src/scene/camera.h) */
+    uint32_t generation;    /* restarts so far: part of every sample's seed */
     ref_pixel *pixels;
+    uint8_t *mask;          /* NULL: every pixel; else a pass samples only non-zero ones */
     uint64_t rays;          /* main thread; summed from workers after each pass */
     double seconds;
 
@@ -39,6 +41,7 @@ struct ref_renderer {
     volatile sig_atomic_t *cancel;
     double deadline;
     atomic_uint next_tile;
+    unsigned resume_tile;   /* tiles of an unfinished pass done (all below it): the next call goes on there */
     atomic_ullong pass_rays;
     atomic_ullong bad_samples;
 };
@@ -284,7 +287,8 @@ static void render_pixel(ctx *c, int px, int py)
 {
     const ref_renderer *r = c->r;
     ref_pixel *pix = &r->pixels[(size_t)py * (size_t)r->width + (size_t)px];
-    lm_rng_seed(&c->g, r->desc.seed, (uint64_t)py * (uint64_t)r->width + (uint64_t)px, pix->count);
+    uint64_t pixel = (uint64_t)py * (uint64_t)r->width + (uint64_t)px;
+    lm_rng_seed(&c->g, r->desc.seed, pixel, ((uint64_t)r->generation << 32) | pix->count);
     float jx = lm_rng_float(&c->g), jy = lm_rng_float(&c->g);
     lm_vec3 dir = camera_ray_dir(&r->cam, (float)px + jx, (float)py + jy);
     float L[3];
@@ -320,18 +324,19 @@ static void *worker(void *arg)
         if (t >= ntiles) break;
         int x0 = (int)(t % (unsigned)tiles_x) * TILE, y0 = (int)(t / (unsigned)tiles_x) * TILE;
         for (int y = y0; y < y0 + TILE && y < r->height; ++y)
-            for (int x = x0; x < x0 + TILE && x < r->width; ++x) render_pixel(&c, x, y);
+            for (int x = x0; x < x0 + TILE && x < r->width; ++x)
+                if (!r->mask || r->mask[(size_t)y * (size_t)r->width + (size_t)x]) render_pixel(&c, x, y);
     }
     atomic_fetch_add(&r->pass_rays, c.rays);
     return NULL;
 }
 
-void ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline)
+int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline)
 {
     double t0 = lm_now_seconds();
     r->cancel = cancel;
     r->deadline = deadline;
-    atomic_store(&r->next_tile, 0u);
+    atomic_store(&r->next_tile, r->resume_tile);
     atomic_store(&r->pass_rays, 0ull);
     pthread_t tids[MAX_THREADS];
     int started = 0;
@@ -344,6 +349,12 @@ void ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double dead
     r->rays += atomic_load(&r->pass_rays);
     r->seconds += lm_now_seconds() - t0;
     r->cancel = NULL;
+    /* A worker takes a tile only before the deadline and then finishes it, so the
+     * tiles below next_tile are done; past the last one the pass is complete. */
+    unsigned tiles = (unsigned)(((r->width + TILE - 1) / TILE) * ((r->height + TILE - 1) / TILE));
+    unsigned done = atomic_load(&r->next_tile);
+    r->resume_tile = done >= tiles ? 0u : done;
+    return done >= tiles;
 }
 
 /* ---- creation and results --------------------------------------------------- */
@@ -353,16 +364,17 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
     *out = NULL;
     if (!desc || !desc->scene) return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: no scene");
     const scene *s = desc->scene;
-    if (desc->camera < 0 || (uint32_t)desc->camera >= s->camera_count)
+    if (!desc->view && (desc->camera < 0 || (uint32_t)desc->camera >= s->camera_count))
         return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: camera %d does not exist", desc->camera);
     if ((unsigned)desc->transport >= REF_TRANSPORT_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: unknown transport %d", (int)desc->transport);
     if (desc->bounces < REF_BOUNCES_NONE || desc->bounces > 64)
         return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: bounces must be 0..64");
-    const scene_camera *cam = &s->cameras[desc->camera];
+    const scene_camera *cam = desc->view ? desc->view : &s->cameras[desc->camera];
     ref_renderer *r = calloc(1, sizeof *r);
     if (!r) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
     r->desc = *desc;
+    r->desc.view = NULL; /* not kept: the caller's may not outlive this */
     r->s = s;
     r->width = desc->width > 0 ? desc->width : cam->width;
     r->height = desc->height > 0 ? desc->height : cam->height;
@@ -386,9 +398,31 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
     return LM_OK;
 }
 
+void ref_restart(ref_renderer *r, const scene_camera *view)
+{
+    memset(r->pixels, 0, (size_t)r->width * (size_t)r->height * sizeof *r->pixels);
+    r->generation++;
+    r->resume_tile = 0;
+    if (view) r->cam = camera_basis_make(view, r->width, r->height);
+}
+
+lm_result ref_set_mask(ref_renderer *r, const uint8_t *mask, lm_error *err)
+{
+    size_t n = (size_t)r->width * (size_t)r->height;
+    if (!mask) {
+        free(r->mask);
+        r->mask = NULL;
+        return LM_OK;
+    }
+    if (!r->mask && !(r->mask = malloc(n))) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a pixel mask");
+    memcpy(r->mask, mask, n);
+    return LM_OK;
+}
+
 void ref_destroy(ref_renderer *r)
 {
     if (!r) return;
+    free(r->mask);
     rt_scene_destroy(r->rt);
     ref_lights_free(&r->lights);
     free(r->pixels);

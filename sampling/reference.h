@@ -51,6 +51,7 @@ enum { REF_BOUNCES_NONE = -1 }; /* direct light only (model transport) */
 typedef struct ref_desc {
     const scene *scene;       /* must outlive the renderer */
     int camera;               /* index into scene->cameras */
+    const scene_camera *view; /* non-NULL: this camera instead (copied; a viewer's moved one) */
     int width, height;        /* pixels; 0 = the camera's */
     ref_transport transport;
     int bounces;              /* model transport: diffuse bounces; 0 = 1; REF_BOUNCES_NONE = 0 */
@@ -63,11 +64,27 @@ typedef struct ref_renderer ref_renderer;
 lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err);
 void ref_destroy(ref_renderer *r); /* NULL is a no-op */
 
-/* Adds one sample to every pixel. The pass stops early, after the tiles under
- * way, when *cancel (may be NULL) becomes non-zero or the clock passes `deadline`
- * (an lm_now_seconds() value; 0 = none): those pixels keep their extra sample,
- * the rest do not, so every pixel's estimate is made of complete samples. */
-void ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline);
+/* Adds one sample to every pixel (of the mask: ref_set_mask). The pass stops
+ * early, after the tiles under way, when *cancel (may be NULL) becomes non-zero or
+ * the clock passes `deadline` (an lm_now_seconds() value; 0 = none): those pixels
+ * keep their extra sample, the rest do not, so every pixel's estimate is made of
+ * complete samples, and the next call goes on with the pass where this one
+ * stopped (short calls still sample every pixel in turn). Returns 1 when the pass
+ * is complete, 0 when it stopped early. */
+int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline);
+
+/* Forgets every sample and looks from view (NULL: the same camera) from now on;
+ * the size, transport and BVH stay. Samples after it draw new random numbers
+ * (the seed's generation moves on), so a restart at the same view is an
+ * independent estimate. */
+void ref_restart(ref_renderer *r, const scene_camera *view);
+
+/* Passes from now on add a sample only to the pixels whose mask byte is non-zero
+ * (width·height bytes, copied); NULL: every pixel again. Set it between complete
+ * passes: a pass that goes on after a change uses the new mask for its tiles left. For a caller that spends
+ * samples where they are worth most (rend_residual.h). Stats and images are
+ * unchanged in meaning: each pixel is the mean of its own samples. */
+lm_result ref_set_mask(ref_renderer *r, const uint8_t *mask, lm_error *err);
 
 typedef struct ref_stats {
     uint32_t min_samples, max_samples; /* per pixel */

@@ -53,6 +53,9 @@ static void print_text(const char *pa, const char *pb, const img_image *a, const
            r->pixels_compared, r->nonfinite_pixels, r->nonfinite_a, r->nonfinite_b);
     printf("RMSE          %.6g (linear)\n", r->rmse);
     printf("relMSE        %.6g (squared error / (reference² + 0.01))\n", r->relmse);
+    if (r->relmse_reference_noise > 0.0)
+        printf("              of which %.6g is the reference's own noise (its stderr channels); net %.6g\n",
+               r->relmse_reference_noise, r->relmse - r->relmse_reference_noise);
     print_psnr("PSNR", r->psnr, "peak 1.0");
     printf("mean error    %.6g (linear, absolute)\n", r->mean_abs_error);
     printf("max error     %.6g (linear) at x %d, y %d, channel %s\n", r->max_abs_error, r->max_x,
@@ -108,6 +111,7 @@ static char *make_json(const char *pa, const char *pb, const img_image *a, const
              cJSON_AddNumberToObject(root, "nonfinite_reference", (double)r->nonfinite_b) &&
              cJSON_AddNumberToObject(root, "rmse", r->rmse) &&
              cJSON_AddNumberToObject(root, "relmse", r->relmse) &&
+             cJSON_AddNumberToObject(root, "relmse_reference_noise", r->relmse_reference_noise) &&
              add_psnr(root, "psnr_db", r->psnr) &&
              cJSON_AddNumberToObject(root, "psnr_peak", 1.0) &&
              cJSON_AddNumberToObject(root, "mean_abs_error", r->mean_abs_error) &&

@@ -39,6 +39,7 @@
 #include "src/cli/plot.h"
 #include "src/image/compare.h"
 #include "src/image/image.h"
+#include "src/render/rend_residual.h"
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 
@@ -71,8 +72,10 @@ typedef struct conv_row {
     row_state state;
     uint64_t tested;          /* lumesh: leaves tested */
     uint64_t samples[MAX_MESHES]; /* lumesh: light meshes, then direct, indirect, specular */
-    uint32_t spp_min, spp_max;/* path tracer */
-    uint64_t rays;            /* path tracer */
+    uint32_t spp_min, spp_max;/* path samples a pixel: the path tracer's, or lumesh's residual's */
+    uint64_t rays;            /* the same paths' rays */
+    double residual_weight;   /* lumesh: mean James–Stein weight of the residual's blocks (rend_residual_info) */
+    double residual_corrected;/* lumesh: share of the blocks the residual corrects */
     double est_delta_e;       /* lumesh: the cache's own estimate of delta_e_mean (cache_estimate, over the image) */
     double est_above_jnd;     /* lumesh: its estimated fraction of pixels above the JND */
     double est_untested;      /* lumesh: the fraction of pixels in leaves not tested yet (the estimate a guess) */
@@ -99,6 +102,8 @@ typedef struct conv_ctx {
     double seconds;           /* --seconds */
     int supersample;          /* --supersample: s×s samples a pixel in the measured images */
     int accumulate;           /* --accumulate: k×k jittered draws of a converged snapshot */
+    int residual;             /* --residual on: path-trace the residual while the cache has nothing to do */
+    uint32_t residual_seed;
     int tty;
     uint32_t light_count;     /* mesh columns: light_count + 3 */
     double first_image;       /* seconds from the scene loaded; < 0 until drawn */
@@ -245,6 +250,43 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
 
 /* The previewer: a render session (worker first, then the GL context, the first
  * image, the ID pass, the offline renderer); snapshots at c->times. */
+/* A finished snapshot's picture corrected by the path-traced residual run until
+ * `until`: the residual is made at the first call (the reference's transport and
+ * bounces: the truth measured against), the cached picture drawn (accumulated)
+ * once per snapshot generation. */
+static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snapshot *snap, double until,
+                                rend_residual **res, float **cached, uint64_t *cached_generation, float *rgb,
+                                conv_row *row, lm_error *err)
+{
+    const scene_camera *cam = &c->s->cameras[c->cam];
+    size_t n = (size_t)c->w * (size_t)c->h;
+    lm_result r = LM_OK;
+    if (!*cached && !(*cached = malloc(n * 3 * sizeof **cached)))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
+    if (*cached_generation != snap->generation) {
+        r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, c->accumulate, *cached, err);
+        if (r != LM_OK) return r;
+        *cached_generation = snap->generation;
+    }
+    if (!*res) {
+        r = rend_residual_create(&(rend_residual_desc){.scene = c->s, .camera = cam, .width = c->w, .height = c->h,
+                                                       .transport = c->transport, .bounces = c->ref_bounces,
+                                                       .seed = c->residual_seed},
+                                 res, err);
+        if (r != LM_OK) return r;
+        rend_residual_apply(*res, *cached, rgb, NULL); /* the picture its adaptive passes start from */
+    }
+    rend_residual_run(*res, &interrupted, until);
+    rend_residual_info info;
+    rend_residual_apply(*res, *cached, rgb, &info);
+    row->spp_min = info.min_samples;
+    row->spp_max = info.max_samples;
+    row->rays = info.rays;
+    row->residual_weight = info.mean_weight;
+    row->residual_corrected = info.corrected;
+    return LM_OK;
+}
+
 static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0, conv_run *run, lm_error *err)
 {
     rend_session *rs = NULL;
@@ -264,6 +306,12 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
      * reference's box filter). */
     if (r == LM_OK) r = rend_session_renderer(rs, REND_SESSION_FINAL, NULL, err);
     const cache_snapshot *snap = NULL;
+    /* Once the cache has nothing left to do, the path-traced residual
+     * (rend_residual.h) uses the machine until each snapshot's time, and the
+     * cached picture, drawn once per snapshot generation, is corrected by it. */
+    rend_residual *res = NULL;
+    float *cached = NULL;
+    uint64_t cached_generation = 0;
     for (int i = 0; r == LM_OK && i < c->time_count && !interrupted; ++i) {
         conv_row *row = &run->rows[run->count];
         memset(row, 0, sizeof *row);
@@ -299,8 +347,12 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
          * frames of it (rend_session_draw_accumulated); the row is dated when
          * that image is complete. While refining, one draw. */
         int k = snap && snap->converged ? c->accumulate : 1;
-        r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, k, rgb, err);
-        if (k > 1) row->seconds = fmax(row->seconds, lm_now_seconds() - t0);
+        if (c->residual && snap && snap->finished) {
+            r = residual_image(c, rs, snap, t0 + row->target, &res, &cached, &cached_generation, rgb, row, err);
+        } else {
+            r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, k, rgb, err);
+        }
+        if (k > 1 || res) row->seconds = fmax(row->seconds, lm_now_seconds() - t0);
         c->frames++;
         rend_session_get_info(rs, &in);
         if (r == LM_OK) c->frame_times = in.times[REND_SESSION_FINAL];
@@ -312,6 +364,8 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
         }
     }
     progress(c, run->method, run->count ? run->rows[run->count - 1].seconds : 0, NULL, 1);
+    rend_residual_destroy(res);
+    free(cached);
     rend_session_destroy(rs);
     free(rgb);
     return r;
@@ -379,8 +433,9 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
 #define OUT(...) len += (size_t)snprintf(t + len, cap - len, __VA_ARGS__)
     OUT("method,target_seconds,seconds,state,leaves_tested");
     for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
-    OUT(",spp_min,spp_max,rays,rmse,relmse,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
-        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,image\n");
+    OUT(",spp_min,spp_max,rays,rmse,relmse,relmse_reference_noise,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
+        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,"
+        "residual_weight,residual_corrected,image\n");
     for (int k = 0; k < nrun; ++k)
         for (int i = 0; i < runs[k].count; ++i) {
             const conv_row *w = &runs[k].rows[i];
@@ -392,15 +447,18 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
                     OUT(",");
                 else
                     OUT(",%llu", (unsigned long long)w->samples[m]);
-            if (pt)
+            if (pt || w->spp_max)
                 OUT(",%u,%u,%llu", w->spp_min, w->spp_max, (unsigned long long)w->rays);
             else
                 OUT(",,,");
-            OUT(",%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,", w->m.rmse, w->m.relmse, w->m.psnr, w->m.mean_abs_error,
+            OUT(",%.6g,%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,", w->m.rmse, w->m.relmse, w->m.relmse_reference_noise,
+                w->m.psnr, w->m.mean_abs_error,
                 w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max);
             OUT("%.5f,", w->m.delta_e_above_jnd);
             if (!pt) OUT("%.4f,%.5f,%.5f,%.4g", w->est_delta_e, w->est_above_jnd, w->est_untested, w->jnd);
             else OUT(",,,");
+            if (!pt && w->spp_max) OUT(",%.4f,%.4f", w->residual_weight, w->residual_corrected);
+            else OUT(",,");
             OUT(",%s\n", w->image);
         }
 #undef OUT
@@ -437,10 +495,18 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
         if ((m = cJSON_AddObjectToObject(o, "samples")))
             for (uint32_t k = 0; k < c->light_count + 3; ++k)
                 cJSON_AddNumberToObject(m, mesh_column(c, k, name, sizeof name), (double)w->samples[k]);
+        if (w->spp_max && (m = cJSON_AddObjectToObject(o, "residual"))) {
+            cJSON_AddNumberToObject(m, "spp_min", w->spp_min);
+            cJSON_AddNumberToObject(m, "spp_max", w->spp_max);
+            cJSON_AddNumberToObject(m, "rays", (double)w->rays);
+            cJSON_AddNumberToObject(m, "mean_weight", rounded(w->residual_weight, 1e-5));
+            cJSON_AddNumberToObject(m, "fraction_corrected", rounded(w->residual_corrected, 1e-5));
+        }
     }
     if ((m = cJSON_AddObjectToObject(o, "error"))) {
         cJSON_AddNumberToObject(m, "rmse", w->m.rmse);
         cJSON_AddNumberToObject(m, "relmse", w->m.relmse);
+        cJSON_AddNumberToObject(m, "relmse_reference_noise", w->m.relmse_reference_noise);
         if (isfinite(w->m.psnr))
             cJSON_AddNumberToObject(m, "psnr", rounded(w->m.psnr, 1e-4));
         else
@@ -606,7 +672,7 @@ static int reference_transport(conv_ctx *c, const char *ref_path, const char *gi
 int cmd_converge(const app_command *cmd, int argc, char **argv)
 {
     const char *ref_path = NULL, *dir = NULL, *sampler = NULL, *gl_name = NULL, *list = NULL, *camera = NULL,
-               *stats_path = NULL, *bounces = NULL, *transport = NULL;
+               *stats_path = NULL, *bounces = NULL, *transport = NULL, *residual = "on";
     double seconds = 0;
     long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
@@ -627,6 +693,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         {"--gl", NULL, APP_OPT_STRING, &gl_name},
         {"--bounces", NULL, APP_OPT_STRING, &bounces},
         {"--transport", NULL, APP_OPT_STRING, &transport},
+        {"--residual", NULL, APP_OPT_STRING, &residual},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -647,6 +714,9 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     c.seconds = seconds;
     c.supersample = (int)supersample;
     c.accumulate = (int)accumulate;
+    c.residual = strcmp(residual, "on") == 0;
+    if (!c.residual && strcmp(residual, "off") != 0) return app_usage_error(cmd, "--residual takes on or off");
+    c.residual_seed = (uint32_t)seed ^ 0x5eed0001u; /* not the path tracer's: independent of it */
     c.first_image = c.converged_at = -1;
     if (!parse_times(list, seconds, c.times, &c.time_count))
         return app_usage_error(cmd, "--snapshots takes increasing positive seconds separated by commas, "
@@ -722,8 +792,11 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         for (int k = 0; k < nrun; ++k) {
             for (int i = 0; i < runs[k].count; ++i) {
                 const conv_row *w = &runs[k].rows[i];
-                printf("  %-18s %8.3f s  relMSE %-10.4g dE mean %-8.4f p99 %-8.4f PSNR %.2f dB\n", runs[k].method,
+                printf("  %-18s %8.3f s  relMSE %-10.4g dE mean %-8.4f p99 %-8.4f PSNR %.2f dB", runs[k].method,
                        w->seconds, w->m.relmse, w->m.delta_e_mean, w->m.delta_e_p99, w->m.psnr);
+                if (w->m.relmse_reference_noise > 0.0)
+                    printf("  (net of the reference's noise: relMSE %.4g)", w->m.relmse - w->m.relmse_reference_noise);
+                printf("\n");
             }
         }
         printf("wrote %s/convergence.csv, convergence.json, convergence.png%s\n", dir,

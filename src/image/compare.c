@@ -155,6 +155,21 @@ static lm_result check_image(const img_image *img, const char *name, lm_error *e
     return LM_OK;
 }
 
+/* The channels stderr.R, stderr.G, stderr.B of img (`lumesh reference` writes
+ * the standard error of each pixel's mean there): 1 and their indices, or 0. */
+static int stderr_channels(const img_image *img, int out[3])
+{
+    static const char *const names[3] = {"stderr.R", "stderr.G", "stderr.B"};
+    if (!img->channel_names) return 0;
+    for (int k = 0; k < 3; ++k) {
+        out[k] = -1;
+        for (int c = 0; c < img->channels; ++c)
+            if (strcmp(img->channel_names[c], names[k]) == 0) out[k] = c;
+        if (out[k] < 0) return 0;
+    }
+    return 1;
+}
+
 lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image *b,
                       cmp_result *out, float *delta_e, lm_error *err)
 {
@@ -173,9 +188,10 @@ lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image 
         return lm_fail(err, LM_ERR_BAD_INPUT, "%s is %dx%d but the reference %s is %dx%d", name_a,
                        a->width, a->height, name_b, b->width, b->height);
 
-    int ia[3], ib[3];
+    int ia[3], ib[3], se[3];
     cmp_rgb_channels(a, ia);
     cmp_rgb_channels(b, ib);
+    int has_se = stderr_channels(b, se);
     const size_t npix = (size_t)a->width * (size_t)a->height;
     const size_t sa = (size_t)a->channels, sb = (size_t)b->channels;
 
@@ -185,7 +201,7 @@ lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image 
                        a->width, a->height);
 
     const tm_desc tm = {.exposure = desc->exposure};
-    double sum_sq = 0.0, sum_rel = 0.0, sum_abs = 0.0, sum_de = 0.0;
+    double sum_sq = 0.0, sum_rel = 0.0, sum_abs = 0.0, sum_de = 0.0, sum_noise = 0.0;
     double max_abs = 0.0, max_de = 0.0;
     const double jnd = desc->jnd > 0.0f ? desc->jnd : 2.0;
     size_t above = 0;
@@ -210,6 +226,10 @@ lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image 
             double ad = fabs(d);
             sum_sq += d * d;
             sum_rel += d * d / ((double)vb[c] * (double)vb[c] + 0.01);
+            if (has_se) {
+                double e = pb[se[c]];
+                if (isfinite(e)) sum_noise += e * e / ((double)vb[c] * (double)vb[c] + 0.01);
+            }
             sum_abs += ad;
             if (ad > max_abs) {
                 max_abs = ad;
@@ -248,6 +268,7 @@ lm_result cmp_compare(const cmp_desc *desc, const img_image *a, const img_image 
     double mse = sum_sq / nv;
     out->rmse = sqrt(mse);
     out->relmse = sum_rel / nv;
+    out->relmse_reference_noise = has_se ? sum_noise / nv : 0.0;
     out->psnr = out->rmse > 0.0 ? 20.0 * log10(1.0 / out->rmse) : INFINITY;
     out->mean_abs_error = sum_abs / nv;
     out->max_abs_error = max_abs;

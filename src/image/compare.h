@@ -77,6 +77,12 @@ typedef struct cmp_result {
     size_t nonfinite_b;       /* ... in the reference */
     double rmse;
     double relmse;
+    double relmse_reference_noise; /* the part of relmse the reference's own noise explains:
+                                      mean of se²/(b² + 0.01) over the values compared, se the
+                                      reference's standard error from its channels stderr.R/G/B
+                                      (lumesh reference writes them); 0 without them. For an image
+                                      independent of the reference, relmse − this estimates its
+                                      relMSE against the truth without bias. */
     double psnr;              /* dB, peak 1.0; +INFINITY when rmse == 0 */
     double mean_abs_error;
     double max_abs_error;

@@ -1,0 +1,251 @@
+/* rend_residual.c — the cached picture corrected by path-traced samples, shrunk
+ * by block (rend_residual.h: the estimator and why it is shrunk). */
+#include "src/render/rend_residual.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct rend_residual {
+    rend_residual_desc desc;
+    ref_renderer *pt;
+    double seconds_before; /* the path tracer's seconds at the last restart */
+    float *mean, *se, *count; /* width·height·3, ·3, ·1: the path tracer's read-back */
+    const float *cached;      /* the last picture applied (the caller's; read by the next run only) */
+    float *cached_copy;       /* width·height·3: a copy of it, so the caller may free or reuse its own */
+    uint8_t *mask;            /* width·height: the pixels of the blocks being corrected, and their neighbours */
+    int mask_live;            /* mask has a pixel set */
+    uint64_t passes;          /* complete passes since the last restart */
+    int in_pass;              /* the last run stopped inside a pass: the next goes on with it */
+    int uniform;              /* the pass under way samples every pixel */
+};
+
+void rend_residual_desc_defaults(rend_residual_desc *d)
+{
+    if (d->block <= 0) d->block = REND_RESIDUAL_BLOCK_DEFAULT;
+    if (d->min_samples == 0) d->min_samples = REND_RESIDUAL_MIN_SAMPLES_DEFAULT;
+}
+
+lm_result rend_residual_create(const rend_residual_desc *desc, rend_residual **out, lm_error *err)
+{
+    *out = NULL;
+    if (!desc || !desc->scene || !desc->camera)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_residual_create: no scene or no camera");
+    if (desc->width <= 0 || desc->height <= 0)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_residual_create: size %dx%d", desc->width, desc->height);
+    rend_residual *rr = calloc(1, sizeof *rr);
+    size_t n = (size_t)desc->width * (size_t)desc->height;
+    if (rr) {
+        rr->mean = malloc(n * 3 * sizeof *rr->mean);
+        rr->se = malloc(n * 3 * sizeof *rr->se);
+        rr->count = malloc(n * sizeof *rr->count);
+        rr->cached_copy = malloc(n * 3 * sizeof *rr->cached_copy);
+        rr->mask = malloc(n);
+    }
+    if (!rr || !rr->mean || !rr->se || !rr->count || !rr->cached_copy || !rr->mask) {
+        rend_residual_destroy(rr);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the residual of a %dx%d picture", desc->width,
+                       desc->height);
+    }
+    rr->desc = *desc;
+    rr->desc.camera = NULL; /* the path tracer keeps its copy */
+    rend_residual_desc_defaults(&rr->desc);
+    lm_result r = ref_create(&(ref_desc){.scene = desc->scene,
+                                         .view = desc->camera,
+                                         .width = desc->width,
+                                         .height = desc->height,
+                                         .transport = desc->transport,
+                                         .bounces = desc->bounces,
+                                         .seed = desc->seed,
+                                         .threads = desc->threads},
+                             &rr->pt, err);
+    if (r != LM_OK) {
+        rend_residual_destroy(rr);
+        return r;
+    }
+    *out = rr;
+    return LM_OK;
+}
+
+void rend_residual_destroy(rend_residual *rr)
+{
+    if (!rr) return;
+    ref_destroy(rr->pt);
+    free(rr->mean);
+    free(rr->se);
+    free(rr->count);
+    free(rr->cached_copy);
+    free(rr->mask);
+    free(rr);
+}
+
+void rend_residual_restart(rend_residual *rr, const scene_camera *cam)
+{
+    ref_stats st;
+    ref_get_stats(rr->pt, &st);
+    rr->seconds_before = st.seconds;
+    ref_restart(rr->pt, cam);
+    ref_set_mask(rr->pt, NULL, NULL);
+    rr->cached = NULL;
+    rr->mask_live = 0;
+    rr->passes = 0;
+    rr->in_pass = 0;
+}
+
+/* q of a value: the weight relMSE gives its squared error (src/image/compare.c). */
+static double rel_weight(float cached) { return 1.0 / ((double)cached * cached + 0.01); }
+
+/* The sums of a block [bx, x1) × [by, y1) over its pixels and channels: the
+ * residual's energy Σ q·R² and its noise Σ q·s² (infinite when a pixel of it has
+ * too few samples). */
+typedef struct block_sums {
+    double energy, noise;
+} block_sums;
+
+static block_sums block_sum(int width, int bx, int by, int x1, int y1, const float *cached, const float *mean,
+                            const float *stderr_rgb)
+{
+    block_sums b = {0.0, 0.0};
+    for (int y = by; y < y1; ++y)
+        for (int x = bx; x < x1; ++x)
+            for (int k = 0; k < 3; ++k) {
+                size_t i = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
+                double q = rel_weight(cached[i]), r = (double)mean[i] - cached[i];
+                b.noise += q * (double)stderr_rgb[i] * stderr_rgb[i];
+                b.energy += q * r * r;
+            }
+    return b;
+}
+
+/* w_B: positive-part James–Stein with the noise counted REND_RESIDUAL_SHRINK
+ * times (rend_residual.h); 0 for a block short of samples. */
+static double block_weight(block_sums b)
+{
+    double noise = REND_RESIDUAL_SHRINK * b.noise;
+    return isfinite(noise) && b.energy > noise ? 1.0 - noise / b.energy : 0.0;
+}
+
+void rend_residual_blend(int width, int height, int block, const float *cached, const float *mean,
+                         const float *stderr_rgb, float *out, rend_residual_info *info)
+{
+    if (block <= 0) block = REND_RESIDUAL_BLOCK_DEFAULT;
+    double weight_sum = 0.0, est = 0.0;
+    size_t blocks = 0, corrected = 0;
+    int unknown = 0; /* a block short of samples: no estimate of its error */
+    for (int by = 0; by < height; by += block)
+        for (int bx = 0; bx < width; bx += block) {
+            int x1 = bx + block < width ? bx + block : width, y1 = by + block < height ? by + block : height;
+            block_sums sums = block_sum(width, bx, by, x1, y1, cached, mean, stderr_rgb);
+            double w = block_weight(sums);
+            for (int y = by; y < y1; ++y)
+                for (int x = bx; x < x1; ++x)
+                    for (int k = 0; k < 3; ++k) {
+                        size_t i = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
+                        out[i] = (float)(cached[i] + w * ((double)mean[i] - cached[i]));
+                    }
+            /* The corrected block's error: w² of the noise, and (1 − w)² of the bias,
+             * whose energy is what the noise does not explain. */
+            if (isfinite(sums.noise)) {
+                double bias = sums.energy > sums.noise ? sums.energy - sums.noise : 0.0;
+                est += w * w * sums.noise + (1.0 - w) * (1.0 - w) * bias;
+            } else {
+                unknown = 1;
+            }
+            weight_sum += w;
+            corrected += w > 0.0;
+            blocks++;
+        }
+    if (info) {
+        info->mean_weight = blocks ? weight_sum / (double)blocks : 0.0;
+        info->corrected = blocks ? (double)corrected / (double)blocks : 0.0;
+        info->est_relmse = unknown ? NAN : est / (3.0 * (double)width * (double)height);
+    }
+}
+
+/* The path tracer's mean and standard error now, with pixels short of
+ * desc.min_samples marked unknown (infinite error). */
+static void read_back(rend_residual *rr)
+{
+    size_t n = (size_t)rr->desc.width * (size_t)rr->desc.height;
+    ref_get_image(rr->pt, rr->mean, rr->se, rr->count);
+    for (size_t i = 0; i < n; ++i)
+        if (rr->count[i] < (float)rr->desc.min_samples) rr->se[3 * i] = rr->se[3 * i + 1] = rr->se[3 * i + 2] = INFINITY;
+}
+
+/* The mask of the adaptive passes: every pixel of a block with w_B > 0 against
+ * the last picture applied, and of the blocks around it (a wrong region seldom
+ * stops at a block's edge). */
+static void update_mask(rend_residual *rr)
+{
+    int width = rr->desc.width, height = rr->desc.height, b = rr->desc.block;
+    int bw = (width + b - 1) / b, bh = (height + b - 1) / b;
+    memset(rr->mask, 0, (size_t)width * (size_t)height);
+    rr->mask_live = 0;
+    if (!rr->cached) return;
+    read_back(rr);
+    for (int j = 0; j < bh; ++j)
+        for (int i = 0; i < bw; ++i) {
+            int bx = i * b, by = j * b;
+            int x1 = bx + b < width ? bx + b : width, y1 = by + b < height ? by + b : height;
+            if (!(block_weight(block_sum(width, bx, by, x1, y1, rr->cached, rr->mean, rr->se)) > 0.0)) continue;
+            rr->mask_live = 1;
+            int ya = (j - 1) * b < 0 ? 0 : (j - 1) * b, yb = (j + 2) * b < height ? (j + 2) * b : height;
+            int xa = (i - 1) * b < 0 ? 0 : (i - 1) * b, xb = (i + 2) * b < width ? (i + 2) * b : width;
+            for (int y = ya; y < yb; ++y) memset(rr->mask + (size_t)y * (size_t)width + (size_t)xa, 1, (size_t)(xb - xa));
+        }
+}
+
+/* One step of the passes: a pass (or the rest of one) with the mask it was
+ * started with; between complete passes the mask is chosen, and renewed after a
+ * uniform pass. Returns 0 when the pass stopped early. */
+static int pass_step(rend_residual *rr, volatile sig_atomic_t *cancel, double deadline)
+{
+    /* One pass in REND_RESIDUAL_UNIFORM_EVERY samples every pixel (so every pixel
+     * converges, and a wrong region newly found is seen); the others only the
+     * blocks being corrected, where a sample lowers the error most. */
+    if (!rr->in_pass) {
+        rr->uniform = rr->desc.uniform_only || !rr->mask_live || rr->passes % REND_RESIDUAL_UNIFORM_EVERY == 0;
+        if (ref_set_mask(rr->pt, rr->uniform ? NULL : rr->mask, NULL) != LM_OK)
+            rr->uniform = 1; /* no memory for the copy: every pixel */
+    }
+    rr->in_pass = !ref_render_pass(rr->pt, cancel, deadline);
+    if (rr->in_pass) return 0;
+    rr->passes++;
+    if (rr->uniform && !rr->desc.uniform_only) update_mask(rr);
+    return 1;
+}
+
+void rend_residual_run(rend_residual *rr, volatile sig_atomic_t *cancel, double deadline)
+{
+    while (!(cancel && *cancel) && lm_now_seconds() < deadline && pass_step(rr, cancel, deadline)) {
+    }
+}
+
+void rend_residual_run_passes(rend_residual *rr, uint32_t passes)
+{
+    for (uint32_t i = 0; i < passes; ++i) pass_step(rr, NULL, 0.0);
+}
+
+void rend_residual_read(rend_residual *rr, float *mean, float *stderr_rgb)
+{
+    ref_get_image(rr->pt, mean, stderr_rgb, NULL);
+}
+
+void rend_residual_apply(rend_residual *rr, const float *cached, float *out, rend_residual_info *info)
+{
+    int w = rr->desc.width, h = rr->desc.height;
+    size_t n = (size_t)w * (size_t)h;
+    read_back(rr);
+    memcpy(rr->cached_copy, cached, n * 3 * sizeof *cached);
+    rr->cached = rr->cached_copy;
+    rend_residual_info local;
+    if (!info) info = &local;
+    memset(info, 0, sizeof *info);
+    rend_residual_blend(w, h, rr->desc.block, cached, rr->mean, rr->se, out, info);
+    ref_stats st;
+    ref_get_stats(rr->pt, &st);
+    info->min_samples = st.min_samples;
+    info->max_samples = st.max_samples;
+    info->seconds = st.seconds - rr->seconds_before;
+    info->rays = st.rays;
+}
