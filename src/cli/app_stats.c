@@ -3,6 +3,7 @@
 #include "src/cli/app_stats.h"
 
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -192,6 +193,18 @@ cJSON *app_stats_json(const app_stats_desc *d)
             cJSON_AddNumberToObject(tris, "indirect", snap->indirect.triangle_count);
             cJSON_AddNumberToObject(tris, "specular", snap->specular.triangle_count);
         }
+    }
+
+    const rend_residual_info *ri = d->residual;
+    cJSON *res = ri ? cJSON_AddObjectToObject(j, "residual") : NULL;
+    if (res) {
+        cJSON_AddNumberToObject(res, "spp_min", ri->min_samples);
+        cJSON_AddNumberToObject(res, "spp_max", ri->max_samples);
+        cJSON_AddNumberToObject(res, "seconds", ri->seconds);
+        cJSON_AddNumberToObject(res, "rays", (double)ri->rays);
+        cJSON_AddNumberToObject(res, "mean_weight", ri->mean_weight);
+        cJSON_AddNumberToObject(res, "fraction_corrected", ri->corrected);
+        if (isfinite(ri->est_relmse)) cJSON_AddNumberToObject(res, "estimated_relmse", ri->est_relmse);
     }
 
     cJSON *meshes = cJSON_AddArrayToObject(j, "meshes");

@@ -17,6 +17,7 @@
 #include "mesh/cache/cache_worker.h"
 #include "src/base/util.h"
 #include "src/render/rend_frame.h"
+#include "src/render/rend_residual.h"
 
 typedef struct app_stats_desc {
     const char *command;          /* "render", "converge", "view" */
@@ -29,6 +30,7 @@ typedef struct app_stats_desc {
     double id_seconds;            /* the ID pass */
     const rend_frame_times *frame;/* the last frame's passes; NULL = none drawn */
     uint64_t frames;              /* frames drawn */
+    const rend_residual_info *residual; /* the path-traced residual that corrected the picture; NULL = none */
 } app_stats_desc;
 
 /* The statistics object; NULL when out of memory. The caller deletes it. */

@@ -250,6 +250,14 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
 
 /* The previewer: a render session (worker first, then the GL context, the first
  * image, the ID pass, the offline renderer); snapshots at c->times. */
+static lm_result residual_make(conv_ctx *c, rend_residual **res, lm_error *err)
+{
+    return rend_residual_create(&(rend_residual_desc){.scene = c->s, .camera = &c->s->cameras[c->cam], .width = c->w,
+                                                      .height = c->h, .transport = c->transport,
+                                                      .bounces = c->ref_bounces, .seed = c->residual_seed},
+                                res, err);
+}
+
 /* A finished snapshot's picture corrected by the path-traced residual run until
  * `until`: the residual is made at the first call (the reference's transport and
  * bounces: the truth measured against), the cached picture drawn (accumulated)
@@ -268,14 +276,7 @@ static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snaps
         if (r != LM_OK) return r;
         *cached_generation = snap->generation;
     }
-    if (!*res) {
-        r = rend_residual_create(&(rend_residual_desc){.scene = c->s, .camera = cam, .width = c->w, .height = c->h,
-                                                       .transport = c->transport, .bounces = c->ref_bounces,
-                                                       .seed = c->residual_seed},
-                                 res, err);
-        if (r != LM_OK) return r;
-        rend_residual_apply(*res, *cached, rgb, NULL); /* the picture its adaptive passes start from */
-    }
+    if (!*res && (r = residual_make(c, res, err)) != LM_OK) return r;
     rend_residual_run(*res, &interrupted, until);
     rend_residual_info info;
     rend_residual_apply(*res, *cached, rgb, &info);

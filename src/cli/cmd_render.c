@@ -5,10 +5,12 @@
  * tolerance by default) until it has converged at its JND (or nothing is left to
  * test), or `--seconds` have passed (refining on to a lower JND meanwhile), or
  * `--samples` leaf tests are done; the renderer's passes draw the last
- * snapshot; the image is written linear (EXR) or tone-mapped (PNG), through a
+ * snapshot (with `--seconds`, once the cache has finished, corrected by the
+ * path-traced residual until the time is up: rend_residual.h); the image is written linear (EXR) or tone-mapped (PNG), through a
  * temporary file (img_write), so a failure leaves no partial file.
  */
 #define _POSIX_C_SOURCE 200809L
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -19,6 +21,7 @@
 #include "src/cli/cli.h"
 #include "src/image/image.h"
 #include "src/render/rend_debug.h"
+#include "src/render/rend_residual.h"
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 
@@ -49,6 +52,46 @@ static void show_progress(void *user, const cache_snapshot *snap)
             (unsigned long long)snap->stats.indirect.samples, snap->estimate.mean, (double)snap->jnd,
             snap->converged ? " converged" : "");
     fflush(stderr);
+}
+
+/* What `--seconds` has left after the cache finished goes to the path-traced
+ * residual (rend_residual.h): the cached picture in rgb (drawn, accumulated) is
+ * corrected in place. The model transport with the bounces the cache shows is
+ * the truth it converges to. A terminal shows its progress. */
+static lm_result residual_until(const scene *s, const scene_camera *cam, int w, int h, const cache_snapshot *snap,
+                                double t0, double until, float *rgb, rend_residual_info *info, lm_error *err)
+{
+    rend_residual *rr = NULL;
+    int bounces = snap->stats.bounces.bounces > 0 ? snap->stats.bounces.bounces : 1;
+    lm_result r = rend_residual_create(&(rend_residual_desc){.scene = s, .camera = cam, .width = w, .height = h,
+                                                             .bounces = bounces, .seed = 0x5eed0001u},
+                                       &rr, err);
+    if (r != LM_OK) return r;
+    float *cached = malloc((size_t)w * (size_t)h * 3 * sizeof *cached);
+    if (!cached) {
+        rend_residual_destroy(rr);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
+    }
+    memcpy(cached, rgb, (size_t)w * (size_t)h * 3 * sizeof *cached);
+    int tty = isatty(STDERR_FILENO);
+    rend_residual_apply(rr, cached, rgb, info); /* the picture its adaptive passes start from */
+    while (lm_now_seconds() < until) {
+        rend_residual_run(rr, NULL, fmin(until, lm_now_seconds() + (tty ? 0.25 : until)));
+        if (!tty) continue;
+        rend_residual_apply(rr, cached, rgb, info);
+        double t = lm_now_seconds() - t0, limit = until - t0;
+        char bar[APP_PROGRESS_WIDTH + 1];
+        app_progress_bar(limit > 0 ? t / limit : 1, bar);
+        fprintf(stderr, "\rresidual [%s] %.1f s  %u..%u path samples a pixel  %.1f%% of the blocks corrected  "
+                        "est. relMSE %.3g   ",
+                bar, t, info->min_samples, info->max_samples, 100.0 * info->corrected, info->est_relmse);
+        fflush(stderr);
+    }
+    if (tty) fputc('\n', stderr);
+    rend_residual_apply(rr, cached, rgb, info);
+    free(cached);
+    rend_residual_destroy(rr);
+    return LM_OK;
 }
 
 /* --components LIST: the composite's terms to draw (rend_frame_set_components),
@@ -116,7 +159,7 @@ static lm_result write_debug_meshes(const char *dir, const scene *s, const scene
 int cmd_render(const app_command *cmd, int argc, char **argv)
 {
     const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *bounces = NULL, *debug_dir = NULL,
-               *components = NULL;
+               *components = NULL, *residual = "on";
     double seconds = 0;
     long samples = 0, width = 0, height = 0, supersample = REND_FRAME_SUPERSAMPLE_DEFAULT,
          accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
@@ -137,6 +180,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         {"--supersample", NULL, APP_OPT_INT, &supersample, 1, REND_FRAME_SUPERSAMPLE_MAX},
         {"--accumulate", NULL, APP_OPT_INT, &accumulate, 1, REND_SESSION_ACCUMULATE_MAX},
         {"--components", NULL, APP_OPT_STRING, &components},
+        {"--residual", NULL, APP_OPT_STRING, &residual},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -146,6 +190,8 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (!ext_is(out, "exr") && !ext_is(out, "png")) return app_usage_error(cmd, "the output must end in .png or .exr");
     if (opts[1].seen && opts[2].seen) return app_usage_error(cmd, "give --seconds or --samples, not both");
     if (opts[3].seen != opts[4].seen) return app_usage_error(cmd, "give both --width and --height");
+    if (strcmp(residual, "on") != 0 && strcmp(residual, "off") != 0)
+        return app_usage_error(cmd, "--residual takes on or off");
     unsigned mask = components ? parse_components(components) : REND_FRAME_COMPONENTS_ALL;
     if (!mask)
         return app_usage_error(cmd, "--components takes a comma-separated list of direct, indirect, specular and "
@@ -208,6 +254,11 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         if (r == LM_OK) rend_frame_set_components(final, mask);
     }
     if (r == LM_OK) r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, &cam, (int)accumulate, rgb, &err);
+    /* The whole picture (not chosen terms) of a cache finished before --seconds. */
+    rend_residual_info res = {0};
+    int corrected = r == LM_OK && opts[1].seen && strcmp(residual, "on") == 0 && snap->finished && !snap->failed &&
+                    mask == REND_FRAME_COMPONENTS_ALL && lm_now_seconds() < t0 + limit;
+    if (corrected) r = residual_until(s, &cam, w, h, snap, t0, t0 + limit, rgb, &res, &err);
     double elapsed = lm_now_seconds() - t0;
     if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, rs, rgb, snap, &err);
     /* What the statistics and the summary need is taken from the session, which is
@@ -221,7 +272,8 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         json = app_stats_json(&(app_stats_desc){.command = "render", .scene = s->source, .width = w, .height = h,
                                                 .supersample = (int)supersample, .seconds = elapsed,
                                                 .first_image_seconds = -1, .snap = snap, .id_seconds = in.id_seconds,
-                                                .frame = &in.times[REND_SESSION_FINAL], .frames = 1});
+                                                .frame = &in.times[REND_SESSION_FINAL], .frames = 1,
+                                                .residual = corrected ? &res : NULL});
         if (!json) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for the statistics");
     }
     char summary[1024] = "";
@@ -238,6 +290,12 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
                  snap->indirect.triangle_count, snap->specular.triangle_count, snap->estimate.mean,
                  100.0 * snap->estimate.above_jnd, (double)snap->jnd, 100.0 * snap->estimate.untested,
                  snap->finished && !snap->converged && !snap->failed ? " (nothing left it can improve)" : "");
+        if (corrected) {
+            size_t len = strlen(summary);
+            snprintf(summary + len, sizeof summary - len,
+                     "; then %u..%u path samples a pixel corrected %.1f%% of its blocks (estimated relMSE %.3g)",
+                     res.min_samples, res.max_samples, 100.0 * res.corrected, res.est_relmse);
+        }
     }
     rend_session_destroy(rs);
     snap = NULL;

@@ -30,11 +30,14 @@ static const app_command commands[] = {
      "                     [--width W --height H] [--supersample S] [--accumulate K] [--camera NAME]\n"
      "                     [--stats STATS.json] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
      "                     [--bounces K|auto] [--debug-meshes DIR] [--components LIST]\n"
+     "                     [--residual on|off]\n"
      "\n"
      "Refines the multi-mesh cache of SCENE (headless: EGL, or --gl osmesa) until it\n"
      "has converged at its JND (nothing left to test), T seconds have passed (it\n"
      "refines on to lower JNDs meanwhile) or N leaves are tested, then draws it and\n"
-     "writes a tone-mapped PNG or a linear EXR. On a terminal it shows its progress.\n"
+     "writes a tone-mapped PNG or a linear EXR. With --seconds, the time left once the\n"
+     "cache has finished path-traces its residual, which corrects the picture where it\n"
+     "shows it wrong. On a terminal it shows its progress.\n"
      "Without SCENE the built-in Cornell box.\n"
      "\n"
      "  -o, --output FILE   image to write (.png or .exr)\n"
@@ -55,6 +58,8 @@ static const app_command commands[] = {
      "  --components LIST   draw only these terms of the composite, comma-separated: direct\n"
      "                      (kd*L_dd), indirect (kd*E_i/pi), specular (ks*L_ds), emission (Le);\n"
      "                      default all (the terms add up to the whole image)\n"
+     "  --residual on|off   with --seconds: path-trace the residual once the cache has\n"
+     "                      finished (default on; the picture then tends to the truth)\n"
      SAMPLER_HELP,
      cmd_render},
     {"reference", "ray-traced ground truth (Embree path tracer)",
@@ -112,7 +117,7 @@ static const app_command commands[] = {
      "                       [--snapshots 0.1,0.2,0.5,1,...] [--vs-path-tracer] [--single-mesh]\n"
      "                       [--camera NAME] [--stats STATS.json] [--supersample S] [--accumulate K]\n"
      "                       [--seed S] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
-     "                       [--bounces K|auto] [--transport model|full]\n"
+     "                       [--bounces K|auto] [--transport model|full] [--residual on|off]\n"
      "\n"
      "Renders SCENE progressively at REF's size for T seconds, counted from the scene\n"
      "loaded. At each snapshot time it draws what the previewer shows, writes it to\n"
@@ -142,6 +147,9 @@ static const app_command commands[] = {
      "                      when that image is complete\n"
      "  --seed S            the path tracer's seed (default 1; keep it different from the\n"
      "                      reference's, whose default is 0, or the two are correlated)\n"
+     "  --residual on|off   once the cache has finished, path-trace its residual (the\n"
+     "                      reference's transport) until each snapshot and correct the\n"
+     "                      picture by it (default on)\n"
      SAMPLER_HELP,
      cmd_converge},
     {"view", "interactive window that sharpens while the camera is idle",

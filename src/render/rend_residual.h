@@ -106,7 +106,7 @@ typedef struct rend_residual_info {
     double mean_weight;                /* mean w_B over the blocks */
     double corrected;                  /* share of the blocks with w_B > 0 */
     double est_relmse;                 /* the corrected picture's relMSE as the samples estimate it:
-                                          Σ_B w²·Σq·s² + (1−w)²·max(Σq·R² − Σq·s², 0) over the values;
+                                          Σ_B w²·Σq·s² + (1−w)²·(Σq·R² − Σq·s²) over the values;
                                           NAN while a block is short of samples */
 } rend_residual_info;
 

@@ -71,9 +71,11 @@ extern "C" {
  * relative error tolerated in penumbra and in indirect samples, the cache's 2%. */
 #define REND_SESSION_TARGET_ERROR_DEFAULT 0.02f
 /* The worker's JND floor (cache_worker_desc.jnd_floor) by default: after converging
- * at the cache's JND (ΔE 2) it halves it four times, so a still view keeps
- * sharpening (docs/cache.md "Never plateau"). */
-#define REND_SESSION_JND_FLOOR_DEFAULT 0.125f
+ * at the cache's JND (ΔE 2) it halves it twice, so a still view keeps sharpening
+ * (docs/cache.md "Never plateau"); past that the front ends path-trace the
+ * residual (rend_residual.h), which lowers the error faster than refining on to
+ * 0.25 or 0.125 did (docs/cache.md, "The cache as a control variate"). */
+#define REND_SESSION_JND_FLOOR_DEFAULT 0.5f
 /* What converge and view ask for as rend_session_desc.first_budget: leaves tested
  * before the first image (docs/renderer.md, "The first image": on
  * CornellBox-Original at 640×480 mean ΔE 13.6 → 1.3 for 5–10 ms more). */
