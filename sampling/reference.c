@@ -32,6 +32,8 @@ struct ref_renderer {
     int width, height, threads;
     camera_basis cam;       /* the primary rays (src/scene/camera.h) */
     uint32_t generation;    /* restarts so far: part of every sample's seed */
+    float *light_value;     /* 3 per light (area lights, then point lights): radiance or intensity now
+                               (ref_set_light); the scene's at creation */
     ref_pixel *pixels;
     uint8_t *mask;          /* NULL: every pixel; else a pass samples only non-zero ones */
     uint64_t rays;          /* main thread; summed from workers after each pass */
@@ -88,6 +90,12 @@ static int emits_towards(const scene *s, uint32_t tri, lm_vec3 wi)
     return s->tris[tri].light >= 0 && v3_dot(v3_load(s->tri_normals + 3 * (size_t)tri), wi) < 0.0f;
 }
 
+/* The radiance of the area light triangle `tri` belongs to, as ref_set_light set it. */
+static const float *area_le(const ref_renderer *r, uint32_t tri)
+{
+    return r->light_value + 3 * (size_t)r->s->tris[tri].light;
+}
+
 static int has_specular(const scene_material *m)
 {
     return m->ks[0] > 0.0f || m->ks[1] > 0.0f || m->ks[2] > 0.0f;
@@ -140,9 +148,10 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
                     ws = ref_mis(ls.pdf, ref_phong_pdf(m->n, ls.wi, wo, x->ns));
                 }
                 float lobe = spec ? ref_phong_lobe(m->n, ls.wi, wo, x->ns) : 0.0f;
+                const float *le = area_le(c->r, ls.tri);
                 for (int k = 0; k < 3; ++k) {
-                    diffuse[k] += wd * ls.le[k] * e / (float)M_PI;
-                    specular[k] += ws * m->ks[k] * lobe * ls.le[k] * e;
+                    diffuse[k] += wd * le[k] * e / (float)M_PI;
+                    specular[k] += ws * m->ks[k] * lobe * le[k] * e;
                 }
             }
         }
@@ -158,13 +167,14 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
                 float pb = ref_phong_pdf(m->n, wi, wo, x->ns);
                 float pl = ref_area_light_pdf(&c->r->lights, h.tri, wi, h.t);
                 float w = ref_mis(pb, pl) * ref_phong_lobe(m->n, wi, wo, x->ns) * cosx / pb;
-                const float *le = s->area_lights[s->tris[h.tri].light].le;
+                const float *le = area_le(c->r, h.tri);
                 for (int k = 0; k < 3; ++k) specular[k] += w * m->ks[k] * le[k];
             }
         }
     }
     for (uint32_t i = 0; i < s->point_light_count; ++i) {
         const scene_point_light *pl = &s->point_lights[i];
+        const float *intensity = c->r->light_value + 3 * ((size_t)s->area_light_count + i);
         lm_vec3 d = v3_sub(v3_load(pl->position), x->p);
         float dist = v3_length(d);
         if (!(dist > 0.0f)) continue;
@@ -174,8 +184,8 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
         float e = cosx / (dist * dist);
         float lobe = spec ? ref_phong_lobe(m->n, wi, wo, x->ns) : 0.0f;
         for (int k = 0; k < 3; ++k) {
-            diffuse[k] += pl->intensity[k] * e / (float)M_PI;
-            specular[k] += m->ks[k] * lobe * pl->intensity[k] * e;
+            diffuse[k] += intensity[k] * e / (float)M_PI;
+            specular[k] += m->ks[k] * lobe * intensity[k] * e;
         }
     }
 }
@@ -211,8 +221,10 @@ static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
     lm_vec3 wo = v3_scale(dir, -1.0f);
     ref_surface x;
     ref_surface_from_hit(r->s, &h, wo, &x);
-    if (x.front)
-        for (int k = 0; k < 3; ++k) L[k] += x.m->le[k];
+    if (x.front) {
+        const float *le = r->s->tris[h.tri].light >= 0 ? area_le(r, h.tri) : x.m->le;
+        for (int k = 0; k < 3; ++k) L[k] += le[k];
+    }
     float dd[3], ds[3];
     direct_light(c, &x, wo, 1, MIS_LOBE_ONLY, dd, ds);
     int bounces = r->desc.bounces == REF_BOUNCES_NONE ? 0 : r->desc.bounces == 0 ? 1 : r->desc.bounces;
@@ -240,7 +252,8 @@ static void radiance_full(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
         if (x.front && s->tris[h.tri].light >= 0) {
             /* Emission found by BRDF sampling, weighted against light sampling. */
             float w = depth == 0 ? 1.0f : ref_mis(prev_pdf, ref_area_light_pdf(&r->lights, h.tri, dir, h.t));
-            for (int k = 0; k < 3; ++k) L[k] += beta[k] * w * x.m->le[k];
+            const float *le = area_le(r, h.tri);
+            for (int k = 0; k < 3; ++k) L[k] += beta[k] * w * le[k];
         }
         const scene_material *m = x.m;
         float dd[3], ds[3];
@@ -387,6 +400,16 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
         ref_destroy(r);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
     }
+    uint32_t lights = s->area_light_count + s->point_light_count;
+    r->light_value = malloc(((size_t)lights + 1) * 3 * sizeof *r->light_value);
+    if (!r->light_value) {
+        ref_destroy(r);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
+    }
+    for (uint32_t l = 0; l < lights; ++l)
+        memcpy(r->light_value + 3 * (size_t)l,
+               l < s->area_light_count ? s->area_lights[l].le : s->point_lights[l - s->area_light_count].intensity,
+               3 * sizeof *r->light_value);
     lm_result res = rt_scene_create(&(rt_scene_desc){.scene = s}, &r->rt, err);
     if (res == LM_OK) res = ref_lights_init(&r->lights, s, err);
     if (res != LM_OK) {
@@ -406,6 +429,19 @@ void ref_restart(ref_renderer *r, const scene_camera *view)
     if (view) r->cam = camera_basis_make(view, r->width, r->height);
 }
 
+lm_result ref_set_light(ref_renderer *r, uint32_t light, const float value[3], lm_error *err)
+{
+    const scene *s = r->s;
+    if (light >= s->area_light_count + s->point_light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", light,
+                       s->area_light_count + s->point_light_count);
+    for (int k = 0; k < 3; ++k)
+        if (!isfinite(value[k]) || value[k] < 0.0f)
+            return lm_fail(err, LM_ERR_INVALID_ARG, "light %u: a value must be finite and not negative", light);
+    memcpy(r->light_value + 3 * (size_t)light, value, 3 * sizeof *value);
+    return LM_OK;
+}
+
 lm_result ref_set_mask(ref_renderer *r, const uint8_t *mask, lm_error *err)
 {
     size_t n = (size_t)r->width * (size_t)r->height;
@@ -423,6 +459,7 @@ void ref_destroy(ref_renderer *r)
 {
     if (!r) return;
     free(r->mask);
+    free(r->light_value);
     rt_scene_destroy(r->rt);
     ref_lights_free(&r->lights);
     free(r->pixels);

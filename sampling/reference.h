@@ -79,6 +79,13 @@ int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadl
  * independent estimate. */
 void ref_restart(ref_renderer *r, const scene_camera *view);
 
+/* Light `light` (the scene's area lights, then its point lights) emits `value`
+ * from the next pass on: radiance, or a point light's intensity (a viewer's light
+ * edit; cache_worker_set_light). Lights are still chosen by the scene's power,
+ * so the estimate stays unbiased. Samples taken before are not changed:
+ * ref_restart after an edit. */
+lm_result ref_set_light(ref_renderer *r, uint32_t light, const float value[3], lm_error *err);
+
 /* Passes from now on add a sample only to the pixels whose mask byte is non-zero
  * (width·height bytes, copied); NULL: every pixel again. Set it between complete
  * passes: a pass that goes on after a change uses the new mask for its tiles left. For a caller that spends

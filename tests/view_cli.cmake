@@ -13,7 +13,8 @@
 # that refines again (a screenshot after it has direct samples).
 # The resting picture: paused on a converged snapshot, the picture shown (and
 # rest.exr) is the mean of all 16 jittered draws; on one not converged, a plain
-# draw (0).
+# draw (0) (both at 160x120). Ten seconds later the converged mean is corrected by path
+# samples (the residual: at least 32 a pixel).
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -72,10 +73,13 @@ restore
 resize 640 360
 wait 1
 screenshot ${DIR}/resized.png
+resize 160 120
 wait 4
 key p
 wait 2
 screenshot ${DIR}/rest.exr
+wait 10
+screenshot ${DIR}/residual.exr
 quit
 ")
 execute_process(
@@ -226,3 +230,18 @@ if(CMAKE_MATCH_1 EQUAL 0 AND NOT CMAKE_MATCH_2 EQUAL 0)
   message(FATAL_ERROR "on a snapshot still refining, the picture averages ${CMAKE_MATCH_2} draws, not one plain draw")
 endif()
 message("rest.exr: converged ${CMAKE_MATCH_1}, ${CMAKE_MATCH_2} draws averaged")
+
+# The resting picture corrected by path samples (view_residual.h): still paused
+# (at 160x120, as rest.exr), 10 s later, on a converged snapshot the correction is shown (at least
+# rend_residual's 32 samples a pixel, on the complete mean); on one still refining
+# there is no resting picture to correct.
+if(NOT out MATCHES "screenshot [^\n]*/residual\\.exr: 160x120, [^\n]*converged ([01]), rest draws ([0-9]+), residual spp ([0-9]+)")
+  message(FATAL_ERROR "no screenshot line for residual.exr")
+endif()
+if(CMAKE_MATCH_1 EQUAL 1 AND (CMAKE_MATCH_3 LESS 32 OR NOT CMAKE_MATCH_2 EQUAL 16))
+  message(FATAL_ERROR "paused on a converged snapshot: ${CMAKE_MATCH_3} path samples a pixel on ${CMAKE_MATCH_2} draws")
+endif()
+if(CMAKE_MATCH_1 EQUAL 0 AND NOT CMAKE_MATCH_3 EQUAL 0)
+  message(FATAL_ERROR "a snapshot still refining was corrected (${CMAKE_MATCH_3} path samples a pixel)")
+endif()
+message("residual.exr: converged ${CMAKE_MATCH_1}, ${CMAKE_MATCH_3} path samples a pixel")

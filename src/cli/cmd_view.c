@@ -30,12 +30,12 @@ static void print_screenshot(const char *path, const view_app_report *rep, void 
     unsigned long long light_samples = 0;
     for (uint32_t l = 0; snap && l < snap->stats.light_count; ++l) light_samples += snap->stats.lights[l].samples;
     printf("screenshot %s: %dx%d, frame %llu, %.2f s, direct samples %llu, light samples %llu, indirect samples %llu, "
-           "generation %llu, bounces %d, converged %d, rest draws %u\n",
+           "generation %llu, bounces %d, converged %d, rest draws %u, residual spp %u\n",
            path, rep->width, rep->height, (unsigned long long)rep->frames, rep->seconds,
            snap ? (unsigned long long)snap->stats.direct.samples : 0ull, light_samples,
            snap ? (unsigned long long)snap->stats.indirect.samples : 0ull,
            snap ? (unsigned long long)snap->generation : 0ull, snap ? snap->stats.bounces.bounces : 0,
-           snap ? snap->converged : 0, rep->rest_draws);
+           snap ? snap->converged : 0, rep->rest_draws, rep->residual_spp);
     fflush(stdout);
 }
 
@@ -89,7 +89,8 @@ static void release(void *user, const scene *old)
 
 int cmd_view(const app_command *cmd, int argc, char **argv)
 {
-    const char *sampler = NULL, *gl_name = NULL, *bounces = NULL, *script = NULL, *stats = NULL, *camera = NULL;
+    const char *sampler = NULL, *gl_name = NULL, *bounces = NULL, *script = NULL, *stats = NULL, *camera = NULL,
+               *residual = "on";
     long width = 0, height = 0;
     double max_fps = VIEW_APP_DEFAULT_FPS;
     enum { OPT_WIDTH = 6, OPT_HEIGHT = 7 }; /* their places below */
@@ -103,12 +104,15 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
         [OPT_WIDTH] = {"--width", NULL, APP_OPT_INT, &width, 1, 16384},
         [OPT_HEIGHT] = {"--height", NULL, APP_OPT_INT, &height, 1, 16384},
         {"--max-fps", NULL, APP_OPT_DOUBLE, &max_fps, 0, 1000},
+        {"--residual", NULL, APP_OPT_STRING, &residual},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
     if (rc < 0) return APP_EXIT_OK;
     if (rc) return rc;
     if (opts[OPT_WIDTH].seen != opts[OPT_HEIGHT].seen) return app_usage_error(cmd, "give both --width and --height");
+    if (strcmp(residual, "on") != 0 && strcmp(residual, "off") != 0)
+        return app_usage_error(cmd, "--residual takes on or off");
     /* As render: the 2% tolerance (rend_session_desc_defaults), the sampler chosen by
      * --sampler (auto by default). */
     rend_session_desc sd = {0};
@@ -131,7 +135,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
                                           .session = sd, .script = script ? cmds : NULL, .script_count = ncmds,
                                           .max_fps = max_fps > 0 ? max_fps : -1, .user = &c,
                                           .screenshot = print_screenshot, .finished = finished, .reload = reload,
-                                          .release = release},
+                                          .release = release, .no_residual = strcmp(residual, "off") == 0},
                          &err);
         s = c.current; /* the scene shown last (the first one or a reload's); the others are freed */
         scene_destroy(c.pending); /* a reload the run ended before taking (an error) */

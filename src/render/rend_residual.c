@@ -227,6 +227,11 @@ void rend_residual_run_passes(rend_residual *rr, uint32_t passes)
     for (uint32_t i = 0; i < passes; ++i) pass_step(rr, NULL, 0.0);
 }
 
+lm_result rend_residual_set_light(rend_residual *rr, uint32_t light, const float value[3], lm_error *err)
+{
+    return ref_set_light(rr->pt, light, value, err);
+}
+
 void rend_residual_read(rend_residual *rr, float *mean, float *stderr_rgb)
 {
     ref_get_image(rr->pt, mean, stderr_rgb, NULL);

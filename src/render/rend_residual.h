@@ -114,6 +114,10 @@ typedef struct rend_residual_info {
  * be cached). Before any block has min_samples, out is cached. info may be NULL. */
 void rend_residual_apply(rend_residual *rr, const float *cached, float *out, rend_residual_info *info);
 
+/* Light `light` emits `value` from now on (ref_set_light: a light edit, as
+ * cache_worker_set_light gives the cache); restart after it. */
+lm_result rend_residual_set_light(rend_residual *rr, uint32_t light, const float value[3], lm_error *err);
+
 /* The path tracer's pixels: mean RGB and the standard error of each mean
  * (ref_get_image; INFINITY below two samples), width·height·3 floats each; either
  * may be NULL. */

@@ -49,7 +49,9 @@ void view_app_report_of(const view_state *v, view_app_report *r)
                            .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
                            .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
                            .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win),
-                           .rest_draws = view_app_showing_mean(v) ? v->accum_n : 0};
+                           .rest_draws = view_app_showing_mean(v) ? v->accum_n : 0,
+                           .residual_spp = view_app_showing_residual(v) ? v->residual_info.min_samples : 0,
+                           .residual_corrected = view_app_showing_residual(v) ? v->residual_info.corrected : 0.0};
 }
 
 /* K's colours: multipliers of the scene's, about equal in luminance. */
@@ -175,6 +177,25 @@ static lm_result reset_lights(view_state *v, lm_error *err)
 /* R: the scene again from its file (it changed on disk). Everything made from the
  * old scene goes (the worker is joined), the camera stays where the user put it.
  * A file that no longer loads keeps the old scene (the reason is printed). */
+/* Stops and joins the residual's thread: nothing refers to v->s from it after this. */
+static void drop_residual(view_state *v)
+{
+    view_residual_destroy(v->residual);
+    v->residual = NULL;
+    v->residual_on = v->residual_shown = 0;
+    free(v->residual_lights);
+    v->residual_lights = NULL;
+}
+
+/* The residual's thread (view_residual.h) for v->s, with the lights' buffer. */
+static lm_result make_residual(view_state *v, lm_error *err)
+{
+    drop_residual(v);
+    v->residual_lights = calloc((size_t)v->light_count + 1, 3 * sizeof *v->residual_lights);
+    if (!v->residual_lights) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the viewer's residual");
+    return view_residual_create(v->s, &v->residual, err);
+}
+
 static lm_result reload_scene(view_state *v, lm_error *err)
 {
     const view_app_desc *d = v->d;
@@ -195,6 +216,8 @@ static lm_result reload_scene(view_state *v, lm_error *err)
     rend_frame_destroy(v->motion_frame);
     v->frame = v->motion_frame = NULL;
     v->fb_w = v->fb_h = 0;
+    int had_residual = v->residual != NULL;
+    drop_residual(v);
     const scene *old = v->s;
     v->s = fresh;
     if (v->camera_index >= fresh->camera_count) v->camera_index = 0;
@@ -202,6 +225,8 @@ static lm_result reload_scene(view_state *v, lm_error *err)
     v->ov_stale = 1;
     v->reloads++;
     lm_result r = reset_lights(v, err);
+    /* The residual's thread and BVH are of the old scene: made again for the new. */
+    if (r == LM_OK && had_residual) r = make_residual(v, err);
     if (r == LM_OK) r = start_session(v, err);
     if (d->release) d->release(d->user, old);
     return r;
@@ -431,6 +456,72 @@ static int accum_same_view(const view_accum_key *a, const view_accum_key *b)
            a->components == b->components && a->lights == b->lights;
 }
 
+static void residual_stop(view_state *v)
+{
+    if (v->residual_on) view_residual_stop(v->residual);
+    v->residual_on = 0;
+    v->residual_shown = 0;
+}
+
+/* The complete resting picture, corrected by path samples while the worker has
+ * nothing to do (finished, or paused by the user) and every term is shown: the
+ * mean is read back once per resting picture, handed to the residual's thread,
+ * and each correction it hands back is uploaded and shown instead. */
+static lm_result show_residual(view_state *v, const scene_camera *cam, lm_error *err)
+{
+    int idle = v->snap->finished || v->paused;
+    if (!v->residual || !idle || v->components != REND_FRAME_COMPONENTS_ALL) {
+        residual_stop(v);
+        return LM_OK;
+    }
+    size_t n = (size_t)cam->width * (size_t)cam->height * 3;
+    if (n > v->residual_cap) {
+        float *p = realloc(v->residual_rgb, n * sizeof *p), *q = p ? realloc(v->residual_up, n * sizeof *q) : NULL;
+        if (p) v->residual_rgb = p;
+        if (q) v->residual_up = q;
+        if (!p || !q) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the viewer's residual");
+        v->residual_cap = n;
+    }
+    lm_result r = LM_OK;
+    if (!v->residual_on || !accum_same_view(&v->residual_key, &v->accum_key) ||
+        v->residual_key.generation != v->accum_key.generation) {
+        r = view_accum_read(v->accum, v->residual_rgb, err);
+        const scene *s = v->s;
+        for (uint32_t l = 0; l < v->light_count; ++l) {
+            const float *base = l < s->area_light_count ? s->area_lights[l].le
+                                                        : s->point_lights[l - s->area_light_count].intensity;
+            for (int k = 0; k < 3; ++k)
+                v->residual_lights[3 * l + (uint32_t)k] = base[k] * v->light_scale[l] * v->light_tint[3 * l + (uint32_t)k];
+        }
+        view_residual_view rv = {.cam = *cam, .bounces = v->snap->stats.bounces.bounces, .light_values = v->residual_lights};
+        if (r == LM_OK) r = view_residual_start(v->residual, &rv, v->residual_rgb, err);
+        if (r != LM_OK) return r;
+        v->residual_on = 1;
+        v->residual_key = v->accum_key;
+        v->residual_shown = 0;
+    }
+    if (view_residual_take(v->residual, v->residual_rgb, &v->residual_seq, &v->residual_info)) {
+        /* Kept top row first (screenshots); uploaded bottom-up, GL's row order. */
+        const GladGLContext *gl = v->gl;
+        size_t row = (size_t)cam->width * 3;
+        for (int y = 0; y < cam->height; ++y)
+            memcpy(v->residual_up + (size_t)(cam->height - 1 - y) * row, v->residual_rgb + (size_t)y * row,
+                   row * sizeof *v->residual_up);
+        if (!v->residual_tex) gl->GenTextures(1, &v->residual_tex);
+        gl->BindTexture(GL_TEXTURE_2D, v->residual_tex);
+        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+        gl->PixelStorei(GL_UNPACK_ALIGNMENT, 4);
+        gl->TexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, cam->width, cam->height, 0, GL_RGB, GL_FLOAT, v->residual_up);
+        gl->BindTexture(GL_TEXTURE_2D, 0);
+        v->residual_shown = 1;
+    }
+    if (v->residual_shown) v->shown = v->residual_tex;
+    return LM_OK;
+}
+
 /* The picture of this frame into v->shown. At rest on a snapshot converged at
  * its JND, the frame's draws go into the resting picture, each with its samples
  * moved to the next offset of a VIEW_ACCUM_SIDE² grid in the pixel, until it is
@@ -444,6 +535,7 @@ static lm_result draw_picture(view_state *v, rend_frame *f, const scene_camera *
     int rest = f == v->frame && v->snap && v->snap->converged && !v->snap->failed && v->accum;
     v->shown = o->texture;
     if (!rest) {
+        residual_stop(v);
         v->accum_n = 0;
         v->accum_key.generation = 0; /* no mean to sharpen */
         return rend_frame_draw(f, cam, v->snap, NULL, err);
@@ -460,7 +552,12 @@ static lm_result draw_picture(view_state *v, rend_frame *f, const scene_camera *
      * leaf (on Water at 1280×720, 180,000 leaf triangles: 128 ms), and the
      * viewer keeps its frame rate (docs/viewer.md, "The resting picture"). */
     double now = lm_now_seconds();
-    if (v->accum_n >= full || (v->accum_n > 0 && now < v->accum_next)) {
+    if (v->accum_n >= full) {
+        v->shown = view_accum_texture(v->accum);
+        return show_residual(v, cam, err);
+    }
+    residual_stop(v); /* the resting picture is made again */
+    if (v->accum_n > 0 && now < v->accum_next) {
         v->shown = view_accum_texture(v->accum);
         return LM_OK;
     }
@@ -665,6 +762,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
     if (r == LM_OK) r = view_hud_create(v.gl, &v.hud, err);
     if (r == LM_OK) r = view_accum_create(v.gl, &v.accum, err);
+    if (r == LM_OK && !d->no_residual) r = make_residual(&v, err);
     double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
     double next = lm_now_seconds(), next_title = next;
     while (r == LM_OK && !v.quit) {
@@ -693,6 +791,10 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     view_tm_destroy(v.tm);
     view_hud_destroy(v.hud);
     view_accum_destroy(v.accum);
+    drop_residual(&v);
+    if (v.residual_tex) v.gl->DeleteTextures(1, &v.residual_tex);
+    free(v.residual_rgb);
+    free(v.residual_up);
     rend_frame_destroy(v.motion_frame);
     view_window_destroy(v.win);
     free(v.light_scale);

@@ -58,6 +58,9 @@ typedef struct view_app_report {
     const char *renderer;              /* GL_RENDERER / GL_VERSION of the window */
     uint32_t rest_draws;               /* jittered draws averaged in the picture shown (0: one plain draw;
                                           the resting picture, docs/viewer.md) */
+    uint32_t residual_spp;             /* the picture shown is the resting one corrected by this many path
+                                          samples a pixel at least (view_residual.h); 0: not corrected */
+    double residual_corrected;         /* the share of its blocks corrected */
 } view_app_report;
 
 typedef struct view_app_desc {
@@ -70,6 +73,8 @@ typedef struct view_app_desc {
     const view_cmd *script;           /* NULL: interactive until Esc / Q / the close button */
     size_t script_count;
     double max_fps;                   /* 0 = VIEW_APP_DEFAULT_FPS; < 0 = unpaced */
+    int no_residual;                  /* non-zero: the resting picture is not corrected by path samples
+                                         (view_residual.h) */
     void *user;
     /* Called after each screenshot is written (report->snap: the snapshot in it). */
     void (*screenshot)(const char *path, const view_app_report *report, void *user);

@@ -12,6 +12,7 @@
 #include "src/view/view_app.h"
 #include "src/view/view_glfw.h"
 #include "src/view/view_hud.h"
+#include "src/view/view_residual.h"
 #include "src/view/view_tonemap.h"
 
 /* The resting picture: the mean of VIEW_ACCUM_SIDE² draws on a regular grid of
@@ -83,7 +84,21 @@ typedef struct view_state {
     uint32_t accum_i;               /* draws since it started: the next offset */
     double accum_next;              /* when the next draw into it may start */
     view_accum_key accum_key;       /* what it shows */
-    GLuint shown;                   /* the linear picture the last frame showed: the frame's or the mean */
+    GLuint shown;                   /* the linear picture the last frame showed: the frame's, the mean or
+                                       the residual's correction of the mean */
+    /* The resting picture corrected by path-traced samples while the worker is idle
+     * (view_residual.h; docs/viewer.md "The residual"). */
+    view_residual *residual;
+    int residual_on;                /* started for residual_key */
+    view_accum_key residual_key;    /* the resting picture it corrects */
+    uint64_t residual_seq;          /* the last correction taken */
+    rend_residual_info residual_info;
+    float *residual_rgb;            /* read-back, then the correction shown, fb_w·fb_h·3, top row first */
+    float *residual_up;             /* the same bottom-up, as uploaded */
+    size_t residual_cap;            /* floats each holds */
+    float *residual_lights;         /* 3 per light: what the lights emit now */
+    GLuint residual_tex;            /* the correction shown (RGB32F); 0 = none made */
+    int residual_shown;             /* residual_tex holds a correction of residual_key */
     /* The script: the command running and when it started. */
     size_t si;
     int cmd_started;
@@ -100,8 +115,12 @@ typedef struct view_state {
 extern const char *const view_light_preset_names[];
 
 void view_app_report_of(const view_state *v, view_app_report *r);
-/* The last frame showed the resting picture (the mean of jittered draws). */
-static inline int view_app_showing_mean(const view_state *v) { return v->shown && v->shown == view_accum_texture(v->accum); }
+/* The last frame showed the resting picture (the mean of jittered draws), or its correction. */
+static inline int view_app_showing_mean(const view_state *v)
+{
+    return v->shown && (v->shown == view_accum_texture(v->accum) || v->shown == v->residual_tex);
+}
+static inline int view_app_showing_residual(const view_state *v) { return v->residual_tex && v->shown == v->residual_tex; }
 /* v->shot (PNG as shown, EXR linear; with shot_exr_too the EXR beside the PNG). */
 lm_result view_app_take_screenshot(view_state *v, lm_error *err);
 /* The mesh overlay over the picture in the window; nothing without data. */

@@ -26,8 +26,12 @@ static lm_result write_exr(view_state *v, const char *path, lm_error *err)
     rend_frame_get_output(v->frame, &o);
     float *rgb = malloc((size_t)o.width * (size_t)o.height * 3 * sizeof *rgb);
     if (!rgb) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d screenshot", o.width, o.height);
-    lm_result r = view_app_showing_mean(v) ? view_accum_read(v->accum, rgb, err)
-                      : rend_session_draw(v->rs, REND_SESSION_FINAL, &v->cam, rgb, err);
+    lm_result r = LM_OK;
+    if (view_app_showing_residual(v)) /* the correction shown (view_app.c, show_residual) */
+        memcpy(rgb, v->residual_rgb, (size_t)o.width * (size_t)o.height * 3 * sizeof *rgb);
+    else
+        r = view_app_showing_mean(v) ? view_accum_read(v->accum, rgb, err)
+                                     : rend_session_draw(v->rs, REND_SESSION_FINAL, &v->cam, rgb, err);
     if (r == LM_OK)
         r = img_write(&(img_write_desc){.path = path, .width = o.width, .height = o.height, .channels = 3, .pixels = rgb},
                       err);
@@ -162,8 +166,12 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
         view_app_report rep;
         view_app_report_of(v, &rep);
         if (rep.rest_draws && k < size) /* the resting picture (view_app.c, draw_picture) */
-            k += (size_t)snprintf(out + k, size - k, "picture: %u of %d draws averaged\n", rep.rest_draws,
+            k += (size_t)snprintf(out + k, size - k, "picture: %u of %d draws averaged", rep.rest_draws,
                                   VIEW_ACCUM_SIDE * VIEW_ACCUM_SIDE);
+        if (rep.residual_spp && k < size) /* ... corrected by path samples (show_residual) */
+            k += (size_t)snprintf(out + k, size - k, ", corrected by %u+ path samples a pixel (%.0f%% of it)",
+                                  rep.residual_spp, 100.0 * rep.residual_corrected);
+        if (rep.rest_draws && k < size) k += (size_t)snprintf(out + k, size - k, "\n");
         if (k < size) k += (size_t)snprintf(out + k, size - k, "samples:");
         for (uint32_t l = 0; l < s->stats.light_count && l < 8 && k < size; ++l)
             k += (size_t)snprintf(out + k, size - k, " light%u %llu,", l, (unsigned long long)s->stats.lights[l].samples);

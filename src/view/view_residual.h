@@ -1,0 +1,66 @@
+/* view_residual.h — the viewer's path-traced residual (rend_residual.h) on a
+ * thread of its own: while the camera rests on a cache that has nothing left to
+ * do (finished, or paused by the user), the resting picture keeps converging to
+ * the truth instead of stopping where the cache stopped.
+ *
+ * Usage (display thread):
+ *     view_residual *vr;
+ *     view_residual_create(scene, &vr, &err);                  // the thread waits, idle
+ *     view_residual_start(vr, &(view_residual_view){...}, mean, &err); // the resting picture read back
+ *     if (view_residual_take(vr, rgb, &seq, &info)) upload(rgb);   // each frame: a newer correction?
+ *     view_residual_stop(vr);                                  // the view, a light or the terms changed
+ *     view_residual_destroy(vr);
+ * A start with the same view (camera, size, bounces, lights) as the samples it has
+ * goes on with them and corrects the new picture; any other view forgets them.
+ *
+ * Threads: every call on the display thread. The thread made by create owns the
+ * rend_residual (its BVH, its passes: rend_residual.h's one thread), and takes
+ * desc'd work and hands back pictures through the state behind one mutex. The
+ * passes use every core but one (the display's); the worker is idle meanwhile.
+ * Units: linear RGB, width·height·3 floats, top row first (view_accum_read's).
+ * Does NOT do: GL, choosing when to run (view_app.c), reprojection across moves.
+ */
+#ifndef LUMESH_VIEW_RESIDUAL_H
+#define LUMESH_VIEW_RESIDUAL_H
+
+#include <stdint.h>
+
+#include "src/base/util.h"
+#include "src/render/rend_residual.h"
+#include "src/scene/scene.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct view_residual view_residual;
+
+/* What the samples are of: a start with another view forgets them. */
+typedef struct view_residual_view {
+    scene_camera cam;          /* with the picture's width and height */
+    int bounces;               /* the model's diffuse bounces (what the cache shows) */
+    const float *light_values; /* 3 per light (area, then point): radiance or intensity now */
+} view_residual_view;
+
+/* s must outlive the residual. The thread starts idle. */
+lm_result view_residual_create(const scene *s, view_residual **out, lm_error *err);
+/* Stops and joins the thread. NULL is a no-op. */
+void view_residual_destroy(view_residual *vr);
+
+/* Corrects `cached` (the resting picture, copied) seen as `view` says, from now on
+ * until view_residual_stop. */
+lm_result view_residual_start(view_residual *vr, const view_residual_view *view, const float *cached, lm_error *err);
+/* The thread stops sampling at the end of its slice (at most 0.2 s) and hands
+ * back nothing more until the next start. */
+void view_residual_stop(view_residual *vr);
+
+/* When the thread has a corrected picture newer than *seq, made with enough
+ * samples to correct anything (rend_residual_desc.min_samples): copies it into
+ * rgb (the size of the last start), its statistics into info (may be NULL),
+ * updates *seq and returns 1. Else 0. Never waits for a pass. */
+int view_residual_take(view_residual *vr, float *rgb, uint64_t *seq, rend_residual_info *info);
+
+#ifdef __cplusplus
+}
+#endif
+#endif
