@@ -5,7 +5,10 @@
 # table: at every snapshot, relMSE and mean dE of the previewer and of the Embree
 # path tracer at equal time (both counted from the scene loaded), the ratio of
 # their relMSE (path tracer / lumesh: above 1 lumesh is ahead), the JND the cache
-# refined to and its state; then the first image (time after the scene is loaded,
+# refined to and its state, the path samples a pixel of the residual that corrects
+# it once the cache has finished, and the ratio net of the reference's own noise
+# (its stderr channels: relMSE less that noise estimates relMSE against the truth);
+# then the first image (time after the scene is loaded,
 # its mean dE) and when the cache converged at its JND.
 #
 # usage: bench/converge.sh [BUILD_DIR] [SECONDS] [REFERENCE_SECONDS] [SCENES...]
@@ -50,16 +53,24 @@ j = json.load(open(path))
 lm = j["methods"]["lumesh"]
 pt = {r["target_seconds"]: r for r in j["methods"].get("path-tracer", [])}
 print("\n%s, 640x480, %d s (reference %s)" % (name, j["seconds"], j["reference"]))
-print("| time | lumesh relMSE | path tracer relMSE | ratio | lumesh mean dE | path tracer mean dE | JND | state |")
-print("|---|---|---|---|---|---|---|---|")
+print("| time | lumesh relMSE | path tracer relMSE | ratio | net ratio | lumesh mean dE | path tracer mean dE | JND | state | residual spp | its estimate / net relMSE |")
+print("|---|---|---|---|---|---|---|---|---|---|---|")
+def net(e):
+    return e["relmse"] - e.get("relmse_reference_noise", 0.0)
 for r in lm:
     p = pt.get(r["target_seconds"])
     e = r["error"]
     pe = p["error"] if p else None
     ratio = "%.2f" % (pe["relmse"] / e["relmse"]) if pe and e["relmse"] > 0 else "-"
-    print("| %g s (at %.2f) | %.3g | %s | %s | %.3f | %s | %g | %s |" % (
-        r["target_seconds"], r["seconds"], e["relmse"], "%.3g" % pe["relmse"] if pe else "-", ratio,
-        e["delta_e_mean"], "%.3f" % pe["delta_e_mean"] if pe else "-", r["estimated_error"]["jnd"], r["state"]))
+    net_ratio = "%.2f" % (net(pe) / net(e)) if pe and net(e) > 0 else "-"
+    res = r.get("residual")
+    est = "%.3g / %.3g" % (res["estimated_relmse"], net(e)) if res and "estimated_relmse" in res else "-"
+    print("| %g s (at %.2f) | %.3g | %s | %s | %s | %.3f | %s | %g | %s | %s | %s |" % (
+        r["target_seconds"], r["seconds"], e["relmse"], "%.3g" % pe["relmse"] if pe else "-", ratio, net_ratio,
+        e["delta_e_mean"], "%.3f" % pe["delta_e_mean"] if pe else "-", r["estimated_error"]["jnd"], r["state"],
+        "%d..%d" % (res["spp_min"], res["spp_max"]) if res else "-", est))
+noise = lm[0]["error"].get("relmse_reference_noise", 0.0) if lm else 0.0
+print("the reference's own noise: relMSE %.3g of every number above (net ratio: both relMSEs less it)" % noise)
 conv = j.get("converged_seconds")
 print("first image after %.3f s: mean dE %.2f, relMSE %.3g; converged at its JND at %s" % (
     j["first_image_seconds"], first["delta_e_mean"], first["relmse"], "%.2f s" % conv if conv is not None else "never"))

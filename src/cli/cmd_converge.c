@@ -76,6 +76,7 @@ typedef struct conv_row {
     uint64_t rays;            /* the same paths' rays */
     double residual_weight;   /* lumesh: mean James–Stein weight of the residual's blocks (rend_residual_info) */
     double residual_corrected;/* lumesh: share of the blocks the residual corrects */
+    double residual_est;      /* lumesh: the corrected picture's relMSE as the residual estimates it */
     double est_delta_e;       /* lumesh: the cache's own estimate of delta_e_mean (cache_estimate, over the image) */
     double est_above_jnd;     /* lumesh: its estimated fraction of pixels above the JND */
     double est_untested;      /* lumesh: the fraction of pixels in leaves not tested yet (the estimate a guess) */
@@ -285,6 +286,7 @@ static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snaps
     row->rays = info.rays;
     row->residual_weight = info.mean_weight;
     row->residual_corrected = info.corrected;
+    row->residual_est = info.est_relmse;
     return LM_OK;
 }
 
@@ -436,7 +438,7 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
     for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
     OUT(",spp_min,spp_max,rays,rmse,relmse,relmse_reference_noise,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
         "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,"
-        "residual_weight,residual_corrected,image\n");
+        "residual_weight,residual_corrected,residual_estimated_relmse,image\n");
     for (int k = 0; k < nrun; ++k)
         for (int i = 0; i < runs[k].count; ++i) {
             const conv_row *w = &runs[k].rows[i];
@@ -458,8 +460,8 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
             OUT("%.5f,", w->m.delta_e_above_jnd);
             if (!pt) OUT("%.4f,%.5f,%.5f,%.4g", w->est_delta_e, w->est_above_jnd, w->est_untested, w->jnd);
             else OUT(",,,");
-            if (!pt && w->spp_max) OUT(",%.4f,%.4f", w->residual_weight, w->residual_corrected);
-            else OUT(",,");
+            if (!pt && w->spp_max) OUT(",%.4f,%.4f,%.4g", w->residual_weight, w->residual_corrected, w->residual_est);
+            else OUT(",,,");
             OUT(",%s\n", w->image);
         }
 #undef OUT
@@ -502,6 +504,7 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
             cJSON_AddNumberToObject(m, "rays", (double)w->rays);
             cJSON_AddNumberToObject(m, "mean_weight", rounded(w->residual_weight, 1e-5));
             cJSON_AddNumberToObject(m, "fraction_corrected", rounded(w->residual_corrected, 1e-5));
+            if (isfinite(w->residual_est)) cJSON_AddNumberToObject(m, "estimated_relmse", w->residual_est);
         }
     }
     if ((m = cJSON_AddObjectToObject(o, "error"))) {
