@@ -9,10 +9,11 @@
  * Added whole, D + R = P̄ is the path tracer's picture: unbiased, but as noisy as it
  * (docs/cache.md, "Never plateau"). Shrunk, D + w·R with w = b²/(b² + s²) is the
  * best mix of the two; b² is not known, so it is estimated per block of pixels by
- * positive-part James–Stein shrinkage (James & Stein 1961):
- *     w_B = max(0, 1 − Σ_B q·s² / Σ_B q·R²),   q = 1/(D² + 0.01)
+ * positive-part James–Stein shrinkage (James & Stein 1961), the noise counted
+ * REND_RESIDUAL_SHRINK = 2 times:
+ *     w_B = max(0, 1 − 2·Σ_B q·s² / Σ_B q·R²),   q = 1/(D² + 0.01)
  * (sums over the block's pixels and channels; q weighs them as relMSE does). Where
- * the cache is right, R is noise, Σ q·R² ≈ Σ q·s² and w_B ≈ 0: the cache's picture
+ * the cache is right, R is noise, Σ q·R² ≈ Σ q·s² and w_B = 0: the cache's picture
  * is kept, not the path tracer's noise. Where the cache is wrong by more than the
  * noise, w_B → 1. As N grows s² → 0 and w_B → 1 wherever b ≠ 0: the picture tends
  * to the truth, whatever the cache converged to.
