@@ -10,8 +10,11 @@
  * share of the machine. Once the cache has converged at the scene's JND it
  * refines on to lower ones (rend_session_desc.jnd_floor: state "below-jnd"); once
  * it has converged at the lowest, or has finished without (nothing left it can
- * do), later snapshots show the same image: they are recorded at their times
- * without waiting (state "converged" or "finished").
+ * do), the path-traced residual (rend_residual.h: the reference's transport) uses
+ * the machine until each later snapshot, and the cached picture is corrected by it
+ * (state "converged" or "finished", the residual's samples in spp_min/spp_max);
+ * with --residual off those snapshots show the same image and are recorded at
+ * their times without waiting.
  *
  * With --vs-path-tracer the reference renderer's progressive path tracer (same
  * transport, every core) then runs for the same times, counted the same way
@@ -249,8 +252,6 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
     return r;
 }
 
-/* The previewer: a render session (worker first, then the GL context, the first
- * image, the ID pass, the offline renderer); snapshots at c->times. */
 static lm_result residual_make(conv_ctx *c, rend_residual **res, lm_error *err)
 {
     return rend_residual_create(&(rend_residual_desc){.scene = c->s, .camera = &c->s->cameras[c->cam], .width = c->w,
@@ -290,6 +291,8 @@ static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snaps
     return LM_OK;
 }
 
+/* The previewer: a render session (worker first, then the GL context, the first
+ * image, the ID pass, the offline renderer); snapshots at c->times. */
 static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0, conv_run *run, lm_error *err)
 {
     rend_session *rs = NULL;

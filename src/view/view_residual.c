@@ -55,9 +55,12 @@ typedef struct residual_thread {
     size_t cap;
 } residual_thread;
 
-/* Takes the pending start: the samples go on when the view is the same, else the
- * residual is made again (a new size) or restarted. 0 when out of memory. */
-static int take_start(view_residual *vr, residual_thread *t)
+/* What a pending start asks of the residual. */
+typedef enum start_kind { START_SAME = 0, START_RESTART, START_MAKE } start_kind;
+
+/* Takes the pending start's picture, view and lights (under the lock: a copy,
+ * nothing slow). 0 when out of memory. */
+static int take_start(view_residual *vr, residual_thread *t, start_kind *kind)
 {
     const view_residual_view *v = &vr->view;
     size_t n = (size_t)v->cam.width * (size_t)v->cam.height * 3;
@@ -69,14 +72,25 @@ static int take_start(view_residual *vr, residual_thread *t)
         t->cap = n;
     }
     memcpy(t->cached, vr->pending_cached, n * sizeof *t->cached);
-    int same = t->rr && same_view(v, &t->view, vr->lights);
-    int resized = !t->rr || v->cam.width != t->view.cam.width || v->cam.height != t->view.cam.height ||
-                  v->bounces != t->view.bounces;
+    *kind = t->rr && same_view(v, &t->view, vr->lights) ? START_SAME
+            : !t->rr || v->cam.width != t->view.cam.width || v->cam.height != t->view.cam.height ||
+                    v->bounces != t->view.bounces
+                ? START_MAKE
+                : START_RESTART;
     memcpy(t->lights, vr->pending_lights, 3 * (size_t)vr->lights * sizeof *t->lights);
     t->view = *v;
     t->view.light_values = t->lights;
-    if (same) return 1;
-    if (resized) {
+    return 1;
+}
+
+/* Acts on a start taken (without the lock: making the residual builds its BVH):
+ * the samples go on for the same view, else the residual is made again (a new
+ * size or bounce count) or restarted. 0 when it cannot be made. */
+static int begin_start(view_residual *vr, residual_thread *t, start_kind kind)
+{
+    const view_residual_view *v = &t->view;
+    if (kind == START_SAME) return 1;
+    if (kind == START_MAKE) {
         rend_residual_destroy(t->rr);
         t->rr = NULL;
         long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
@@ -86,11 +100,9 @@ static int take_start(view_residual *vr, residual_thread *t)
                                                        .threads = ncpu > 2 ? (int)ncpu - 1 : 1},
                                  &t->rr, &err) != LM_OK)
             return 0;
-    } else {
-        rend_residual_restart(t->rr, &v->cam);
     }
     for (uint32_t l = 0; l < vr->lights; ++l) rend_residual_set_light(t->rr, l, t->lights + 3 * (size_t)l, NULL);
-    rend_residual_restart(t->rr, NULL); /* the lights' samples start together */
+    rend_residual_restart(t->rr, &v->cam); /* the new view's and lights' samples start together */
     rend_residual_apply(t->rr, t->cached, t->out, NULL); /* the picture its adaptive passes start from */
     return 1;
 }
@@ -106,15 +118,22 @@ static void *thread_main(void *arg)
             pthread_cond_wait(&vr->wake, &vr->lock);
             continue;
         }
+        start_kind kind = START_SAME;
         if (vr->pending) {
             vr->pending = 0;
-            int ok = t.lights && take_start(vr, &t);
-            if (!ok) { /* out of memory: nothing to correct until the next start */
+            if (!t.lights || !take_start(vr, &t, &kind)) { /* out of memory: nothing until the next start */
                 vr->active = 0;
                 continue;
             }
         }
         pthread_mutex_unlock(&vr->lock);
+        if (!begin_start(vr, &t, kind)) { /* no BVH: nothing to correct until the next start */
+            rend_residual_destroy(t.rr);
+            t.rr = NULL;
+            pthread_mutex_lock(&vr->lock);
+            if (!vr->pending) vr->active = 0; /* a start since then is tried again */
+            continue;
+        }
         rend_residual_run(t.rr, NULL, lm_now_seconds() + VIEW_RESIDUAL_SLICE);
         rend_residual_info info;
         rend_residual_apply(t.rr, t.cached, t.out, &info);

@@ -14,9 +14,10 @@
  * goes on with them and corrects the new picture; any other view forgets them.
  *
  * Threads: every call on the display thread. The thread made by create owns the
- * rend_residual (its BVH, its passes: rend_residual.h's one thread), and takes
- * desc'd work and hands back pictures through the state behind one mutex. The
- * passes use every core but one (the display's); the worker is idle meanwhile.
+ * rend_residual (its BVH, its passes: rend_residual.h's one thread); the starts
+ * it is given and the pictures it hands back go through state behind one mutex,
+ * never held while it builds a BVH or path-traces. The passes use every core but
+ * one (the display's); the worker is idle meanwhile.
  * Units: linear RGB, width·height·3 floats, top row first (view_accum_read's).
  * Does NOT do: GL, choosing when to run (view_app.c), reprojection across moves.
  */
