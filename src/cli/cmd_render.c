@@ -6,8 +6,9 @@
  * test), or `--seconds` have passed (refining on to a lower JND meanwhile), or
  * `--samples` leaf tests are done; the renderer's passes draw the last
  * snapshot (with `--seconds`, once the cache has finished, corrected by the
- * path-traced residual until the time is up: rend_residual.h); the image is written linear (EXR) or tone-mapped (PNG), through a
- * temporary file (img_write), so a failure leaves no partial file.
+ * path-traced residual until the time is up: rend_residual.h); the image is
+ * written linear (EXR) or tone-mapped (PNG), through a temporary file
+ * (img_write), so a failure leaves no partial file.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>

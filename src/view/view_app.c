@@ -174,9 +174,6 @@ static lm_result reset_lights(view_state *v, lm_error *err)
     return LM_OK;
 }
 
-/* R: the scene again from its file (it changed on disk). Everything made from the
- * old scene goes (the worker is joined), the camera stays where the user put it.
- * A file that no longer loads keeps the old scene (the reason is printed). */
 /* Stops and joins the residual's thread: nothing refers to v->s from it after this. */
 static void drop_residual(view_state *v)
 {
@@ -196,6 +193,9 @@ static lm_result make_residual(view_state *v, lm_error *err)
     return view_residual_create(v->s, &v->residual, err);
 }
 
+/* R: the scene again from its file (it changed on disk). Everything made from the
+ * old scene goes (the worker is joined), the camera stays where the user put it.
+ * A file that no longer loads keeps the old scene (the reason is printed). */
 static lm_result reload_scene(view_state *v, lm_error *err)
 {
     const view_app_desc *d = v->d;
