@@ -11,8 +11,9 @@ struct rend_residual {
     ref_renderer *pt;
     double seconds_before; /* the path tracer's seconds at the last restart */
     float *mean, *se, *count; /* width·height·3, ·3, ·1: the path tracer's read-back */
-    const float *cached;      /* the last picture applied (the caller's; read by the next run only) */
-    float *cached_copy;       /* width·height·3: a copy of it, so the caller may free or reuse its own */
+    float *cached_copy;       /* width·height·3: a copy of the last picture applied (the adaptive
+                                 passes' mask is made against it); the caller may free or reuse its own */
+    int have_cached;          /* cached_copy holds one (none since create or the last restart) */
     uint8_t *mask;            /* width·height: the pixels of the blocks being corrected, and their neighbours */
     int mask_live;            /* mask has a pixel set */
     uint64_t passes;          /* complete passes since the last restart */
@@ -86,7 +87,7 @@ void rend_residual_restart(rend_residual *rr, const scene_camera *cam)
     rr->seconds_before = st.seconds;
     ref_restart(rr->pt, cam);
     ref_set_mask(rr->pt, NULL, NULL);
-    rr->cached = NULL;
+    rr->have_cached = 0;
     rr->mask_live = 0;
     rr->passes = 0;
     rr->in_pass = 0;
@@ -182,13 +183,13 @@ static void update_mask(rend_residual *rr)
     int bw = (width + b - 1) / b, bh = (height + b - 1) / b;
     memset(rr->mask, 0, (size_t)width * (size_t)height);
     rr->mask_live = 0;
-    if (!rr->cached) return;
+    if (!rr->have_cached) return;
     read_back(rr);
     for (int j = 0; j < bh; ++j)
         for (int i = 0; i < bw; ++i) {
             int bx = i * b, by = j * b;
             int x1 = bx + b < width ? bx + b : width, y1 = by + b < height ? by + b : height;
-            if (!(block_weight(block_sum(width, bx, by, x1, y1, rr->cached, rr->mean, rr->se)) > 0.0)) continue;
+            if (!(block_weight(block_sum(width, bx, by, x1, y1, rr->cached_copy, rr->mean, rr->se)) > 0.0)) continue;
             rr->mask_live = 1;
             int ya = (j - 1) * b < 0 ? 0 : (j - 1) * b, yb = (j + 2) * b < height ? (j + 2) * b : height;
             int xa = (i - 1) * b < 0 ? 0 : (i - 1) * b, xb = (i + 2) * b < width ? (i + 2) * b : width;
@@ -243,7 +244,7 @@ void rend_residual_apply(rend_residual *rr, const float *cached, float *out, ren
     size_t n = (size_t)w * (size_t)h;
     read_back(rr);
     memcpy(rr->cached_copy, cached, n * 3 * sizeof *cached);
-    rr->cached = rr->cached_copy;
+    rr->have_cached = 1;
     rend_residual_info local;
     if (!info) info = &local;
     memset(info, 0, sizeof *info);

@@ -26,6 +26,13 @@ static frame camera_frame(const scene_camera *cam)
 
 static lm_vec3 to_float(lm_dvec3 a) { return v3((float)a.x, (float)a.y, (float)a.z); }
 
+int camera_equal(const scene_camera *a, const scene_camera *b)
+{
+    for (int i = 0; i < 3; ++i)
+        if (a->position[i] != b->position[i] || a->target[i] != b->target[i] || a->up[i] != b->up[i]) return 0;
+    return a->fov_y_deg == b->fov_y_deg && a->width == b->width && a->height == b->height;
+}
+
 camera_basis camera_basis_make(const scene_camera *cam, int width, int height)
 {
     frame c = camera_frame(cam);

@@ -49,6 +49,10 @@ typedef struct camera_basis {
 
 camera_basis camera_basis_make(const scene_camera *cam, int width, int height);
 
+/* The same view: position, target, up, field of view and size (field by field:
+ * the name is not compared, and its padding is not read). */
+int camera_equal(const scene_camera *a, const scene_camera *b);
+
 /* Unit direction of the ray from b->position through image point (x, y), in
  * pixels from the image's top-left corner (pixel (px, py) spans [px, px+1) ×
  * [py, py+1); its centre is (px + ½, py + ½)): fwd + sx·right + sy·up normalized,

@@ -9,6 +9,7 @@
 #include "src/base/tonemap.h"
 #include "src/image/image.h"
 #include "src/render/rend_session.h"
+#include "src/scene/camera.h"
 #include "src/view/view_camera.h"
 #include "src/view/view_glfw.h"
 #include "src/view/view_hud.h"
@@ -68,14 +69,21 @@ const char *const view_light_preset_names[LIGHT_PRESETS] = {"", " warm", " cool"
 /* Light l to scale × tint × the scene's radiance (or intensity): the worker
  * recomputes the direct mesh from its stored G (no light sample), the renderer
  * shows the emitter's new Le. */
-static lm_result set_light(view_state *v, uint32_t l, float scale, const float tint[3], lm_error *err)
+/* What light l (area lights, then point lights) emits at scale × tint × the
+ * scene's radiance (or intensity). */
+static void light_value(const scene *s, uint32_t l, float scale, const float tint[3], float out[3])
 {
-    const scene *s = v->s;
-    if (l >= v->light_count)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", l, v->light_count);
     const float *base = l < s->area_light_count ? s->area_lights[l].le
                                                 : s->point_lights[l - s->area_light_count].intensity;
-    float value[3] = {base[0] * scale * tint[0], base[1] * scale * tint[1], base[2] * scale * tint[2]};
+    for (int k = 0; k < 3; ++k) out[k] = base[k] * scale * tint[k];
+}
+
+static lm_result set_light(view_state *v, uint32_t l, float scale, const float tint[3], lm_error *err)
+{
+    if (l >= v->light_count)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "light %u does not exist (the scene has %u)", l, v->light_count);
+    float value[3];
+    light_value(v->s, l, scale, tint, value);
     lm_result r = cache_worker_set_light(worker(v), l, value, err);
     if (r != LM_OK) return r;
     v->light_scale[l] = scale;
@@ -97,8 +105,8 @@ static lm_result apply_emission(view_state *v, lm_error *err)
     const scene *s = v->s;
     lm_result r = LM_OK;
     for (uint32_t l = 0; r == LM_OK && l < s->area_light_count; ++l) {
-        const float *le = s->area_lights[l].le, k = v->light_scale[l], *t = v->light_tint + 3 * (size_t)l;
-        const float e[3] = {le[0] * k * t[0], le[1] * k * t[1], le[2] * k * t[2]};
+        float e[3];
+        light_value(s, l, v->light_scale[l], v->light_tint + 3 * (size_t)l, e);
         r = rend_frame_set_emission(v->frame, s->area_lights[l].material, e, err);
         if (r == LM_OK && v->motion_frame) r = rend_frame_set_emission(v->motion_frame, s->area_lights[l].material, e, err);
     }
@@ -446,14 +454,10 @@ static view_accum_key accum_key_now(const view_state *v, const scene_camera *cam
     return k;
 }
 
-/* The same view, lights and terms (field by field: the camera's name has padding after it). */
+/* The same view (camera_equal), lights and terms. */
 static int accum_same_view(const view_accum_key *a, const view_accum_key *b)
 {
-    const scene_camera *p = &a->cam, *q = &b->cam;
-    for (int i = 0; i < 3; ++i)
-        if (p->position[i] != q->position[i] || p->target[i] != q->target[i] || p->up[i] != q->up[i]) return 0;
-    return p->fov_y_deg == q->fov_y_deg && p->width == q->width && p->height == q->height &&
-           a->components == b->components && a->lights == b->lights;
+    return camera_equal(&a->cam, &b->cam) && a->components == b->components && a->lights == b->lights;
 }
 
 static void residual_stop(view_state *v)
@@ -486,13 +490,8 @@ static lm_result show_residual(view_state *v, const scene_camera *cam, lm_error 
     if (!v->residual_on || !accum_same_view(&v->residual_key, &v->accum_key) ||
         v->residual_key.generation != v->accum_key.generation) {
         r = view_accum_read(v->accum, v->residual_rgb, err);
-        const scene *s = v->s;
-        for (uint32_t l = 0; l < v->light_count; ++l) {
-            const float *base = l < s->area_light_count ? s->area_lights[l].le
-                                                        : s->point_lights[l - s->area_light_count].intensity;
-            for (int k = 0; k < 3; ++k)
-                v->residual_lights[3 * l + (uint32_t)k] = base[k] * v->light_scale[l] * v->light_tint[3 * l + (uint32_t)k];
-        }
+        for (uint32_t l = 0; l < v->light_count; ++l)
+            light_value(v->s, l, v->light_scale[l], v->light_tint + 3 * (size_t)l, v->residual_lights + 3 * (size_t)l);
         view_residual_view rv = {.cam = *cam, .bounces = v->snap->stats.bounces.bounces, .light_values = v->residual_lights};
         if (r == LM_OK) r = view_residual_start(v->residual, &rv, v->residual_rgb, err);
         if (r != LM_OK) return r;

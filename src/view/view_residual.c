@@ -1,6 +1,8 @@
 /* view_residual.c — the residual's thread (view_residual.h). */
 #include "src/view/view_residual.h"
 
+#include "src/scene/camera.h"
+
 #include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
@@ -38,11 +40,7 @@ struct view_residual {
 
 static int same_view(const view_residual_view *a, const view_residual_view *b, uint32_t lights)
 {
-    const scene_camera *p = &a->cam, *q = &b->cam;
-    for (int i = 0; i < 3; ++i)
-        if (p->position[i] != q->position[i] || p->target[i] != q->target[i] || p->up[i] != q->up[i]) return 0;
-    if (p->fov_y_deg != q->fov_y_deg || p->width != q->width || p->height != q->height || a->bounces != b->bounces)
-        return 0;
+    if (!camera_equal(&a->cam, &b->cam) || a->bounces != b->bounces) return 0;
     return memcmp(a->light_values, b->light_values, 3 * (size_t)lights * sizeof *a->light_values) == 0;
 }
 
