@@ -1,9 +1,12 @@
 /* reference.c — the progressive reference path tracer (see reference.h for the
  * two transports and the determinism rule). */
+#define _GNU_SOURCE /* SCHED_IDLE */
 #include "sampling/reference.h"
 
 #include <math.h>
 #include <pthread.h>
+#include <sched.h>
+#include <sys/resource.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
@@ -344,6 +347,21 @@ static void *worker(void *arg)
     return NULL;
 }
 
+/* A worker of a background renderer (ref_desc.background): the lowest priority
+ * the system has for this thread, so it takes only the cycles the others leave.
+ * Linux: SCHED_IDLE; elsewhere, or where that is refused, nice 19 (on Linux
+ * setpriority with 0 is this thread). A thread cannot raise itself back, which is
+ * why these are threads of their own, never the caller. */
+static void *background_worker(void *arg)
+{
+#ifdef SCHED_IDLE
+    struct sched_param none = {0};
+    if (pthread_setschedparam(pthread_self(), SCHED_IDLE, &none) != 0)
+#endif
+        (void)setpriority(PRIO_PROCESS, 0, 19);
+    return worker(arg);
+}
+
 int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline)
 {
     double t0 = lm_now_seconds();
@@ -353,11 +371,14 @@ int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadl
     atomic_store(&r->pass_rays, 0ull);
     pthread_t tids[MAX_THREADS];
     int started = 0;
-    for (int i = 1; i < r->threads; ++i) {
-        if (pthread_create(&tids[started], NULL, worker, r) != 0) break;
+    /* In the background every worker is a thread of its own at the lowest
+     * priority, and the caller waits; else the calling thread works too. */
+    const int background = r->desc.background != 0;
+    for (int i = background ? 0 : 1; i < r->threads; ++i) {
+        if (pthread_create(&tids[started], NULL, background ? background_worker : worker, r) != 0) break;
         started++;
     }
-    worker(r); /* the calling thread works too */
+    if (!background || started == 0) worker(r); /* no thread could be made: the caller does the pass */
     for (int i = 0; i < started; ++i) pthread_join(tids[i], NULL);
     r->rays += atomic_load(&r->pass_rays);
     r->seconds += lm_now_seconds() - t0;

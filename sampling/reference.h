@@ -57,6 +57,9 @@ typedef struct ref_desc {
     int bounces;              /* model transport: diffuse bounces; 0 = 1; REF_BOUNCES_NONE = 0 */
     uint32_t seed;
     int threads;              /* 0 = every core */
+    int background;           /* non-zero: passes run on threads of the lowest priority (Linux
+                                 SCHED_IDLE), which take only the cycles other threads leave
+                                 (the cache's worker, a viewer's drawing); the caller waits */
 } ref_desc;
 
 typedef struct ref_renderer ref_renderer;

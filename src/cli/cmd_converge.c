@@ -14,7 +14,10 @@
  * the machine until each later snapshot, and the cached picture is corrected by it
  * (state "converged" or "finished", the residual's samples in spp_min/spp_max);
  * with --residual off those snapshots show the same image and are recorded at
- * their times without waiting.
+ * their times without waiting. Before that the residual already runs beside the
+ * refining cache, on threads of the lowest priority that take only the cycles
+ * the worker leaves (rend_residual_desc.background; docs/cache.md, "The residual
+ * beside the refining cache"), and corrects every snapshot.
  *
  * With --vs-path-tracer the reference renderer's progressive path tracer (same
  * transport, every core) then runs for the same times, counted the same way
@@ -106,7 +109,7 @@ typedef struct conv_ctx {
     double seconds;           /* --seconds */
     int supersample;          /* --supersample: s×s samples a pixel in the measured images */
     int accumulate;           /* --accumulate: k×k jittered draws of a converged snapshot */
-    int residual;             /* --residual on: path-trace the residual while the cache has nothing to do */
+    int residual;             /* --residual on: path-trace the residual beside the cache (background) */
     uint32_t residual_seed;
     int tty;
     uint32_t light_count;     /* mesh columns: light_count + 3 */
@@ -256,15 +259,17 @@ static lm_result residual_make(conv_ctx *c, rend_residual **res, lm_error *err)
 {
     return rend_residual_create(&(rend_residual_desc){.scene = c->s, .camera = &c->s->cameras[c->cam], .width = c->w,
                                                       .height = c->h, .transport = c->transport,
-                                                      .bounces = c->ref_bounces, .seed = c->residual_seed},
+                                                      .bounces = c->ref_bounces, .seed = c->residual_seed,
+                                                      .background = 1},
                                 res, err);
 }
 
-/* A finished snapshot's picture corrected by the path-traced residual run until
- * `until`: the residual is made at the first call (the reference's transport and
- * bounces: the truth measured against), the cached picture drawn (accumulated)
- * once per snapshot generation. */
-static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snapshot *snap, double until,
+/* A snapshot's picture corrected by the path-traced residual run until `until`
+ * (a finished cache's: the machine is the residual's until then): the residual is
+ * made at the first call if not before (the reference's transport and bounces:
+ * the truth measured against), the cached picture drawn (k × k accumulated) once
+ * per snapshot generation. */
+static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snapshot *snap, double until, int k,
                                 rend_residual **res, float **cached, uint64_t *cached_generation, float *rgb,
                                 conv_row *row, lm_error *err)
 {
@@ -274,7 +279,7 @@ static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snaps
     if (!*cached && !(*cached = malloc(n * 3 * sizeof **cached)))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
     if (*cached_generation != snap->generation) {
-        r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, c->accumulate, *cached, err);
+        r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, k, *cached, err);
         if (r != LM_OK) return r;
         *cached_generation = snap->generation;
     }
@@ -312,9 +317,10 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
      * reference's box filter). */
     if (r == LM_OK) r = rend_session_renderer(rs, REND_SESSION_FINAL, NULL, err);
     const cache_snapshot *snap = NULL;
-    /* Once the cache has nothing left to do, the path-traced residual
-     * (rend_residual.h) uses the machine until each snapshot's time, and the
-     * cached picture, drawn once per snapshot generation, is corrected by it. */
+    /* The path-traced residual (rend_residual.h) runs until each snapshot's
+     * time: beside the refining worker on the cycles it leaves, and with the
+     * whole machine once the cache has nothing left to do. The cached picture,
+     * drawn once per snapshot generation, is corrected by it. */
     rend_residual *res = NULL;
     float *cached = NULL;
     uint64_t cached_generation = 0;
@@ -329,6 +335,13 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
             if (interrupted || ar != LM_OK || (snap && snap->finished)) break;
             double now = lm_now_seconds() - t0;
             if (now >= row->target) break;
+            if (snap && c->residual) {
+                /* Beside the refining worker, in the background, until the
+                 * snapshot's time; then the latest snapshot is taken. */
+                if (!res && (ar = residual_make(c, &res, err)) != LM_OK) break;
+                rend_residual_run(res, &interrupted, t0 + row->target);
+                continue;
+            }
             progress(c, run->method, now, run->count ? &run->rows[run->count - 1] : NULL, 0);
             lm_sleep_seconds(now + 0.02 < row->target ? 0.010 : 0.001);
         }
@@ -353,8 +366,8 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
          * frames of it (rend_session_draw_accumulated); the row is dated when
          * that image is complete. While refining, one draw. */
         int k = snap && snap->converged ? c->accumulate : 1;
-        if (c->residual && snap && snap->finished) {
-            r = residual_image(c, rs, snap, t0 + row->target, &res, &cached, &cached_generation, rgb, row, err);
+        if (snap && c->residual) {
+            r = residual_image(c, rs, snap, t0 + row->target, k, &res, &cached, &cached_generation, rgb, row, err);
         } else {
             r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, k, rgb, err);
         }

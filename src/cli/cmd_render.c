@@ -5,8 +5,9 @@
  * tolerance by default) until it has converged at its JND (or nothing is left to
  * test), or `--seconds` have passed (refining on to a lower JND meanwhile), or
  * `--samples` leaf tests are done; the renderer's passes draw the last
- * snapshot (with `--seconds`, once the cache has finished, corrected by the
- * path-traced residual until the time is up: rend_residual.h); the image is
+ * snapshot (with `--seconds` corrected by the path-traced residual, which runs in
+ * the background beside the worker and then until the time is up:
+ * rend_residual.h); the image is
  * written linear (EXR) or tone-mapped (PNG), through a temporary file
  * (img_write), so a failure leaves no partial file.
  */
@@ -28,17 +29,53 @@
 
 enum { DEFAULT_SECONDS_LIMIT = 600 }; /* without --seconds or --samples: until converged, at most this */
 
+/* The path-traced residual of `--seconds` (rend_residual.h): it runs beside the
+ * refining worker, in the background (the cycles the worker leaves), from the
+ * first snapshot on, and with the whole machine once the cache has finished.
+ * The model transport with the bounces the cache shows is the truth it converges
+ * to: made again, its samples dropped, if `auto` changes them. Main thread. */
+typedef struct render_residual {
+    const scene *s;
+    const scene_camera *cam;
+    int w, h;
+    double until;      /* lm_now_seconds: the end of --seconds */
+    rend_residual *rr; /* NULL until the first snapshot, or after a failure to make it */
+    int bounces;       /* rr's */
+    lm_result failed;  /* making it failed: err says why, and it is not tried again */
+    lm_error err;
+} render_residual;
+
+/* The residual for the bounces `snap` shows (made, or made again). */
+static rend_residual *residual_for(render_residual *res, const cache_snapshot *snap)
+{
+    int bounces = snap->stats.bounces.bounces > 0 ? snap->stats.bounces.bounces : 1;
+    if (res->rr && res->bounces == bounces) return res->rr;
+    rend_residual_destroy(res->rr);
+    res->rr = NULL;
+    if (res->failed != LM_OK) return NULL;
+    res->failed = rend_residual_create(&(rend_residual_desc){.scene = res->s, .camera = res->cam, .width = res->w,
+                                                             .height = res->h, .bounces = bounces,
+                                                             .seed = 0x5eed0001u, .background = 1},
+                                       &res->rr, &res->err);
+    res->bounces = bounces;
+    return res->rr;
+}
+
 /* The progress line on a terminal (stderr), as `lumesh reference` shows its own:
  * time against the limit, leaves tested, samples, and the cache's estimate of its
- * error against the JND it refines to. */
+ * error against the JND it refines to. Between looks, the residual's passes. */
 typedef struct render_progress {
     double t0, limit, last;
     int tty, shown;
+    render_residual *residual; /* NULL: none */
 } render_progress;
 
 static void show_progress(void *user, const cache_snapshot *snap)
 {
     render_progress *p = user;
+    rend_residual *rr = p->residual && snap && !snap->failed ? residual_for(p->residual, snap) : NULL;
+    /* A slice of background passes: the wait looks at the worker again after it. */
+    if (rr) rend_residual_run(rr, NULL, fmin(p->residual->until, lm_now_seconds() + 0.1));
     double now = lm_now_seconds();
     if (!p->tty || !snap || now - p->last < 0.1) return;
     p->last = now;
@@ -55,24 +92,21 @@ static void show_progress(void *user, const cache_snapshot *snap)
     fflush(stderr);
 }
 
-/* What `--seconds` has left after the cache finished goes to the path-traced
- * residual (rend_residual.h): the cached picture in rgb (drawn, accumulated) is
- * corrected in place. The model transport with the bounces the cache shows is
- * the truth it converges to. A terminal shows its progress. */
-static lm_result residual_until(const scene *s, const scene_camera *cam, int w, int h, const cache_snapshot *snap,
-                                double t0, double until, float *rgb, rend_residual_info *info, lm_error *err)
+/* What `--seconds` has left after the refinement goes to the residual, with its
+ * samples from beside the worker: the cached picture in rgb (drawn, accumulated)
+ * is corrected in place. A terminal shows its progress. */
+static lm_result residual_until(render_residual *res, const cache_snapshot *snap, double t0, float *rgb,
+                                rend_residual_info *info, lm_error *err)
 {
-    rend_residual *rr = NULL;
-    int bounces = snap->stats.bounces.bounces > 0 ? snap->stats.bounces.bounces : 1;
-    lm_result r = rend_residual_create(&(rend_residual_desc){.scene = s, .camera = cam, .width = w, .height = h,
-                                                             .bounces = bounces, .seed = 0x5eed0001u},
-                                       &rr, err);
-    if (r != LM_OK) return r;
-    float *cached = malloc((size_t)w * (size_t)h * 3 * sizeof *cached);
-    if (!cached) {
-        rend_residual_destroy(rr);
-        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
+    rend_residual *rr = residual_for(res, snap);
+    if (!rr) {
+        *err = res->err;
+        return res->failed;
     }
+    int w = res->w, h = res->h;
+    double until = res->until;
+    float *cached = malloc((size_t)w * (size_t)h * 3 * sizeof *cached);
+    if (!cached) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
     memcpy(cached, rgb, (size_t)w * (size_t)h * 3 * sizeof *cached);
     int tty = isatty(STDERR_FILENO);
     rend_residual_apply(rr, cached, rgb, info); /* the picture its adaptive passes start from */
@@ -91,7 +125,6 @@ static lm_result residual_until(const scene *s, const scene_camera *cam, int w, 
     if (tty) fputc('\n', stderr);
     rend_residual_apply(rr, cached, rgb, info);
     free(cached);
-    rend_residual_destroy(rr);
     return LM_OK;
 }
 
@@ -160,7 +193,7 @@ static lm_result write_debug_meshes(const char *dir, const scene *s, const scene
 int cmd_render(const app_command *cmd, int argc, char **argv)
 {
     const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *bounces = NULL, *debug_dir = NULL,
-               *components = NULL, *residual = "on";
+               *components = NULL, *residual_opt = "on";
     double seconds = 0;
     long samples = 0, width = 0, height = 0, supersample = REND_FRAME_SUPERSAMPLE_DEFAULT,
          accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
@@ -181,7 +214,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         {"--supersample", NULL, APP_OPT_INT, &supersample, 1, REND_FRAME_SUPERSAMPLE_MAX},
         {"--accumulate", NULL, APP_OPT_INT, &accumulate, 1, REND_SESSION_ACCUMULATE_MAX},
         {"--components", NULL, APP_OPT_STRING, &components},
-        {"--residual", NULL, APP_OPT_STRING, &residual},
+        {"--residual", NULL, APP_OPT_STRING, &residual_opt},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -191,7 +224,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (!ext_is(out, "exr") && !ext_is(out, "png")) return app_usage_error(cmd, "the output must end in .png or .exr");
     if (opts[1].seen && opts[2].seen) return app_usage_error(cmd, "give --seconds or --samples, not both");
     if (opts[3].seen != opts[4].seen) return app_usage_error(cmd, "give both --width and --height");
-    if (strcmp(residual, "on") != 0 && strcmp(residual, "off") != 0)
+    if (strcmp(residual_opt, "on") != 0 && strcmp(residual_opt, "off") != 0)
         return app_usage_error(cmd, "--residual takes on or off");
     unsigned mask = components ? parse_components(components) : REND_FRAME_COMPONENTS_ALL;
     if (!mask)
@@ -237,7 +270,12 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     /* Nothing is drawn until the refinement ends: the ID pass's GL context is not
      * held meanwhile (docs/memory.md, "Sixth session"). */
     if (r == LM_OK) rend_session_release_gl(rs);
-    render_progress prog = {.t0 = t0, .limit = opts[1].seen ? seconds : 0, .tty = isatty(STDERR_FILENO)};
+    /* The whole picture (not chosen terms) with --seconds: the residual from the
+     * first snapshot on. */
+    render_residual residual = {.s = s, .cam = &cam, .w = w, .h = h, .until = t0 + limit};
+    const int with_residual = opts[1].seen && strcmp(residual_opt, "on") == 0 && mask == REND_FRAME_COMPONENTS_ALL;
+    render_progress prog = {.t0 = t0, .limit = opts[1].seen ? seconds : 0, .tty = isatty(STDERR_FILENO),
+                            .residual = with_residual ? &residual : NULL};
     if (r == LM_OK)
         r = rend_session_wait(rs, &(rend_session_wait_desc){.until = t0 + limit, .on_look = show_progress, .user = &prog},
                               &snap, &err);
@@ -255,11 +293,10 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         if (r == LM_OK) rend_frame_set_components(final, mask);
     }
     if (r == LM_OK) r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, &cam, (int)accumulate, rgb, &err);
-    /* The whole picture (not chosen terms) of a cache finished before --seconds. */
     rend_residual_info res = {0};
-    int corrected = r == LM_OK && opts[1].seen && strcmp(residual, "on") == 0 && snap->finished && !snap->failed &&
-                    mask == REND_FRAME_COMPONENTS_ALL && lm_now_seconds() < t0 + limit;
-    if (corrected) r = residual_until(s, &cam, w, h, snap, t0, t0 + limit, rgb, &res, &err);
+    int corrected = r == LM_OK && with_residual && !snap->failed;
+    if (corrected) r = residual_until(&residual, snap, t0, rgb, &res, &err);
+    rend_residual_destroy(residual.rr);
     double elapsed = lm_now_seconds() - t0;
     if (r == LM_OK && debug_dir) r = write_debug_meshes(debug_dir, s, &cam, w, h, rs, rgb, snap, &err);
     /* What the statistics and the summary need is taken from the session, which is

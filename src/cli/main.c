@@ -58,7 +58,8 @@ static const app_command commands[] = {
      "  --components LIST   draw only these terms of the composite, comma-separated: direct\n"
      "                      (kd*L_dd), indirect (kd*E_i/pi), specular (ks*L_ds), emission (Le);\n"
      "                      default all (the terms add up to the whole image)\n"
-     "  --residual on|off   with --seconds: path-trace the residual once the cache has\n"
+     "  --residual on|off   with --seconds: path-trace the residual beside the refining\n"
+     "                      cache (on the cycles it leaves) and with every core once it has\n"
      "                      finished (default on; the picture then tends to the truth)\n"
      SAMPLER_HELP,
      cmd_render},
@@ -147,8 +148,9 @@ static const app_command commands[] = {
      "                      when that image is complete\n"
      "  --seed S            the path tracer's seed (default 1; keep it different from the\n"
      "                      reference's, whose default is 0, or the two are correlated)\n"
-     "  --residual on|off   once the cache has finished, path-trace its residual (the\n"
-     "                      reference's transport) until each snapshot and correct the\n"
+     "  --residual on|off   path-trace the cache's residual (the reference's transport)\n"
+     "                      beside the refining cache (on the cycles it leaves) and with\n"
+     "                      every core once it has finished, and correct each snapshot's\n"
      "                      picture by it (default on)\n"
      SAMPLER_HELP,
      cmd_converge},

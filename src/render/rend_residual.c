@@ -58,7 +58,8 @@ lm_result rend_residual_create(const rend_residual_desc *desc, rend_residual **o
                                          .transport = desc->transport,
                                          .bounces = desc->bounces,
                                          .seed = desc->seed,
-                                         .threads = desc->threads},
+                                         .threads = desc->threads,
+                                         .background = desc->background},
                              &rr->pt, err);
     if (r != LM_OK) {
         rend_residual_destroy(rr);

@@ -75,6 +75,9 @@ typedef struct rend_residual_desc {
     int block;                 /* 0 = REND_RESIDUAL_BLOCK_DEFAULT */
     uint32_t min_samples;      /* 0 = REND_RESIDUAL_MIN_SAMPLES_DEFAULT */
     int uniform_only;          /* non-zero: every pass samples every pixel (no adaptive passes) */
+    int background;            /* non-zero: the passes take only the cycles other threads leave
+                                  (ref_desc.background): run beside a refining cache, they do not
+                                  slow it */
 } rend_residual_desc;
 
 void rend_residual_desc_defaults(rend_residual_desc *d);
