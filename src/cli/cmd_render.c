@@ -7,9 +7,8 @@
  * `--samples` leaf tests are done; the renderer's passes draw the last
  * snapshot (with `--seconds` corrected by the path-traced residual, which runs in
  * the background beside the worker and then until the time is up:
- * rend_residual.h); the image is
- * written linear (EXR) or tone-mapped (PNG), through a temporary file
- * (img_write), so a failure leaves no partial file.
+ * rend_residual.h); the image is written linear (EXR) or tone-mapped (PNG),
+ * through a temporary file (img_write), so a failure leaves no partial file.
  */
 #define _POSIX_C_SOURCE 200809L
 #include <math.h>

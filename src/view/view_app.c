@@ -66,9 +66,6 @@ static const float k_light_presets[][3] = {
 enum { LIGHT_PRESETS = sizeof k_light_presets / sizeof k_light_presets[0] };
 const char *const view_light_preset_names[LIGHT_PRESETS] = {"", " warm", " cool", " red", " green"};
 
-/* Light l to scale × tint × the scene's radiance (or intensity): the worker
- * recomputes the direct mesh from its stored G (no light sample), the renderer
- * shows the emitter's new Le. */
 /* What light l (area lights, then point lights) emits at scale × tint × the
  * scene's radiance (or intensity). */
 static void light_value(const scene *s, uint32_t l, float scale, const float tint[3], float out[3])
@@ -78,6 +75,9 @@ static void light_value(const scene *s, uint32_t l, float scale, const float tin
     for (int k = 0; k < 3; ++k) out[k] = base[k] * scale * tint[k];
 }
 
+/* Light l to scale × tint × the scene's radiance (or intensity): the worker
+ * recomputes the direct mesh from its stored G (no light sample), the renderer
+ * shows the emitter's new Le. */
 static lm_result set_light(view_state *v, uint32_t l, float scale, const float tint[3], lm_error *err)
 {
     if (l >= v->light_count)
