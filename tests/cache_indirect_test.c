@@ -25,6 +25,9 @@
  * noise moves the floor's colour by ΔE 8, measured here and required above 2),
  * ends with no more indirect leaves than with 4096 rays, + 8 (measured: 42 and
  * 42; with the edge test blind to noise, NOISE_SIGMAS 0, 234).
+ * Two meshes do not mask each other: an edge test judges its midpoint against the
+ * other meshes' darkest value over the edge (cache_edge_background), so a direct
+ * difference that their spread interpolation would hide (ΔE 0) shows (ΔE 100).
  * And samp_point_pull_inside, which keeps a floor vertex beyond a wall from
  * gathering the next room: such a point moves to the near side of the wall; one
  * behind a skirting board, or in the open, stays; and samp_points_parted (a wall
@@ -688,8 +691,78 @@ static void test_drift_is_a_bound(void)
     scene_destroy(s);
 }
 
+/* ---- two meshes masking each other ------------------------------------------------- */
+
+/* What an edge test judges a midpoint against (cache_edge_background; docs/cache.md,
+ * "The door's strip: two meshes masking each other"). On the Veach door a strip of
+ * light crossed the floor's leaves in the direct and the indirect mesh alike; each
+ * interpolated it over the dark floor in front of the door, and each mesh's test
+ * saw its own error (direct 0 fresh against 7 interpolated) on the other's spread,
+ * which saturated the display: ΔE 0, no split, the strip spread for good. Here the
+ * box's floor root gets that state by hand: E_i bright at one end of an edge,
+ * 0 at the other and at the third corner. Against the indirect interpolated at the
+ * midpoint (as before) the direct difference is invisible; against the darkest the
+ * indirect is over the edge it is plain. Where the indirect is smooth (equal at the
+ * three points) both backgrounds are its value and agree. */
+static void test_edge_background(void)
+{
+    uint32_t *pixels;
+    scene *s = floor_box("mask", &pixels);
+    if (!s) return;
+    lm_error err;
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 64}, &sp, &err) ==
+          LM_OK);
+    if (sp) CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
+    if (c) CHECK(cache_init(c, &err) == LM_OK);
+    uint32_t t = 0;
+    while (t < s->tri_count && !pixels[t]) ++t;
+    CHECK(t < s->tri_count);
+    if (!c || t == s->tri_count) return;
+    const mesh_qnode *root = mesh_qmesh_node(c->indirect, mesh_qmesh_root(c->indirect, t));
+    double cw1[3], cw2[3];
+    for (int k = 0; k < 3; ++k) cache_node_corner_bary(root, k, &cw1[k], &cw2[k]);
+    const double pw1[3] = {0.5 * (cw1[0] + cw1[1]), cw1[0], cw1[1]}, pw2[3] = {0.5 * (cw2[0] + cw2[1]), cw2[0], cw2[1]};
+    const float fresh[3] = {0, 0, 0}, interp[3] = {7, 7, 7};
+    for (int smooth = 0; smooth < 2; ++smooth) {
+        const float bright[3] = {100, 100, 100}, dark[3] = {0, 0, 0}, even[3] = {0.5f, 0.5f, 0.5f};
+        CHECK(mesh_qmesh_set_value(c->indirect, root->v[0], smooth ? even : dark, &err) == LM_OK);
+        CHECK(mesh_qmesh_set_value(c->indirect, root->v[1], smooth ? even : bright, &err) == LM_OK);
+        CHECK(mesh_qmesh_set_value(c->indirect, root->v[2], smooth ? even : dark, &err) == LM_OK);
+        float lf[3], li[3], bg[CACHE_KINDS][3];
+        cache_seen_lab_with(c, CACHE_KIND_DIRECT, t, pw1[0], pw2[0], fresh, lf);
+        cache_seen_lab_with(c, CACHE_KIND_DIRECT, t, pw1[0], pw2[0], interp, li);
+        const float interpolated_de = tm_delta_e(lf, li);
+        cache_edge_background(c, CACHE_KIND_DIRECT, t, pw1, pw2, bg);
+        cache_seen_lab_over(c, CACHE_KIND_DIRECT, t, (const float(*)[3])bg, fresh, lf);
+        cache_seen_lab_over(c, CACHE_KIND_DIRECT, t, (const float(*)[3])bg, interp, li);
+        const float edge_de = tm_delta_e(lf, li);
+        printf("edge background (%s indirect): direct 0 against 7 at the midpoint, dE %.2f on the indirect "
+               "interpolated there, %.2f on its darkest over the edge (E_i %.3g)\n",
+               smooth ? "smooth" : "a bright end of the", interpolated_de, edge_de, bg[CACHE_KIND_INDIRECT][0]);
+        if (smooth) {
+            CHECK_MSG(fabsf(bg[CACHE_KIND_INDIRECT][0] - 0.5f) < 1e-6f, "smooth: background E_i %g, not 0.5",
+                      bg[CACHE_KIND_INDIRECT][0]);
+            CHECK_MSG(fabsf(edge_de - interpolated_de) < 1e-4f, "smooth: %g against %g", edge_de, interpolated_de);
+        } else {
+            CHECK_MSG(interpolated_de < c->desc.jnd, "the spread indirect does not mask here (dE %.2f): the test "
+                      "shows nothing", interpolated_de);
+            CHECK_MSG(bg[CACHE_KIND_INDIRECT][0] == 0.0f, "background E_i %g, not the dark end's 0",
+                      bg[CACHE_KIND_INDIRECT][0]);
+            CHECK_MSG(edge_de > 10.0f * c->desc.jnd, "the direct difference is hidden on the darkest background: dE %.2f",
+                      edge_de);
+        }
+    }
+    cache_destroy(c);
+    samp_destroy(sp);
+    free(pixels);
+    scene_destroy(s);
+}
+
 int main(void)
 {
+    test_edge_background();
     test_drift_is_a_bound();
     test_pull_inside();
     test_noise_does_not_refine();

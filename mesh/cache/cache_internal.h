@@ -407,6 +407,20 @@ void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const floa
  * there and the other meshes' are interpolated. */
 void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2, const float value[3],
                          float lab[3]);
+/* What an edge test judges a mesh's midpoint against: the other meshes' terms at
+ * their darkest (per channel) over the midpoint (w1[0], w2[0]) and the edge's two
+ * ends (w1[1..2], w2[1..2]) of scene triangle tri. Their interpolation at the
+ * midpoint is no fair background: where a feature crosses the edge (the strip of
+ * light under the Veach door) every mesh's interpolation spreads it, the spread
+ * saturates the tone map, and each mesh's test then finds its own error invisible
+ * against the others' (mutual masking; docs/cache.md, "Masked by each other"). The
+ * darkest the others may really be there shows the most of a difference
+ * (the tone map's slope falls with brightness). */
+void cache_edge_background(const cache *c, cache_kind kind, uint32_t tri, const double w1[3], const double w2[3],
+                           float term[CACHE_KINDS][3]);
+/* cache_seen_lab when mesh `kind` has `value` and the others have background's terms. */
+void cache_seen_lab_over(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
+                         const float value[3], float lab[3]);
 /* The largest ΔE between what the viewer sees at a node's corners (mesh m of `kind`). */
 float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, const mesh_qnode *n);
 

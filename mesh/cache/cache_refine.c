@@ -451,8 +451,8 @@ static int beyond_noise(const cache *c, uint32_t a, uint32_t b, uint32_t mid, co
  * The leaf's interpolation error is the rest, in quadrature (E[d²] = true² + σ²),
  * so that noisy values do not count twice in the estimate (cache_estimate.c adds
  * the noise of its own). */
-static float noise_delta_e(const cache *c, uint32_t tri, double w1, double w2, uint32_t a, uint32_t b, uint32_t mid,
-                           const float interp[3], const float lab_interp[3])
+static float noise_delta_e(const cache *c, uint32_t tri, const float background[CACHE_KINDS][3], uint32_t a,
+                           uint32_t b, uint32_t mid, const float interp[3], const float lab_interp[3])
 {
     float sa[3], sb[3], sm[3], up[3], lab[3];
     cache_indirect_likely_sigma(c, a, sa);
@@ -460,7 +460,7 @@ static float noise_delta_e(const cache *c, uint32_t tri, double w1, double w2, u
     cache_indirect_likely_sigma(c, mid, sm);
     for (int ch = 0; ch < 3; ++ch)
         up[ch] = interp[ch] + sqrtf(sm[ch] * sm[ch] + 0.25f * (sa[ch] * sa[ch] + sb[ch] * sb[ch]));
-    cache_seen_lab_with(c, KIND_INDIRECT, tri, w1, w2, up, lab);
+    cache_seen_lab_over(c, KIND_INDIRECT, tri, background, up, lab);
     return tm_delta_e(lab, lab_interp);
 }
 
@@ -469,6 +469,7 @@ typedef struct round_leaf {
     uint32_t mirror;            /* single mesh: the indirect node split along with it */
     uint32_t mid[3];            /* vtable ids of the midpoints of edges 01, 12, 20 */
     double mw1[3], mw2[3];      /* their barycentrics */
+    double cw1[3], cw2[3];      /* the corners' */
 } round_leaf;
 
 static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t max_leaves,
@@ -519,6 +520,8 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 rl->mirror = mir;
         }
         for (int k = 0; k < 3; ++k) {
+            rl->cw1[k] = cw1[k];
+            rl->cw2[k] = cw2[k];
             rl->mid[k] = centre->v[k];
             rl->mw1[k] = 0.5 * (cw1[k] + cw1[(k + 1) % 3]);
             rl->mw2[k] = 0.5 * (cw2[k] + cw2[(k + 1) % 3]);
@@ -589,7 +592,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             px = 0.0f;
         }
         for (int k = 0; k < 3 && !found && !unseen; ++k) {
-            float a[3], b[3], fresh[3], interp[3], lf[3], li[3];
+            float a[3], b[3], fresh[3], interp[3], lf[3], li[3], background[CACHE_KINDS][3];
             mesh_qmesh_get_value(m, corner[k], a);
             mesh_qmesh_get_value(m, corner[(k + 1) % 3], b);
             mesh_qmesh_get_value(m, leaves[i].mid[k], fresh);
@@ -605,8 +608,12 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 cache_seen_lab(c, tri, fresh, ef, NULL, lf); /* L_ds left out, as before */
                 cache_seen_lab(c, tri, interp, ei, NULL, li);
             } else {
-                cache_seen_lab_with(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], fresh, lf);
-                cache_seen_lab_with(c, kind, tri, leaves[i].mw1[k], leaves[i].mw2[k], interp, li);
+                const int e = (k + 1) % 3;
+                const double pw1[3] = {leaves[i].mw1[k], leaves[i].cw1[k], leaves[i].cw1[e]};
+                const double pw2[3] = {leaves[i].mw2[k], leaves[i].cw2[k], leaves[i].cw2[e]};
+                cache_edge_background(c, kind, tri, pw1, pw2, background);
+                cache_seen_lab_over(c, kind, tri, background, fresh, lf);
+                cache_seen_lab_over(c, kind, tri, background, interp, li);
             }
             float de = tm_delta_e(lf, li) * cache_pixel_share(px);
             found = de > c->desc.jnd;
@@ -614,8 +621,8 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             sum_de += de;
             sum_de2 += de * de;
             if (kind == KIND_INDIRECT && !combined) {
-                float dn = cache_pixel_share(px) * noise_delta_e(c, tri, leaves[i].mw1[k], leaves[i].mw2[k], corner[k],
-                                                           corner[(k + 1) % 3], leaves[i].mid[k], interp, li);
+                float dn = cache_pixel_share(px) * noise_delta_e(c, tri, (const float(*)[3])background, corner[k],
+                                                                 corner[(k + 1) % 3], leaves[i].mid[k], interp, li);
                 sum_dn2 += dn * dn;
             }
             /* Indirect values are noisy estimates: a difference the noise explains

@@ -191,6 +191,28 @@ void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w
     cache_seen_lab(c, tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab);
 }
 
+void cache_edge_background(const cache *c, cache_kind kind, uint32_t tri, const double w1[3], const double w2[3],
+                           float term[CACHE_KINDS][3])
+{
+    memset(term, 0, CACHE_KINDS * sizeof term[0]);
+    other_terms(c, kind, tri, w1[0], w2[0], MESH_VTABLE_NONE, term);
+    for (int p = 1; p < 3; ++p) {
+        float at[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+        other_terms(c, kind, tri, w1[p], w2[p], MESH_VTABLE_NONE, at);
+        for (int j = 0; j < CACHE_KINDS; ++j)
+            for (int ch = 0; ch < 3; ++ch) term[j][ch] = fminf(term[j][ch], at[j][ch]);
+    }
+}
+
+void cache_seen_lab_over(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
+                         const float value[3], float lab[3])
+{
+    float term[CACHE_KINDS][3];
+    memcpy(term, background, sizeof term);
+    memcpy(term[kind], value, sizeof term[kind]);
+    cache_seen_lab(c, tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab);
+}
+
 float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, const mesh_qnode *n)
 {
     float lab[3][3];
