@@ -315,6 +315,8 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
     return r;
 }
 
+uint32_t samp_direct_rays(const samp_sampler *sp) { return (uint32_t)sp->desc.direct_rays; }
+
 uint32_t samp_indirect_rays(const samp_sampler *sp)
 {
     return sp->be.indirect_ops->indirect_rays ? sp->be.indirect_ops->indirect_rays(sp->be.indirect_impl) : 0;

@@ -163,6 +163,9 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
                               uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err);
 /* Rays a point of one pass at scale 1 (0: the indirect back end casts none). */
 uint32_t samp_indirect_rays(const samp_sampler *sp);
+/* Light points a receiver of samp_direct (samp_desc.direct_rays, defaults filled
+ * in; the GL back ends use none, and this is their ray equivalent). */
+uint32_t samp_direct_rays(const samp_sampler *sp);
 
 /* Where the indirect light of each point comes from (the cache's importance,
  * docs/cache.md): `rays` stratified cosine-weighted rays per point, traced with

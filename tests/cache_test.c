@@ -1101,7 +1101,8 @@ static void test_room_bounces(float kd, int min_bounces, int max_bounces)
  *     times too bright: the gathers read the floor's wrong direct values, values
  *     gathered from early sources were never revised, the source's coarse cut
  *     blurred the shadow, and a floor vertex inside the box saw the back of the
- *     box's walls lit. */
+ *     box's walls lit. Checked as seen (ΔE of the face's colour with either E_i,
+ *     below the JND) and as a sum (within 10%). */
 enum { CB_W = 256 };
 
 /* Pixels per triangle: primary rays through the pixel centres (src/scene/camera.h). */
@@ -1251,7 +1252,7 @@ static void test_cornell_box(void)
     CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .direct_rays = 256, .seed = 3}, &dsp,
                       &err) == LM_OK);
     const double fs[3] = {0.15, 0.5, 0.85}, hs[6] = {0.5, 2, 5, 10, 20, 40};
-    double worst_rel = 0.0, sum_c = 0.0, sum_x = 0.0;
+    double worst_rel = 0.0, worst_seen = 0.0, sum_c = 0.0, sum_x = 0.0;
     printf("  E_i just above the bottom edge of the short box's front face, cache / exact source (RGB mean):\n");
     for (int fi = 0; fi < 3 && dsp; ++fi) {
         printf("   ");
@@ -1283,14 +1284,31 @@ static void test_cornell_box(void)
             double c = (Ec[0] + Ec[1] + Ec[2]) / 3.0, e = (Ex[0] + Ex[1] + Ex[2]) / 3.0;
             printf(" %.4f/%.4f", c, e);
             worst_rel = fmax(worst_rel, fabs(c - e) / (e + 5e-4));
+            /* What the viewer sees of the difference: the face's colour with the
+             * cache's direct light and either E_i. */
+            float Ld[3], seen_c[3], seen_x[3];
+            CHECK(cache_eval_direct(u.c, tri, w1, w2, Ld, &err) == LM_OK);
+            const float *kd = s->materials[s->tris[tri].material].kd;
+            for (int k = 0; k < 3; ++k) {
+                seen_c[k] = kd[k] * (Ld[k] + Ec[k] / (float)M_PI);
+                seen_x[k] = kd[k] * (Ld[k] + (float)(Ex[k] / M_PI));
+            }
+            worst_seen = fmax(worst_seen, test_tone_delta_e(&tm, seen_c, seen_x));
             sum_c += c;
             sum_x += e;
         }
         printf("\n");
     }
-    printf("   worst |cache − exact| / (exact + 5e-4) %.2f; sums %.4f / %.4f\n", worst_rel, sum_c, sum_x);
+    printf("   worst |cache − exact| / (exact + 5e-4) %.2f, seen as ΔE %.2f; sums %.4f / %.4f\n", worst_rel,
+           worst_seen, sum_c, sum_x);
     CHECK(sum_x > 0.0);
-    CHECK_MSG(worst_rel <= 0.35, "E_i off by %.0f%% at the bottom of the short box's front face", 100.0 * worst_rel);
+    /* The cache refines to the JND of what is seen: in the box's shadow, where E_i
+     * is small, it may be off by more in relative terms (13% with a fifth of
+     * each round's leaves to the indirect mesh, 55% at one point with rounds shared
+     * by cost, both below the JND as seen); the defect was 30 times. */
+    CHECK_MSG(worst_rel <= 1.0, "E_i off by %.0f%% at the bottom of the short box's front face", 100.0 * worst_rel);
+    CHECK_MSG(worst_seen <= u.c->desc.jnd, "E_i's error at the bottom of the short box's front face seen as ΔE %.2f",
+              worst_seen);
     CHECK_MSG(fabs(sum_c / sum_x - 1.0) <= 0.1, "E_i at the face's bottom %.3f times the exact", sum_c / sum_x);
     samp_destroy(dsp);
 

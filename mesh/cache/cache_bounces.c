@@ -306,6 +306,7 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
                                     &(samp_surface_hits){.rays = R, .count = count, .tri = tri, .bary = bary,
                                                          .keep = sends_light, .keep_user = c},
                                     err);
+        c->effort += (uint64_t)nv * R;
     }
     /* Kept compact: each vertex's hits one after the other, each with the coarse
      * leaf holding it (its corners' indices and weights). */

@@ -210,6 +210,9 @@ enum { CACHE_BORROW_NONE = UINT32_MAX };
  * (cache_desc.min_leaf_pixels) unless their ΔE test asks for more: indirect
  * irradiance is smooth (cache_refine.c). Borrowed spans split to the same size. */
 #define CACHE_INDIRECT_SIZE_FACTOR 16.0f
+/* The ray equivalent of a gather of a back end that casts none (GL's hemicube):
+ * the Embree back end's default count (cache.effort). */
+#define CACHE_GL_GATHER_RAYS 1024u
 /* A difference between an indirect value and what interpolation or borrowing
  * gives splits nothing unless it exceeds this many standard errors of the
  * difference in some channel (the noise explains it otherwise). */
@@ -307,6 +310,10 @@ typedef struct cache_sched {
      * vt_tris; built on first use): where a changed cache vertex's leaves can be. */
     uint32_t *vt_first, *vt_tris;
     uint32_t *tri_stamp, stamp;  /* per scene triangle: visited in this pass */
+    /* Per mesh: rays a leaf test took (cache.effort), smoothed over its rounds (0:
+     * none yet). The heap scheduler gives the next round to the mesh whose top
+     * priority (pixels × ΔE) per ray is highest (cache_sched_refine). */
+    double leaf_rays[CACHE_KINDS];
 } cache_sched;
 
 struct cache {
@@ -328,6 +335,11 @@ struct cache {
                                   an emitter the viewer sees (cache_sees_front) */
     float *light_le;           /* light_count × RGB: current radiance (area) or intensity (point) */
     int initialised;
+    /* Rays traced for the cache's samples (light points, lobe rays, pilots, gathers,
+     * bounce traces; a GL gather counts as CACHE_GL_GATHER_RAYS): what a leaf test
+     * of each mesh costs, for the scheduler (cache_sched_refine). A count, not a
+     * time, so that refinement stays deterministic. */
+    uint64_t effort;
     const atomic_int *stop;    /* cache_refine_desc.stop during a cache_refine call, else NULL */
     const uint32_t *pixels;    /* cache_refine_desc.pixels during a cache_refine call, else NULL (what a
                                   source rebuild bounds the drift of: cache_mark_outdated) */
@@ -415,7 +427,11 @@ void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w
  * saturates the tone map, and each mesh's test then finds its own error invisible
  * against the others' (mutual masking; docs/cache.md, "Masked by each other"). The
  * darkest the others may really be there shows the most of a difference
- * (the tone map's slope falls with brightness). */
+ * (the tone map's slope falls with brightness). A mesh whose leaf at the midpoint
+ * has not passed its own test yet (waiting, or the first image's values) masks
+ * nothing there (its term is 0): on the door the quick start's indirect, bright
+ * over the whole floor, hid the strip from direct tests that were never repeated
+ * once it was gathered again. */
 void cache_edge_background(const cache *c, cache_kind kind, uint32_t tri, const double w1[3], const double w2[3],
                            float term[CACHE_KINDS][3]);
 /* cache_seen_lab when mesh `kind` has `value` and the others have background's terms. */

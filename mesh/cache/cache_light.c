@@ -104,6 +104,7 @@ lm_result cache_sample_light(cache *c, uint32_t l, const uint32_t *vids, uint32_
         r = mesh_qmesh_set_value(c->light[l], vids[i], &V, err);
     }
     if (r == LM_OK) c->vis.light_stats[l].samples += n;
+    c->effort += (uint64_t)n * samp_direct_rays(c->sp);
     free(pts);
     free(G);
     return r;
@@ -152,6 +153,7 @@ static lm_result fetch_visibility_single(cache *c, const cache_site *sites, uint
             V[(size_t)i * L + l] = g0 > 0.0 ? (float)fmin(1.0, fmax(0.0, G[i] / g0)) : 1.0f;
         }
         if (r == LM_OK) c->vis.light_stats[l].samples += n;
+        c->effort += (uint64_t)n * samp_direct_rays(c->sp);
     }
     free(pts);
     free(G);
@@ -328,6 +330,7 @@ static lm_result lobe_visibility(cache *c, const cache_site *sites, uint32_t n, 
             at[m++] = i;
         }
         if (m) r = samp_lobe_visibility(c->sp, l, pts, wo, ex, m, CACHE_LOBE_RAYS, out, err);
+        c->effort += (uint64_t)m * CACHE_LOBE_RAYS;
         for (uint32_t k = 0; r == LM_OK && k < m; ++k)
             if (out[k] >= 0.0f) V[(size_t)at[k] * L + l] = out[k];
     }

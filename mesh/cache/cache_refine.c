@@ -39,6 +39,7 @@
 #include <string.h>
 
 #include "mesh/cache/cache_internal.h"
+
 #include "src/base/vecmath.h"
 
 enum { ROUND_LEAVES = 64 };
@@ -721,6 +722,60 @@ static int around_ready(cache *c, lm_error *err)
     return 1;
 }
 
+/* A leaf of another mesh over a changed place (requeue_masked): tested again
+ * when it holds the point (or any point of the regions) and is seen. */
+typedef struct masked_ctx {
+    cache *c;
+    cache_kind kind;
+    const uint32_t *pixels;
+    const cache_region *point; /* NULL: every leaf the walk reaches (a region) */
+} masked_ctx;
+
+static lm_result requeue_masked_visit(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user,
+                                      lm_error *err)
+{
+    masked_ctx *q = user;
+    if (n->child != MESH_QMESH_NONE) return LM_OK;
+    if (q->pixels && q->pixels[n->tri] == 0) return LM_OK; /* unseen: its test judged no background */
+    if (q->point) {
+        cache_region leaf = {.tri = n->tri};
+        for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &leaf.w1[k], &leaf.w2[k]);
+        if (!cache_region_contains(&leaf, q->point->w1[0], q->point->w2[0])) return LM_OK;
+    }
+    return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, node, n, q->pixels), err);
+}
+
+/* An edge test judges its midpoints against the other meshes' values there
+ * (cache_edge_background), so where those change, its verdict may no longer hold:
+ * on the Veach door a direct leaf holding the strip of light was merged while the
+ * quick start's indirect was bright over the whole floor (E_i 17 at every point of
+ * the edge), and stayed merged after the indirect there was gathered again at 0.3
+ * (render --samples 110000 --deterministic: the strip spread into the row below,
+ * 3.3 against 0.09). The other meshes' leaves over the changed values or regions
+ * are tested again. */
+static lm_result requeue_masked(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
+                                const uint32_t *vids, uint32_t n, const uint32_t *pixels, lm_error *err)
+{
+    lm_result r = LM_OK;
+    for (int k = 0; r == LM_OK && k < CACHE_KINDS; ++k) {
+        const mesh_qmesh *m = cache_kind_mesh(c, (cache_kind)k);
+        if (k == (int)kind || !m || (k == KIND_INDIRECT && c->desc.single_mesh)) continue;
+        masked_ctx q = {c, (cache_kind)k, pixels, NULL};
+        for (uint32_t i = 0; r == LM_OK && i < region_count; ++i)
+            if (mesh_qmesh_root(m, regions[i].tri) != MESH_QMESH_NONE && cache_tri_active(c, regions[i].tri))
+                r = cache_region_walk(m, &regions[i], requeue_masked_visit, &q, err);
+        for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
+            const mesh_vertex *v = mesh_vtable_vertex(c->vt, vids[i]);
+            if (mesh_qmesh_root(m, v->tri) == MESH_QMESH_NONE || !cache_tri_active(c, v->tri)) continue;
+            const double scale = ldexp(1.0, -(int)v->bary.depth), w1 = v->bary.w[1] * scale, w2 = v->bary.w[2] * scale;
+            const cache_region at = {.tri = v->tri, .w1 = {w1, w1, w1}, .w2 = {w2, w2, w2}};
+            q.point = &at;
+            r = cache_region_walk(m, &at, requeue_masked_visit, &q, err);
+        }
+    }
+    return r;
+}
+
 /* regions NULL: anywhere in the mesh. The single-mesh ablation schedules the
  * combined (direct) mesh only. */
 static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
@@ -729,7 +784,7 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
     if (kind == KIND_INDIRECT && c->desc.single_mesh) kind = KIND_DIRECT;
     requeue_ctx q = {c, kind, user, vids, n};
     const mesh_qmesh *m = cache_kind_mesh(c, kind);
-    lm_result r = LM_OK;
+    lm_result r = requeue_masked(c, kind, regions, region_count, vids, n, user, err);
     for (uint32_t i = 0; r == LM_OK && i < region_count; ++i) r = cache_region_walk(m, &regions[i], requeue_visit, &q, err);
     if (!regions && (uint64_t)n * 32 < c->s->tri_count && around_ready(c, err)) {
         /* Few changed: only the trees of the triangles around their triangles'
@@ -841,6 +896,50 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
     return r;
 }
 
+/* The highest priority waiting in a mesh's heap (entries of leaves split or
+ * done since are skipped when popped, so it may be one of those: a guess). */
+static float top_priority(const cache *c, int kind)
+{
+    const cache_queue *q = &c->sched.q[kind];
+    return q->n ? q->e[0].priority : 0.0f;
+}
+
+/* What a leaf test costs besides its samples, in rays (cache.effort): its tree
+ * descents, tone mapping and bookkeeping. Measured on the Veach door: a direct
+ * leaf test took 17 µs with its light samples (64 points each), a gather of
+ * 1,024 rays about 0.6 ms, so a ray is about 0.6 µs and 32 of them the order of
+ * a test that samples nothing. */
+#define LEAF_BASE_RAYS 32.0
+
+/* Smoothed rays a leaf test of `kind` takes (cache_sched.leaf_rays). */
+static void note_leaf_cost(cache *c, int kind, double rays)
+{
+    double *s = &c->sched.leaf_rays[kind];
+    *s = *s > 0.0 ? 0.8 * *s + 0.2 * rays : rays;
+}
+
+/* The mesh the heap scheduler tests next, or -1 when no leaf is waiting or the
+ * budget is spent: the highest top priority (pixels × ΔE its test may remove)
+ * per ray a leaf test of that mesh takes (cache.effort). One budget of leaves a
+ * call, shared by cost: on the Veach door a direct leaf (light samples) took
+ * 17 µs and an indirect one (gathers of up to 4,096 rays) 2.4 ms; fixed shares of
+ * the leaves (a fifth to indirect) gave the gathers 70% of the time and left the
+ * door's strip of direct light waiting (docs/cache.md, "Leaves shared by cost").
+ * A mesh not tested yet goes first, so that its cost is known. */
+static int next_kind(const cache *c, uint32_t total_left)
+{
+    if (!total_left) return -1;
+    int best = -1;
+    double best_rate = -1.0;
+    for (int k = 0; k < CACHE_KINDS; ++k) {
+        if (!c->sched.waiting[k] || !cache_kind_mesh(c, (cache_kind)k)) continue;
+        const double cost = c->sched.leaf_rays[k];
+        const double rate = cost > 0.0 ? (double)top_priority(c, k) / cost : INFINITY;
+        if (rate > best_rate) best = k, best_rate = rate;
+    }
+    return best;
+}
+
 lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err)
 {
     cache_refine_result res = {0};
@@ -850,11 +949,15 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
             r = schedule_leaves(c, (refine_kind)k, desc->pixels, desc->seen_only && !c->sched.seeded, err);
     c->sched.seeded = 1;
     uint32_t budget = desc->budget ? desc->budget : 256;
-    /* Direct light first; indirect (smoother, dearer samples) and specular get a
-     * fifth of the leaves each; what a missing mesh would get goes to direct. */
+    /* The random scheduler (§4.3.3): direct light first; indirect (smoother,
+     * dearer samples) and specular get a fifth of the leaves each; what a missing
+     * mesh would get goes to direct. The heap scheduler shares the budget by
+     * cost instead (next_kind). */
     uint32_t fifth = budget / 5 ? budget / 5 : 1;
     uint32_t left[CACHE_KINDS] = {0, fifth, c->specular ? fifth : 0};
     left[KIND_DIRECT] = budget > left[1] + left[2] ? budget - left[1] - left[2] : 1;
+    const int by_cost = c->desc.scheduler != CACHE_SCHED_RANDOM;
+    uint32_t total_left = budget;
     /* Values a rebuilt source moved are gathered again, at most desc->regather
      * (CACHE_REGATHER_PER_LEAF per leaf of the budget) in one call: a big scene's first rebuild can flag
      * most of its hundreds of thousands of values, and one call is one step of the
@@ -876,8 +979,8 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * image's (borrowed, or flagged by a rebuilt source). */
     const size_t borrowed = c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0;
     while (r == LM_OK && !c->src.outdated_n && !borrowed && !cache_borrow_pending(c) && !cache_stopping(c)) {
-        int kind = -1;
-        for (int k = 0; k < CACHE_KINDS && kind < 0; ++k)
+        int kind = by_cost ? next_kind(c, total_left) : -1;
+        for (int k = 0; k < CACHE_KINDS && kind < 0 && !by_cost; ++k)
             if (left[k] && c->sched.waiting[k]) kind = k;
         if (kind < 0) {
             if (c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] > 0) break; /* out of budget */
@@ -898,13 +1001,18 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
             continue;
         }
         uint32_t before = res.tested;
-        r = refine_round(c, (refine_kind)kind, desc->pixels, left[kind], &res, err);
+        const uint64_t effort = c->effort;
+        r = refine_round(c, (refine_kind)kind, desc->pixels, by_cost ? total_left : left[kind], &res, err);
+        if (res.tested > before)
+            note_leaf_cost(c, kind, (double)(c->effort - effort) / (double)(res.tested - before) + LEAF_BASE_RAYS);
         /* The round's light fetches may have found uniform light leaves that were
          * not, and its gathers a rebuilt source that moved older indirect values:
          * recompute those values (cache_light.c) and test their leaves again. */
         if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
         uint32_t used = res.tested - before;
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
+        total_left = used >= total_left ? 0 : total_left - used;
+        if (by_cost && used == 0) c->sched.waiting[kind] = 0; /* nothing it could test: not picked again */
     }
     /* Values still waiting to be gathered again count as work left. */
     res.outdated = (uint32_t)(c->src.outdated_n + (c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0) +

@@ -191,6 +191,20 @@ void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w
     cache_seen_lab(c, tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab);
 }
 
+/* Has the leaf of mesh `kind` holding (w1, w2) of tri passed its own test (done,
+ * or too small for one: cache_leaf_below_sample)? Its interpolation there is then
+ * what its test accepted, not a guess waiting for one. */
+static int settled_at(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2)
+{
+    const mesh_qmesh *m = cache_kind_mesh(c, kind);
+    const uint32_t leaf = cache_find_leaf(m, tri, w1, w2);
+    if (leaf == MESH_QMESH_NONE) return 0;
+    if (leaf < c->sched.done_cap[kind] && c->sched.done[kind][leaf]) return 1;
+    const mesh_qnode *n = mesh_qmesh_node(m, leaf);
+    const double px = c->pixels ? ldexp((double)c->pixels[tri], -2 * (int)n->depth) : 1e6;
+    return cache_leaf_below_sample(c, kind, px, n);
+}
+
 void cache_edge_background(const cache *c, cache_kind kind, uint32_t tri, const double w1[3], const double w2[3],
                            float term[CACHE_KINDS][3])
 {
@@ -202,6 +216,11 @@ void cache_edge_background(const cache *c, cache_kind kind, uint32_t tri, const 
         for (int j = 0; j < CACHE_KINDS; ++j)
             for (int ch = 0; ch < 3; ++ch) term[j][ch] = fminf(term[j][ch], at[j][ch]);
     }
+    for (int j = 0; j < CACHE_KINDS; ++j)
+        if (j != (int)kind && cache_kind_mesh(c, (cache_kind)j) &&
+            mesh_qmesh_root(cache_kind_mesh(c, (cache_kind)j), tri) != MESH_QMESH_NONE &&
+            !settled_at(c, (cache_kind)j, tri, w1[0], w2[0]))
+            memset(term[j], 0, sizeof term[j]);
 }
 
 void cache_seen_lab_over(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],

@@ -468,6 +468,7 @@ static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *p
         &(samp_source_hits){.rays = RAYS, .count = st->pilot_count, .tri = st->pilot_tri, .weight = st->pilot_weight,
                             .strat_var = st->pilot_strat},
         err);
+    c->effort += (uint64_t)n * RAYS;
     if (r != LM_OK) return r;
     memcpy(st->pilot_vid, vids, n * sizeof *vids);
     st->pilot_n = n;
@@ -564,6 +565,7 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
             }
         if (m == 0) continue;
         r = samp_indirect_noise(c->sp, &c->src.rmesh, lpts, m, 0, (uint32_t)pow(GATHER_SCALE, lv), lE, lsig, err);
+        c->effort += (uint64_t)m * (rays ? rays : CACHE_GL_GATHER_RAYS) * (uint64_t)pow(GATHER_SCALE, lv);
         for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
             uint32_t i = pick[j];
             memcpy(E + 3 * (size_t)i, lE + 3 * (size_t)j, 3 * sizeof *E);
@@ -621,6 +623,8 @@ static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_
     }
     r = c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
                             : gather_displayed(c, vids, pts, n, min_level, E, err);
+    if (c->desc.single_mesh) /* gather_displayed counts its own */
+        c->effort += (uint64_t)n * (samp_indirect_rays(c->sp) ? samp_indirect_rays(c->sp) : CACHE_GL_GATHER_RAYS);
     free(pts);
     if (r == LM_OK) c->src.indirect_stats.samples += n;
     /* A value gathered from the current source has not drifted, and is not borrowed. */
