@@ -167,7 +167,7 @@ static void first_image_budget(void)
         float *before = malloc(3 * (size_t)n * sizeof *before);
         for (uint32_t i = 0; i < n; ++i) cache_eval_indirect(c, 12 + i, 0.0, 0.0, before + 3 * (size_t)i, &err);
         /* The regather after the first image is done by refine calls, a bounded
-         * number of values each (8 a leaf of the budget). */
+         * number of values each (CACHE_REGATHER_PER_LEAF a leaf of the budget). */
         const uint64_t corners = st.indirect.mesh.vertices_sampled;
         CHECK(cache_regather_indirect(c, &err) == LM_OK);
         cache_get_stats(c, &st);
@@ -187,7 +187,8 @@ static void first_image_budget(void)
         } while (++calls < 1000 && st.indirect.samples < 64 + corners);
         printf("first image budget: the %llu corners gathered again in %d refine calls of budget 1\n",
                (unsigned long long)corners, calls);
-        CHECK(st.indirect.samples >= 64 + corners && calls == (int)((corners + 7) / 8));
+        CHECK(st.indirect.samples >= 64 + corners &&
+              calls == (int)((corners + CACHE_REGATHER_PER_LEAF - 1) / CACHE_REGATHER_PER_LEAF));
         double sum = 0.0, sum_abs = 0.0;
         for (uint32_t i = 0; i < n; ++i) {
             float now[3];

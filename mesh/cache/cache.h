@@ -173,8 +173,13 @@ typedef struct cache_estimate {
 } cache_estimate;
 
 /* Indirect values a rebuilt source moved that one cache_refine call gathers
- * again, per leaf of its budget, unless cache_refine_desc.regather says. */
-#define CACHE_REGATHER_PER_LEAF 8
+ * again, per leaf of its budget, unless cache_refine_desc.regather says. One: on
+ * the Veach door a rebuild after the first image flags about 2,800 values, which
+ * at 8 a leaf (4,096 a worker's step) were one call of 3 s with no snapshot, the
+ * first image shown meanwhile (relMSE 15 at 3 s, 0.77 at one a leaf); the 116k
+ * box converges in the same time either way (docs/cache.md, "Leaves shared by
+ * cost"). */
+#define CACHE_REGATHER_PER_LEAF 1
 
 typedef struct cache_refine_desc {
     const uint32_t *pixels;   /* per scene triangle, pixels it covers (rend_id); NULL: all 1e6 */
