@@ -99,15 +99,17 @@ static double rel_weight(float cached) { return 1.0 / ((double)cached * cached +
 
 /* The sums of a block [bx, x1) × [by, y1) over its pixels and channels: the
  * residual's energy Σ q·R² and its noise Σ q·s² (infinite when a pixel of it has
- * too few samples). */
+ * too few samples), and the noise its values would have at the mean q·s² of the
+ * region around it (REND_RESIDUAL_NOISE_REGION blocks on each side; its values
+ * with a finite s). */
 typedef struct block_sums {
-    double energy, noise;
+    double energy, noise, region_noise;
 } block_sums;
 
-static block_sums block_sum(int width, int bx, int by, int x1, int y1, const float *cached, const float *mean,
-                            const float *stderr_rgb)
+static block_sums block_sum(int width, int height, int block, int bx, int by, int x1, int y1, const float *cached,
+                            const float *mean, const float *stderr_rgb)
 {
-    block_sums b = {0.0, 0.0};
+    block_sums b = {0.0, 0.0, 0.0};
     for (int y = by; y < y1; ++y)
         for (int x = bx; x < x1; ++x)
             for (int k = 0; k < 3; ++k) {
@@ -116,14 +118,29 @@ static block_sums block_sum(int width, int bx, int by, int x1, int y1, const flo
                 b.noise += q * (double)stderr_rgb[i] * stderr_rgb[i];
                 b.energy += q * r * r;
             }
+    const int reach = REND_RESIDUAL_NOISE_REGION * block;
+    const int ya = by - reach > 0 ? by - reach : 0, yb = y1 + reach < height ? y1 + reach : height;
+    const int xa = bx - reach > 0 ? bx - reach : 0, xb = x1 + reach < width ? x1 + reach : width;
+    double sum = 0.0;
+    size_t n = 0;
+    for (int y = ya; y < yb; ++y)
+        for (int x = xa; x < xb; ++x)
+            for (int k = 0; k < 3; ++k) {
+                size_t i = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
+                if (!isfinite(stderr_rgb[i])) continue;
+                sum += rel_weight(cached[i]) * (double)stderr_rgb[i] * stderr_rgb[i];
+                n++;
+            }
+    b.region_noise = n ? sum / (double)n * 3.0 * (double)(x1 - bx) * (double)(y1 - by) : 0.0;
     return b;
 }
 
 /* w_B: positive-part James–Stein with the noise counted REND_RESIDUAL_SHRINK
- * times (rend_residual.h); 0 for a block short of samples. */
+ * times (rend_residual.h), the block's own or its region's, whichever is more;
+ * 0 for a block short of samples. */
 static double block_weight(block_sums b)
 {
-    double noise = REND_RESIDUAL_SHRINK * b.noise;
+    double noise = REND_RESIDUAL_SHRINK * fmax(b.noise, b.region_noise);
     return isfinite(noise) && b.energy > noise ? 1.0 - noise / b.energy : 0.0;
 }
 
@@ -137,7 +154,7 @@ void rend_residual_blend(int width, int height, int block, const float *cached, 
     for (int by = 0; by < height; by += block)
         for (int bx = 0; bx < width; bx += block) {
             int x1 = bx + block < width ? bx + block : width, y1 = by + block < height ? by + block : height;
-            block_sums sums = block_sum(width, bx, by, x1, y1, cached, mean, stderr_rgb);
+            block_sums sums = block_sum(width, height, block, bx, by, x1, y1, cached, mean, stderr_rgb);
             double w = block_weight(sums);
             for (int y = by; y < y1; ++y)
                 for (int x = bx; x < x1; ++x)
@@ -190,7 +207,8 @@ static void update_mask(rend_residual *rr)
         for (int i = 0; i < bw; ++i) {
             int bx = i * b, by = j * b;
             int x1 = bx + b < width ? bx + b : width, y1 = by + b < height ? by + b : height;
-            if (!(block_weight(block_sum(width, bx, by, x1, y1, rr->cached_copy, rr->mean, rr->se)) > 0.0)) continue;
+            if (!(block_weight(block_sum(width, height, b, bx, by, x1, y1, rr->cached_copy, rr->mean, rr->se)) > 0.0))
+                continue;
             rr->mask_live = 1;
             int ya = (j - 1) * b < 0 ? 0 : (j - 1) * b, yb = (j + 2) * b < height ? (j + 2) * b : height;
             int xa = (i - 1) * b < 0 ? 0 : (i - 1) * b, xb = (i + 2) * b < width ? (i + 2) * b : width;

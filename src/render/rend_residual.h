@@ -62,6 +62,14 @@ enum {
  * residual's energy is more than twice what the noise explains (the standard error
  * of a few heavy-tailed samples is often too low; measured in docs/cache.md). */
 #define REND_RESIDUAL_SHRINK 2.0
+/* The noise w_B counts is the block's own or, if more, its values' at the mean
+ * q·s² of the region this many blocks around it. Where rare bright paths carry
+ * the light (the Veach door's, through a gap), most 4×4 blocks have not met one
+ * yet after 40-80 samples: their mean is low, their standard error as low, and
+ * James–Stein took that for the cache's bias (dark specks over the smooth cached
+ * picture, docs/cache.md). A variance is smoother than a mean: the blocks around
+ * that did meet such paths say how noisy the block really is. */
+#define REND_RESIDUAL_NOISE_REGION 2
 
 /* Zero fields mean "default" (rend_residual_desc_defaults). */
 typedef struct rend_residual_desc {
