@@ -425,7 +425,7 @@ void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w
  * midpoint is no fair background: where a feature crosses the edge (the strip of
  * light under the Veach door) every mesh's interpolation spreads it, the spread
  * saturates the tone map, and each mesh's test then finds its own error invisible
- * against the others' (mutual masking; docs/cache.md, "Masked by each other"). The
+ * against the others' (docs/cache.md, "The door's strip: two meshes masking each other"). The
  * darkest the others may really be there shows the most of a difference
  * (the tone map's slope falls with brightness). A mesh whose leaf at the midpoint
  * has not passed its own test yet (waiting, or the first image's values) masks

@@ -39,7 +39,6 @@
 #include <string.h>
 
 #include "mesh/cache/cache_internal.h"
-
 #include "src/base/vecmath.h"
 
 enum { ROUND_LEAVES = 64 };
