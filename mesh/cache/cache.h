@@ -80,7 +80,8 @@ enum {
 };
 
 typedef enum cache_scheduler {
-    CACHE_SCHED_HEAP = 0,  /* default: the highest-priority leaves first, from a max-heap */
+    CACHE_SCHED_HEAP = 0,  /* default: the highest-priority leaves first, from a max-heap per mesh; each
+                              round to the mesh whose top priority per ray of a test is highest */
     CACHE_SCHED_RANDOM,    /* the paper's §4.3.3: keep refining the current triangle until a random pick beats it */
     CACHE_SCHED_COUNT
 } cache_scheduler;
