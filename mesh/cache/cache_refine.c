@@ -721,60 +721,6 @@ static int around_ready(cache *c, lm_error *err)
     return 1;
 }
 
-/* A leaf of another mesh over a changed place (requeue_masked): tested again
- * when it holds the point (or any point of the regions) and is seen. */
-typedef struct masked_ctx {
-    cache *c;
-    cache_kind kind;
-    const uint32_t *pixels;
-    const cache_region *point; /* NULL: every leaf the walk reaches (a region) */
-} masked_ctx;
-
-static lm_result requeue_masked_visit(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user,
-                                      lm_error *err)
-{
-    masked_ctx *q = user;
-    if (n->child != MESH_QMESH_NONE) return LM_OK;
-    if (q->pixels && q->pixels[n->tri] == 0) return LM_OK; /* unseen: its test judged no background */
-    if (q->point) {
-        cache_region leaf = {.tri = n->tri};
-        for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &leaf.w1[k], &leaf.w2[k]);
-        if (!cache_region_contains(&leaf, q->point->w1[0], q->point->w2[0])) return LM_OK;
-    }
-    return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, node, n, q->pixels), err);
-}
-
-/* An edge test judges its midpoints against the other meshes' values there
- * (cache_edge_background), so where those change, its verdict may no longer hold:
- * on the Veach door a direct leaf holding the strip of light was merged while the
- * quick start's indirect was bright over the whole floor (E_i 17 at every point of
- * the edge), and stayed merged after the indirect there was gathered again at 0.3
- * (render --samples 110000 --deterministic: the strip spread into the row below,
- * 3.3 against 0.09). The other meshes' leaves over the changed values or regions
- * are tested again. */
-static lm_result requeue_masked(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
-                                const uint32_t *vids, uint32_t n, const uint32_t *pixels, lm_error *err)
-{
-    lm_result r = LM_OK;
-    for (int k = 0; r == LM_OK && k < CACHE_KINDS; ++k) {
-        const mesh_qmesh *m = cache_kind_mesh(c, (cache_kind)k);
-        if (k == (int)kind || !m || (k == KIND_INDIRECT && c->desc.single_mesh)) continue;
-        masked_ctx q = {c, (cache_kind)k, pixels, NULL};
-        for (uint32_t i = 0; r == LM_OK && i < region_count; ++i)
-            if (mesh_qmesh_root(m, regions[i].tri) != MESH_QMESH_NONE && cache_tri_active(c, regions[i].tri))
-                r = cache_region_walk(m, &regions[i], requeue_masked_visit, &q, err);
-        for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
-            const mesh_vertex *v = mesh_vtable_vertex(c->vt, vids[i]);
-            if (mesh_qmesh_root(m, v->tri) == MESH_QMESH_NONE || !cache_tri_active(c, v->tri)) continue;
-            const double scale = ldexp(1.0, -(int)v->bary.depth), w1 = v->bary.w[1] * scale, w2 = v->bary.w[2] * scale;
-            const cache_region at = {.tri = v->tri, .w1 = {w1, w1, w1}, .w2 = {w2, w2, w2}};
-            q.point = &at;
-            r = cache_region_walk(m, &at, requeue_masked_visit, &q, err);
-        }
-    }
-    return r;
-}
-
 /* regions NULL: anywhere in the mesh. The single-mesh ablation schedules the
  * combined (direct) mesh only. */
 static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
@@ -783,7 +729,7 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
     if (kind == KIND_INDIRECT && c->desc.single_mesh) kind = KIND_DIRECT;
     requeue_ctx q = {c, kind, user, vids, n};
     const mesh_qmesh *m = cache_kind_mesh(c, kind);
-    lm_result r = requeue_masked(c, kind, regions, region_count, vids, n, user, err);
+    lm_result r = LM_OK;
     for (uint32_t i = 0; r == LM_OK && i < region_count; ++i) r = cache_region_walk(m, &regions[i], requeue_visit, &q, err);
     if (!regions && (uint64_t)n * 32 < c->s->tri_count && around_ready(c, err)) {
         /* Few changed: only the trees of the triangles around their triangles'
