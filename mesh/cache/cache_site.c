@@ -209,18 +209,18 @@ void cache_edge_background(const cache *c, cache_kind kind, uint32_t tri, const 
                            float term[CACHE_KINDS][3])
 {
     memset(term, 0, CACHE_KINDS * sizeof term[0]);
-    other_terms(c, kind, tri, w1[0], w2[0], MESH_VTABLE_NONE, term);
-    for (int p = 1; p < 3; ++p) {
-        float at[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
-        other_terms(c, kind, tri, w1[p], w2[p], MESH_VTABLE_NONE, at);
-        for (int j = 0; j < CACHE_KINDS; ++j)
-            for (int ch = 0; ch < 3; ++ch) term[j][ch] = fminf(term[j][ch], at[j][ch]);
+    lm_error ignore;
+    for (int j = 0; j < CACHE_KINDS; ++j) {
+        const mesh_qmesh *m = j == (int)kind ? NULL : cache_kind_mesh(c, (cache_kind)j);
+        /* No tree there, or a leaf not yet tested: 0 (and nothing interpolated). */
+        if (!m || mesh_qmesh_root(m, tri) == MESH_QMESH_NONE || !settled_at(c, (cache_kind)j, tri, w1[0], w2[0]))
+            continue;
+        for (int p = 0; p < 3; ++p) {
+            float at[3] = {0, 0, 0};
+            mesh_qmesh_interpolate(m, tri, w1[p], w2[p], at, &ignore);
+            for (int ch = 0; ch < 3; ++ch) term[j][ch] = p == 0 ? at[ch] : fminf(term[j][ch], at[ch]);
+        }
     }
-    for (int j = 0; j < CACHE_KINDS; ++j)
-        if (j != (int)kind && cache_kind_mesh(c, (cache_kind)j) &&
-            mesh_qmesh_root(cache_kind_mesh(c, (cache_kind)j), tri) != MESH_QMESH_NONE &&
-            !settled_at(c, (cache_kind)j, tri, w1[0], w2[0]))
-            memset(term[j], 0, sizeof term[j]);
 }
 
 void cache_seen_lab_over(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],

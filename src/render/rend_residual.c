@@ -6,6 +6,21 @@
 #include <stdlib.h>
 #include <string.h>
 
+/* The sums of a block over its pixels and channels: the residual's energy Σ q·R²
+ * and its noise Σ q·s² (infinite when a pixel of it has too few samples); the
+ * sum of q·s² over its values with a finite s, and their count; and the noise
+ * its values would have at the mean q·s² of its region (the blocks within
+ * REND_RESIDUAL_NOISE_REGION of it, their values with a finite s). */
+typedef struct block_sums {
+    double energy, noise, finite_noise, finite_count, region_noise;
+} block_sums;
+
+/* Blocks of `block` pixels over a width × height picture. */
+static size_t block_count(int width, int height, int block)
+{
+    return (size_t)((width + block - 1) / block) * (size_t)((height + block - 1) / block);
+}
+
 struct rend_residual {
     rend_residual_desc desc;
     ref_renderer *pt;
@@ -15,6 +30,7 @@ struct rend_residual {
                                  passes' mask is made against it); the caller may free or reuse its own */
     int have_cached;          /* cached_copy holds one (none since create or the last restart) */
     uint8_t *mask;            /* width·height: the pixels of the blocks being corrected, and their neighbours */
+    block_sums *sums;         /* one per block: the blend's and the mask's scratch */
     int mask_live;            /* mask has a pixel set */
     uint64_t passes;          /* complete passes since the last restart */
     int in_pass;              /* the last run stopped inside a pass: the next goes on with it */
@@ -42,8 +58,11 @@ lm_result rend_residual_create(const rend_residual_desc *desc, rend_residual **o
         rr->count = malloc(n * sizeof *rr->count);
         rr->cached_copy = malloc(n * 3 * sizeof *rr->cached_copy);
         rr->mask = malloc(n);
+        rend_residual_desc d = *desc;
+        rend_residual_desc_defaults(&d);
+        rr->sums = malloc(block_count(desc->width, desc->height, d.block) * sizeof *rr->sums);
     }
-    if (!rr || !rr->mean || !rr->se || !rr->count || !rr->cached_copy || !rr->mask) {
+    if (!rr || !rr->mean || !rr->se || !rr->count || !rr->cached_copy || !rr->mask || !rr->sums) {
         rend_residual_destroy(rr);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the residual of a %dx%d picture", desc->width,
                        desc->height);
@@ -78,6 +97,7 @@ void rend_residual_destroy(rend_residual *rr)
     free(rr->count);
     free(rr->cached_copy);
     free(rr->mask);
+    free(rr->sums);
     free(rr);
 }
 
@@ -97,42 +117,47 @@ void rend_residual_restart(rend_residual *rr, const scene_camera *cam)
 /* q of a value: the weight relMSE gives its squared error (src/image/compare.c). */
 static double rel_weight(float cached) { return 1.0 / ((double)cached * cached + 0.01); }
 
-/* The sums of a block [bx, x1) × [by, y1) over its pixels and channels: the
- * residual's energy Σ q·R² and its noise Σ q·s² (infinite when a pixel of it has
- * too few samples), and the noise its values would have at the mean q·s² of the
- * region around it (REND_RESIDUAL_NOISE_REGION blocks on each side; its values
- * with a finite s). */
-typedef struct block_sums {
-    double energy, noise, region_noise;
-} block_sums;
 
-static block_sums block_sum(int width, int height, int block, int bx, int by, int x1, int y1, const float *cached,
-                            const float *mean, const float *stderr_rgb)
+/* Every block's sums, bw × bh row by row into s (blocks of `block` pixels from the
+ * top left; the last row and column may be smaller). The regions come from the
+ * blocks' finite sums, so each value is read once. */
+static void block_sums_all(int width, int height, int block, const float *cached, const float *mean,
+                           const float *stderr_rgb, block_sums *s)
 {
-    block_sums b = {0.0, 0.0, 0.0};
-    for (int y = by; y < y1; ++y)
-        for (int x = bx; x < x1; ++x)
-            for (int k = 0; k < 3; ++k) {
-                size_t i = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
-                double q = rel_weight(cached[i]), r = (double)mean[i] - cached[i];
-                b.noise += q * (double)stderr_rgb[i] * stderr_rgb[i];
-                b.energy += q * r * r;
-            }
-    const int reach = REND_RESIDUAL_NOISE_REGION * block;
-    const int ya = by - reach > 0 ? by - reach : 0, yb = y1 + reach < height ? y1 + reach : height;
-    const int xa = bx - reach > 0 ? bx - reach : 0, xb = x1 + reach < width ? x1 + reach : width;
-    double sum = 0.0;
-    size_t n = 0;
-    for (int y = ya; y < yb; ++y)
-        for (int x = xa; x < xb; ++x)
-            for (int k = 0; k < 3; ++k) {
-                size_t i = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
-                if (!isfinite(stderr_rgb[i])) continue;
-                sum += rel_weight(cached[i]) * (double)stderr_rgb[i] * stderr_rgb[i];
-                n++;
-            }
-    b.region_noise = n ? sum / (double)n * 3.0 * (double)(x1 - bx) * (double)(y1 - by) : 0.0;
-    return b;
+    const int bw = (width + block - 1) / block, bh = (height + block - 1) / block, R = REND_RESIDUAL_NOISE_REGION;
+    for (int j = 0; j < bh; ++j)
+        for (int i = 0; i < bw; ++i) {
+            block_sums b = {0.0, 0.0, 0.0, 0.0, 0.0};
+            const int bx = i * block, by = j * block;
+            const int x1 = bx + block < width ? bx + block : width, y1 = by + block < height ? by + block : height;
+            for (int y = by; y < y1; ++y)
+                for (int x = bx; x < x1; ++x)
+                    for (int k = 0; k < 3; ++k) {
+                        size_t v = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
+                        double q = rel_weight(cached[v]), r = (double)mean[v] - cached[v];
+                        double n = q * (double)stderr_rgb[v] * stderr_rgb[v];
+                        b.noise += n;
+                        b.energy += q * r * r;
+                        if (isfinite(stderr_rgb[v])) {
+                            b.finite_noise += n;
+                            b.finite_count += 1.0;
+                        }
+                    }
+            s[(size_t)j * (size_t)bw + (size_t)i] = b;
+        }
+    for (int j = 0; j < bh; ++j)
+        for (int i = 0; i < bw; ++i) {
+            double sum = 0.0, n = 0.0;
+            for (int jj = j - R < 0 ? 0 : j - R; jj <= j + R && jj < bh; ++jj)
+                for (int ii = i - R < 0 ? 0 : i - R; ii <= i + R && ii < bw; ++ii) {
+                    sum += s[(size_t)jj * (size_t)bw + (size_t)ii].finite_noise;
+                    n += s[(size_t)jj * (size_t)bw + (size_t)ii].finite_count;
+                }
+            const int bx = i * block, by = j * block;
+            const int x1 = bx + block < width ? bx + block : width, y1 = by + block < height ? by + block : height;
+            s[(size_t)j * (size_t)bw + (size_t)i].region_noise =
+                n > 0.0 ? sum / n * 3.0 * (double)(x1 - bx) * (double)(y1 - by) : 0.0;
+        }
 }
 
 /* w_B: positive-part James–Stein with the noise counted REND_RESIDUAL_SHRINK
@@ -144,18 +169,21 @@ static double block_weight(block_sums b)
     return isfinite(noise) && b.energy > noise ? 1.0 - noise / b.energy : 0.0;
 }
 
-void rend_residual_blend(int width, int height, int block, const float *cached, const float *mean,
-                         const float *stderr_rgb, float *out, rend_residual_info *info)
+/* rend_residual_blend with the blocks' sums in `sums` (room for every block):
+ * they are all made before out is written, since out may be cached. */
+static void blend_with(int width, int height, int block, const float *cached, const float *mean,
+                       const float *stderr_rgb, float *out, rend_residual_info *info, block_sums *sums)
 {
-    if (block <= 0) block = REND_RESIDUAL_BLOCK_DEFAULT;
+    const int bw = (width + block - 1) / block;
+    block_sums_all(width, height, block, cached, mean, stderr_rgb, sums);
     double weight_sum = 0.0, est = 0.0;
     size_t blocks = 0, corrected = 0;
     int unknown = 0; /* a block short of samples: no estimate of its error */
     for (int by = 0; by < height; by += block)
         for (int bx = 0; bx < width; bx += block) {
             int x1 = bx + block < width ? bx + block : width, y1 = by + block < height ? by + block : height;
-            block_sums sums = block_sum(width, height, block, bx, by, x1, y1, cached, mean, stderr_rgb);
-            double w = block_weight(sums);
+            const block_sums b = sums[(size_t)(by / block) * (size_t)bw + (size_t)(bx / block)];
+            double w = block_weight(b);
             for (int y = by; y < y1; ++y)
                 for (int x = bx; x < x1; ++x)
                     for (int k = 0; k < 3; ++k) {
@@ -166,8 +194,8 @@ void rend_residual_blend(int width, int height, int block, const float *cached, 
              * whose energy is what the noise does not explain: E − N, kept signed
              * (clipping each block at 0 would add the noise's upward swings and
              * not its downward ones: an estimate 3.5× too high on Water). */
-            if (isfinite(sums.noise)) {
-                est += w * w * sums.noise + (1.0 - w) * (1.0 - w) * (sums.energy - sums.noise);
+            if (isfinite(b.noise)) {
+                est += w * w * b.noise + (1.0 - w) * (1.0 - w) * (b.energy - b.noise);
             } else {
                 unknown = 1;
             }
@@ -179,6 +207,24 @@ void rend_residual_blend(int width, int height, int block, const float *cached, 
         info->mean_weight = blocks ? weight_sum / (double)blocks : 0.0;
         info->corrected = blocks ? (double)corrected / (double)blocks : 0.0;
         info->est_relmse = unknown ? NAN : fmax(est, 0.0) / (3.0 * (double)width * (double)height);
+    }
+}
+
+void rend_residual_blend(int width, int height, int block, const float *cached, const float *mean,
+                         const float *stderr_rgb, float *out, rend_residual_info *info)
+{
+    if (block <= 0) block = REND_RESIDUAL_BLOCK_DEFAULT;
+    block_sums *sums = malloc(block_count(width, height, block) * sizeof *sums);
+    if (sums) {
+        blend_with(width, height, block, cached, mean, stderr_rgb, out, info, sums);
+        free(sums);
+        return;
+    }
+    /* No memory for the sums: the cache's picture, uncorrected, its error unknown. */
+    if (out != cached) memcpy(out, cached, (size_t)width * (size_t)height * 3 * sizeof *out);
+    if (info) {
+        info->mean_weight = info->corrected = 0.0;
+        info->est_relmse = NAN;
     }
 }
 
@@ -203,12 +249,10 @@ static void update_mask(rend_residual *rr)
     rr->mask_live = 0;
     if (!rr->have_cached) return;
     read_back(rr);
+    block_sums_all(width, height, b, rr->cached_copy, rr->mean, rr->se, rr->sums);
     for (int j = 0; j < bh; ++j)
         for (int i = 0; i < bw; ++i) {
-            int bx = i * b, by = j * b;
-            int x1 = bx + b < width ? bx + b : width, y1 = by + b < height ? by + b : height;
-            if (!(block_weight(block_sum(width, height, b, bx, by, x1, y1, rr->cached_copy, rr->mean, rr->se)) > 0.0))
-                continue;
+            if (!(block_weight(rr->sums[(size_t)j * (size_t)bw + (size_t)i]) > 0.0)) continue;
             rr->mask_live = 1;
             int ya = (j - 1) * b < 0 ? 0 : (j - 1) * b, yb = (j + 2) * b < height ? (j + 2) * b : height;
             int xa = (i - 1) * b < 0 ? 0 : (i - 1) * b, xb = (i + 2) * b < width ? (i + 2) * b : width;
@@ -267,7 +311,7 @@ void rend_residual_apply(rend_residual *rr, const float *cached, float *out, ren
     rend_residual_info local;
     if (!info) info = &local;
     memset(info, 0, sizeof *info);
-    rend_residual_blend(w, h, rr->desc.block, cached, rr->mean, rr->se, out, info);
+    blend_with(w, h, rr->desc.block, cached, rr->mean, rr->se, out, info, rr->sums);
     ref_stats st;
     ref_get_stats(rr->pt, &st);
     info->min_samples = st.min_samples;
