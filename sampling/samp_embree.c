@@ -130,9 +130,29 @@ static float direct_one(const embree_impl *e, uint32_t li, const samp_point *x)
 
 /* ---- indirect -------------------------------------------------------------- */
 
-/* k×k strata from random stream `pass` (0: the plain gather's); std_err: the
- * standard error of E per channel, from the rays' sample variance (the strata
- * ignored, so it errs high), or NULL. */
+/* Accumulates one sample Y (RGB) of a strategy: sums and sums of squares. */
+static void acc(double sum[3], double sum2[3], const float L[3], double scale)
+{
+    for (int c = 0; c < 3; ++c) {
+        const double y = scale * L[c];
+        sum[c] += y;
+        sum2[c] += y * y;
+    }
+}
+
+/* k×k rays a point from random stream `pass` (0: the plain gather's); std_err:
+ * the standard error of E per channel, from the rays' sample variance (the
+ * strata ignored, so it errs high), or NULL.
+ *
+ * Two strategies, combined by the balance heuristic (Veach 1997, §9.2): about
+ * half the rays cosine-weighted in strata (pdf cosθ_x/π), the rest toward points
+ * of the source picked by power (the index's pick table: area density
+ * pick_density, pdf pick_density·r²/cosθ_y in solid angle), each sample worth
+ * f/(N_c·p_c + N_p·p_p), f = L·cosθ_x. Light that comes through a gap (a door
+ * ajar, the slot test's slit) is a few per cent of the hemisphere, which cosine
+ * rays find by chance; the picks go to the bright source behind it, and those
+ * the gap lets through count. Otherwise, and without a pick table (the source
+ * sends nothing, or no memory), all rays are cosine-weighted, E = π/N·Σ L(hit). */
 static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_radiance_index *ix,
                          const samp_point *x, int k, uint32_t pass, float E[3], float *std_err)
 {
@@ -141,27 +161,71 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     samp_frame f = samp_frame_make(x->n);
     lm_rng g;
     point_rng(e, pass ? 0x1000000u + pass : 0, x, &g);
-    double sum[3] = {0, 0, 0}, sum2[3] = {0, 0, 0};
-    for (int j = 0; j < k; ++j)
-        for (int i = 0; i < k; ++i) {
+    const scene *s = e->s;
+    int kc = x->toward_source && ix->pick_cdf ? (int)lround(k / 1.4142135623730951) : k;
+    kc = kc < 1 ? 1 : kc;
+    const int np = k * k - kc * kc;
+    const double Nc = (double)kc * kc, Np = np;
+    double sum[2][3] = {{0}}, sum2[2][3] = {{0}};
+    for (int j = 0; j < kc; ++j)
+        for (int i = 0; i < kc; ++i) {
+            const float u = (i + lm_rng_float(&g)) / kc, v = (j + lm_rng_float(&g)) / kc;
+            const lm_vec3 d = samp_frame_cosine(&f, u, v);
+            float dir[3];
+            v3_store(dir, d);
             rt_hit h;
+            if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
             /* The back of a surface sends nothing: the mesh holds what leaves its front. */
-            if (!samp_stratum_front_hit(e->s, e->rt, &f, origin, &g, i, j, k, &h)) continue;
+            const float cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)h.tri), d);
+            if (!(cos_y > 0.0f)) continue;
             float L[3];
-            samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
-            for (int c = 0; c < 3; ++c) {
-                sum[c] += L[c];
-                sum2[c] += (double)L[c] * L[c];
-            }
+            uint32_t sub = samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
+            const double cos_x = v3_dot(d, f.n), pc = cos_x / M_PI;
+            const double pp = np && sub != UINT32_MAX ? (double)ix->pick_density[sub] * h.t * h.t / cos_y : 0.0;
+            if (!(cos_x > 0.0)) continue;
+            acc(sum[0], sum2[0], L, Nc * cos_x / (Nc * pc + Np * pp));
         }
-    const double N = (double)k * k;
+    for (int j = 0; j < np; ++j) {
+        const double u = (j + lm_rng_float(&g)) / np;
+        const float a = lm_rng_float(&g), b = lm_rng_float(&g);
+        uint32_t t;
+        float w1, w2;
+        const uint32_t sub = samp_radiance_pick(s, m, ix, u < 1.0 ? u : 0.9999999999, a, b, &t, &w1, &w2);
+        if (sub == UINT32_MAX) continue;
+        const uint32_t *tv = s->tris[t].v;
+        float y[3];
+        for (int c = 0; c < 3; ++c)
+            y[c] = (1.0f - w1 - w2) * s->positions[3 * (size_t)tv[0] + (size_t)c] +
+                   w1 * s->positions[3 * (size_t)tv[1] + (size_t)c] + w2 * s->positions[3 * (size_t)tv[2] + (size_t)c];
+        lm_vec3 d = v3_sub(v3_load(y), v3_load(origin));
+        const float r = v3_length(d);
+        if (!(r > 0.0f)) continue;
+        d = v3_scale(d, 1.0f / r);
+        const double cos_x = v3_dot(d, f.n), cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)t), d);
+        if (!(cos_x > 0.0) || !(cos_y > 0.0)) continue;
+        /* Seen from x: the first hit along the way is the picked point (its
+         * triangle, at its distance up to rounding). */
+        float dir[3];
+        v3_store(dir, d);
+        rt_hit h;
+        if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h) || h.tri != t || fabsf(h.t - r) > 1e-3f * r + 1e-5f)
+            continue;
+        float L[3];
+        samp_radiance_at(m, ix, t, w1, w2, L);
+        const double pc = cos_x / M_PI, pp = (double)ix->pick_density[sub] * (double)r * r / cos_y;
+        acc(sum[1], sum2[1], L, Np * cos_x / (Nc * pc + Np * pp));
+    }
     for (int c = 0; c < 3; ++c) {
-        double v = M_PI * sum[c] / N;
+        double v = 0.0, var = 0.0;
+        const double N[2] = {Nc, Np};
+        for (int q = 0; q < 2; ++q) {
+            if (!(N[q] > 0.0)) continue;
+            const double mean = sum[q][c] / N[q];
+            v += mean;
+            var += fmax(sum2[q][c] / N[q] - mean * mean, 0.0) / (N[q] > 1.0 ? N[q] - 1.0 : 1.0);
+        }
         E[c] = isfinite(v) ? (float)v : 0.0f;
-        if (!std_err) continue;
-        double mean = sum[c] / N, var = fmax(sum2[c] / N - mean * mean, 0.0) * N / (N > 1.0 ? N - 1.0 : 1.0);
-        double se = M_PI * sqrt(var / N);
-        std_err[c] = isfinite(se) ? (float)se : 0.0f;
+        if (std_err) std_err[c] = isfinite(var) ? (float)sqrt(var) : 0.0f;
     }
 }
 

@@ -13,13 +13,100 @@ enum { GRID_MIN = 16 };
  * (2^-13 across), whose barycentrics float's 2^-24 moves by ~10^-3 of it. */
 #define LOCATE_ROUNDING 1e-3f
 
-void samp_radiance_index_free(samp_radiance_index *ix)
+static void free_grid(samp_radiance_index *ix)
 {
     free(ix->res);
     free(ix->base);
     free(ix->cell_first);
     free(ix->items);
+    ix->res = ix->base = ix->cell_first = ix->items = NULL;
+}
+
+void samp_radiance_index_free(samp_radiance_index *ix)
+{
+    free_grid(ix);
+    free(ix->pick_cdf);
+    free(ix->pick_density);
     memset(ix, 0, sizeof *ix);
+}
+
+/* Scene units² of radiance-mesh triangle i of scene triangle t. */
+static double sub_area(const scene *s, const samp_radiance_mesh *m, uint32_t t, uint32_t i)
+{
+    const uint32_t *v = s->tris[t].v;
+    double e1[3], e2[3];
+    for (int k = 0; k < 3; ++k) {
+        double p0 = s->positions[3 * (size_t)v[0] + (size_t)k];
+        e1[k] = s->positions[3 * (size_t)v[1] + (size_t)k] - p0;
+        e2[k] = s->positions[3 * (size_t)v[2] + (size_t)k] - p0;
+    }
+    double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
+    const double whole = 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
+    const float *b = m->bary + 6 * (size_t)i; /* (w1, w2) of its corners */
+    const double twice = fabs(((double)b[2] - b[0]) * ((double)b[5] - b[1]) - ((double)b[4] - b[0]) * ((double)b[3] - b[1]));
+    return whole * twice; /* the unit barycentric triangle has area ½ */
+}
+
+/* The power table (pick_cdf, pick_density); none when the mesh sends nothing. */
+static void build_power(const scene *s, const samp_radiance_mesh *m, samp_radiance_index *ix)
+{
+    if (m->tri_count == 0) return;
+    double *cdf = malloc(m->tri_count * sizeof *cdf);
+    float *density = malloc(m->tri_count * sizeof *density);
+    if (!cdf || !density) {
+        free(cdf);
+        free(density);
+        return;
+    }
+    double total = 0.0;
+    for (uint32_t t = 0; t < s->tri_count; ++t)
+        for (uint32_t i = m->first[t]; i < m->first[t + 1]; ++i) {
+            const float *r = m->radiance + 9 * (size_t)i;
+            double L = 0.0;
+            for (int k = 0; k < 9; ++k) L += fmax((double)r[k], 0.0) / 9.0;
+            const double A = sub_area(s, m, t, i);
+            total += A * L;
+            cdf[i] = total;
+            density[i] = A > 0.0 ? (float)L : 0.0f; /* L / total below: power/total over area */
+        }
+    if (!(total > 0.0) || !isfinite(total)) {
+        free(cdf);
+        free(density);
+        return;
+    }
+    for (uint32_t i = 0; i < m->tri_count; ++i) {
+        cdf[i] /= total;
+        density[i] = (float)(density[i] / total);
+    }
+    cdf[m->tri_count - 1] = 1.0;
+    ix->pick_cdf = cdf;
+    ix->pick_density = density;
+}
+
+uint32_t samp_radiance_pick(const scene *s, const samp_radiance_mesh *m, const samp_radiance_index *ix, double u,
+                            float v, float w, uint32_t *t, float *w1, float *w2)
+{
+    if (!ix->pick_cdf) return UINT32_MAX;
+    uint32_t lo = 0, hi = m->tri_count - 1; /* the first with cdf > u */
+    while (lo < hi) {
+        uint32_t mid = lo + (hi - lo) / 2;
+        if (ix->pick_cdf[mid] > u) hi = mid;
+        else lo = mid + 1;
+    }
+    lo = 0; /* ...and its scene triangle: the last with first[t] <= i */
+    uint32_t i = hi, top = s->tri_count;
+    while (lo + 1 < top) {
+        uint32_t mid = lo + (top - lo) / 2;
+        if (m->first[mid] <= i) lo = mid;
+        else top = mid;
+    }
+    *t = lo;
+    /* Uniform by area in the sub-triangle (its barycentric image is affine). */
+    const float sv = sqrtf(v), a = 1.0f - sv, b = sv * (1.0f - w), c = sv * w;
+    const float *p = m->bary + 6 * (size_t)i;
+    *w1 = a * p[0] + b * p[2] + c * p[4];
+    *w2 = a * p[1] + b * p[3] + c * p[5];
+    return i;
 }
 
 /* The grid of a scene triangle: res × res squares over (w1, w2) ∈ [0,1]², res a
@@ -99,10 +186,11 @@ static void sub_cells(const samp_radiance_mesh *m, uint32_t i, uint32_t res, siz
 int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_radiance_index *ix)
 {
     memset(ix, 0, sizeof *ix);
+    build_power(s, m, ix);
     uint32_t nt = s->tri_count;
     ix->res = calloc(nt ? nt : 1, sizeof *ix->res);
     ix->base = calloc(nt ? nt : 1, sizeof *ix->base);
-    if (!ix->res || !ix->base) return samp_radiance_index_free(ix), 0;
+    if (!ix->res || !ix->base) return free_grid(ix), 0;
     size_t cells = 0;
     for (uint32_t t = 0; t < nt; ++t) {
         uint32_t count = m->first[t + 1] - m->first[t];
@@ -113,9 +201,9 @@ int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_
         ix->base[t] = (uint32_t)cells;
         cells += 2 * (size_t)res * res;
     }
-    if (cells == 0) return samp_radiance_index_free(ix), 0;
+    if (cells == 0) return free_grid(ix), 0;
     ix->cell_first = calloc(cells + 1, sizeof *ix->cell_first);
-    if (!ix->cell_first) return samp_radiance_index_free(ix), 0;
+    if (!ix->cell_first) return free_grid(ix), 0;
     for (int pass = 0; pass < 2; ++pass) {
         for (uint32_t t = 0; t < nt; ++t) {
             uint32_t res = ix->res[t];
@@ -126,7 +214,7 @@ int samp_radiance_index_build(const scene *s, const samp_radiance_mesh *m, samp_
         if (pass == 0) {
             for (size_t k = 0; k < cells; ++k) ix->cell_first[k + 1] += ix->cell_first[k];
             ix->items = malloc((ix->cell_first[cells] ? ix->cell_first[cells] : 1) * sizeof *ix->items);
-            if (!ix->items) return samp_radiance_index_free(ix), 0;
+            if (!ix->items) return free_grid(ix), 0;
         }
     }
     /* The fill pass moved each start to the next cell's: shift back. */

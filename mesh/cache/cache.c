@@ -474,6 +474,7 @@ void cache_get_stats(cache *c, cache_stats *out)
     out->falsified = c->vis.falsified_total;
     out->revised = c->vis.revised;
     out->regathered = c->src.regathered;
+    out->toward_gathers = c->src.toward_gathers;
     if (c->indirect1) {
         out->bounces = c->bnc.stats;
         mesh_qmesh_stats ms;

@@ -400,6 +400,12 @@ lm_result cache_settle_source(cache *c, lm_error *err)
  * value again at the next count, up to GATHER_FINER_LEVELS, where the cache's
  * error estimate says its noise is still seen (cache_estimate.c). */
 #define GATHER_NOISE_JND 0.5f
+/* A point whose pilot says its light comes through a gap is gathered toward the
+ * source (samp_point.toward_source): when the variance of one pilot ray's π·L is
+ * more than GATHER_GAP_RATIO times E² (light uniform over a fraction p of the
+ * cosine-weighted hemisphere gives (1 − p)/p: a fifth of it or less), or the
+ * pilot found no light at all. Elsewhere the stratified cosine rays are better. */
+#define GATHER_GAP_RATIO 4.0
 enum { GATHER_SCALE = 4, GATHER_LEVELS = 3, GATHER_FINER_LEVELS = 4 };
 
 void cache_indirect_likely_sigma(const cache *c, uint32_t vid, float out[3])
@@ -522,13 +528,13 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
     lm_result r = cache_grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
     if (r != LM_OK) return r;
     const uint32_t rays = samp_indirect_rays(c->sp);
-    uint8_t *level = calloc(n ? n : 1, 1);
+    uint8_t *level = calloc(n ? n : 1, 1), *toward = calloc(n ? n : 1, 1);
     float *predicted = malloc(3 * (size_t)(n ? n : 1) * sizeof *predicted);
     float *likely = malloc(3 * (size_t)(n ? n : 1) * sizeof *likely);
     uint32_t *pick = malloc((n ? n : 1) * sizeof *pick);
     samp_point *lpts = malloc((n ? n : 1) * sizeof *lpts);
     float *lE = malloc(3 * (size_t)(n ? n : 1) * sizeof *lE), *lsig = malloc(3 * (size_t)(n ? n : 1) * sizeof *lsig);
-    if (!level || !predicted || !likely || !pick || !lpts || !lE || !lsig)
+    if (!level || !toward || !predicted || !likely || !pick || !lpts || !lE || !lsig)
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     /* The count: the fewest rays whose predicted error cannot be seen, from the
      * pilot traced CACHE_PILOT_CHUNK points at a time (why: trace_pilot). */
@@ -538,6 +544,8 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
         float e[3];
         double var[3], strat[3];
         pilot_moments(c, i % CACHE_PILOT_CHUNK, e, var, strat);
+        const double esum = (double)e[0] + e[1] + e[2], vsum = var[0] + var[1] + var[2];
+        toward[i] = !(esum > 0.0) || vsum > GATHER_GAP_RATIO * esum * esum;
         for (int lv = 0; lv < GATHER_LEVELS; ++lv) {
             double N = (double)rays * pow(GATHER_SCALE, lv);
             for (int k = 0; k < 3; ++k) {
@@ -561,7 +569,8 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
         for (uint32_t i = 0; i < n; ++i)
             if (level[i] == lv) {
                 pick[m] = i;
-                lpts[m++] = pts[i];
+                lpts[m] = pts[i];
+                lpts[m++].toward_source = toward[i];
             }
         if (m == 0) continue;
         r = samp_indirect_noise(c->sp, &c->src.rmesh, lpts, m, 0, (uint32_t)pow(GATHER_SCALE, lv), lE, lsig, err);
@@ -572,16 +581,22 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
             if (vids[i] >= c->src.drift_cap) continue;
             float *sg = c->src.sigma + 3 * (size_t)vids[i];
             float *sl = c->src.sigma_likely + 3 * (size_t)vids[i];
+            /* Gathered toward the source too, the cosine pilot's prediction,
+             * which errs high there (docs/cache.md: the door's 4,096-ray values
+             * measured σ 0.006 against 0.010 predicted); the gather's own σ is as
+             * blind as its mean to a gap all its rays missed. */
             for (int k = 0; k < 3; ++k) {
                 sg[k] = predicted[3 * (size_t)i + (size_t)k];
                 sl[k] = likely[3 * (size_t)i + (size_t)k];
             }
             c->src.gather_level[vids[i]] = (uint8_t)lv;
+            c->src.toward_gathers += toward[i];
         }
     }
     /* Kept only whole: a pilot of several chunks holds the last one's points. */
     if (n > CACHE_PILOT_CHUNK) c->src.pilot_n = 0;
     free(level);
+    free(toward);
     free(predicted);
     free(likely);
     free(pick);
