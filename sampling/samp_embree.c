@@ -12,7 +12,10 @@
  * Indirect: k×k stratified cosine-weighted directions, E = π/N·Σ L(hit); L is
  * interpolated in the coarse radiance mesh's sub-triangle that contains the hit's
  * barycentrics (found through a grid per scene triangle, built per call). A ray
- * that leaves the scene, or meets the back of a surface, brings nothing.
+ * that leaves the scene, or meets the back of a surface, brings nothing. For a
+ * receiver marked toward_source (samp.h), about half the rays go instead to
+ * points of the mesh picked by power, combined with the cosine rays by multiple
+ * importance sampling (indirect_one).
  *
  * Random numbers: a point's stream is seeded by (seed, light, the bits of its
  * position and normal), so a value depends on the point alone, not on the batch
