@@ -30,21 +30,13 @@ void samp_radiance_index_free(samp_radiance_index *ix)
     memset(ix, 0, sizeof *ix);
 }
 
-/* Scene units² of radiance-mesh triangle i of scene triangle t. */
+/* Scene units² of radiance-mesh triangle i of scene triangle t: its share of the
+ * barycentric triangle (area ½) times the scene triangle's area. */
 static double sub_area(const scene *s, const samp_radiance_mesh *m, uint32_t t, uint32_t i)
 {
-    const uint32_t *v = s->tris[t].v;
-    double e1[3], e2[3];
-    for (int k = 0; k < 3; ++k) {
-        double p0 = s->positions[3 * (size_t)v[0] + (size_t)k];
-        e1[k] = s->positions[3 * (size_t)v[1] + (size_t)k] - p0;
-        e2[k] = s->positions[3 * (size_t)v[2] + (size_t)k] - p0;
-    }
-    double cx = e1[1] * e2[2] - e1[2] * e2[1], cy = e1[2] * e2[0] - e1[0] * e2[2], cz = e1[0] * e2[1] - e1[1] * e2[0];
-    const double whole = 0.5 * sqrt(cx * cx + cy * cy + cz * cz);
     const float *b = m->bary + 6 * (size_t)i; /* (w1, w2) of its corners */
     const double twice = fabs(((double)b[2] - b[0]) * ((double)b[5] - b[1]) - ((double)b[4] - b[0]) * ((double)b[3] - b[1]));
-    return whole * twice; /* the unit barycentric triangle has area ½ */
+    return (double)s->tri_areas[t] * twice;
 }
 
 /* The power table (pick_cdf, pick_density); none when the mesh sends nothing. */
