@@ -294,12 +294,18 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
     return r;
 }
 
-lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
-                              uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err)
+lm_result samp_indirect_guided(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                               uint32_t pass, uint32_t scale, const samp_guide *guide, float *E, float *std_err,
+                               lm_error *err)
 {
     if (!sp || (n && (!pts || !E || !std_err)))
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_noise: missing arguments");
     if (scale < 1 || scale > 256) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_noise: scale %u (1..256)", scale);
+    if (guide) {
+        const uint32_t k = (uint32_t)lround(sqrt((double)guide->rays));
+        if (!guide->stratum || k < 2 || k > 64 || k * k != guide->rays)
+            return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_guided: a guide needs its strata, k² rays (k 2..64)");
+    }
     if (!sp->be.indirect_ops->indirect_noise) {
         lm_result r = samp_indirect(sp, mesh, pts, n, E, err);
         if (r == LM_OK) memset(std_err, 0, 3 * (size_t)n * sizeof *std_err);
@@ -309,10 +315,17 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
     if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_indirect_noise: non-finite point or normal");
     if (n == 0) return LM_OK;
     double t0 = lm_now_seconds();
-    lm_result r = sp->be.indirect_ops->indirect_noise(sp->be.indirect_impl, mesh, pts, n, pass, scale, E, std_err, err);
+    lm_result r =
+        sp->be.indirect_ops->indirect_noise(sp->be.indirect_impl, mesh, pts, n, pass, scale, guide, E, std_err, err);
     sp->stats.indirect_seconds += lm_now_seconds() - t0;
     if (r == LM_OK) sp->stats.indirect_samples += n;
     return r;
+}
+
+lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                              uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err)
+{
+    return samp_indirect_guided(sp, mesh, pts, n, pass, scale, NULL, E, std_err, err);
 }
 
 uint32_t samp_direct_rays(const samp_sampler *sp) { return (uint32_t)sp->desc.direct_rays; }

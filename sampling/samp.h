@@ -170,6 +170,28 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
  * plain value and an error of 0, whatever scale. */
 lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                               uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err);
+/* samp_indirect_noise with a guide for the points marked toward_source: what a
+ * pilot of the same point saw in each stratum of its cosine-weighted hemisphere
+ * (samp_source_hits.stratum). Their second half of rays, instead of going to
+ * points of the whole source picked by power, goes to strata of the pilot's
+ * grid picked in proportion to the brightest the pilot saw in the stratum or its
+ * eight neighbours (uniform in the stratum's square, mapped as the cosine rays
+ * are), combined with the cosine rays by the balance heuristic as before: a
+ * direction the guide leaves out is still found by those. Through a gap the
+ * guided rays go where the pilot saw the gap, and every one of them is traced
+ * as a plain ray: none is lost to a wall, as a pick on the source behind the gap
+ * mostly is (docs/cache.md, "Guided gathers"). Point i's row is index[i] (index
+ * NULL: row i); a row that saw no light falls back to the picks by power. Back
+ * ends without noise ignore the guide, as they ignore toward_source. */
+typedef struct samp_guide {
+    uint32_t rays;          /* the pilot's rays a point: k², k = 2..64 */
+    const float *stratum;   /* rows × rays: samp_source_hits.stratum */
+    const uint32_t *index;  /* per point: its row; or NULL */
+} samp_guide;
+
+lm_result samp_indirect_guided(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
+                               uint32_t pass, uint32_t scale, const samp_guide *guide, float *E, float *std_err,
+                               lm_error *err);
 /* Rays a point of one pass at scale 1 (0: the indirect back end casts none). */
 uint32_t samp_indirect_rays(const samp_sampler *sp);
 /* Light points a receiver of samp_direct (samp_desc.direct_rays, defaults filled
@@ -198,6 +220,10 @@ typedef struct samp_source_hits {
     uint32_t *tri;      /* n × rays */
     float *weight;      /* n × rays */
     float *strat_var;   /* n × RGB, or NULL */
+    /* n × rays, or NULL: per stratum (b·k + a for stratum (a, b) of k × k, k² =
+     * rays, a the first of samp_frame_cosine's numbers), π × the radiance its ray
+     * met averaged over the channels, 0 for a miss or a back: samp_guide's input. */
+    float *stratum;
 } samp_source_hits;
 
 lm_result samp_indirect_sources(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,

@@ -156,8 +156,71 @@ static void acc(double sum[3], double sum2[3], const float L[3], double scale)
  * rays find by chance; the picks go to the bright source behind it, and those
  * the gap lets through count. Otherwise, and without a pick table (the source
  * sends nothing, or no memory), all rays are cosine-weighted, E = π/N·Σ L(hit). */
+/* The guided picks of one point (samp_guide): over the pilot's k × k strata, the
+ * cumulative share of each (last = 1) and its share × k² (the guided pdf over
+ * the cosine pdf in that stratum: both map the stratum's square alike). */
+typedef struct guide_picks {
+    int k;
+    double *cdf;
+    float *ratio;
+} guide_picks;
+
+/* 0 (nothing held) when the row saw no light or memory ran out: the power picks
+ * then, as without a guide. A stratum's mass is the brightest value the pilot saw
+ * in it or its eight neighbours: one ray a stratum finds a gap's strata only where
+ * it happened to pass, and the dilation covers the gap's edge around them. */
+static int guide_picks_make(const samp_guide *gd, uint32_t row, guide_picks *out)
+{
+    memset(out, 0, sizeof *out);
+    const int k = (int)lround(sqrt((double)gd->rays));
+    const float *y = gd->stratum + (size_t)row * gd->rays;
+    double *cdf = malloc((size_t)k * k * sizeof *cdf);
+    float *ratio = malloc((size_t)k * k * sizeof *ratio);
+    if (!cdf || !ratio) {
+        free(cdf);
+        free(ratio);
+        return 0;
+    }
+    double total = 0.0;
+    for (int b = 0; b < k; ++b)
+        for (int a = 0; a < k; ++a) {
+            float m = 0.0f;
+            for (int db = -1; db <= 1; ++db)
+                for (int da = -1; da <= 1; ++da) {
+                    const int aa = a + da, bb = b + db;
+                    if (aa >= 0 && aa < k && bb >= 0 && bb < k) m = fmaxf(m, y[bb * k + aa]);
+                }
+            total += isfinite(m) ? m : 0.0;
+            cdf[b * k + a] = total;
+        }
+    if (!(total > 0.0) || !isfinite(total)) {
+        free(cdf);
+        free(ratio);
+        return 0;
+    }
+    double prev = 0.0;
+    for (int q = 0; q < k * k; ++q) {
+        ratio[q] = (float)((cdf[q] - prev) / total * k * k);
+        prev = cdf[q];
+        cdf[q] /= total;
+    }
+    cdf[k * k - 1] = 1.0;
+    *out = (guide_picks){k, cdf, ratio};
+    return 1;
+}
+
+/* p_guided / p_cosine at the unit-square sample (u, v) of samp_frame_cosine. */
+static double guide_ratio(const guide_picks *g, float u, float v)
+{
+    int a = (int)(u * (float)g->k), b = (int)(v * (float)g->k);
+    a = a < 0 ? 0 : a >= g->k ? g->k - 1 : a;
+    b = b < 0 ? 0 : b >= g->k ? g->k - 1 : b;
+    return g->ratio[b * g->k + a];
+}
+
 static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_radiance_index *ix,
-                         const samp_point *x, int k, uint32_t pass, float E[3], float *std_err)
+                         const samp_point *x, const samp_guide *gd, uint32_t row, int k, uint32_t pass, float E[3],
+                         float *std_err)
 {
     float origin[3];
     samp_point_origin(e->s, x, samp_point_eps_rt(e->rt, x), origin);
@@ -165,7 +228,9 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     lm_rng g;
     point_rng(e, pass ? 0x1000000u + pass : 0, x, &g);
     const scene *s = e->s;
-    int kc = x->toward_source && ix->pick_cdf ? (int)lround(k / 1.4142135623730951) : k;
+    guide_picks gp = {0};
+    const int guided = x->toward_source && gd && guide_picks_make(gd, row, &gp);
+    int kc = x->toward_source && (guided || ix->pick_cdf) ? (int)lround(k / 1.4142135623730951) : k;
     kc = kc < 1 ? 1 : kc;
     const int np = k * k - kc * kc;
     const double Nc = (double)kc * kc, Np = np;
@@ -184,11 +249,33 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
             float L[3];
             uint32_t sub = samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
             const double cos_x = v3_dot(d, f.n), pc = cos_x / M_PI;
-            const double pp = np && sub != UINT32_MAX ? (double)ix->pick_density[sub] * h.t * h.t / cos_y : 0.0;
+            const double pp = !np           ? 0.0
+                              : guided        ? guide_ratio(&gp, u, v) * pc
+                              : sub != UINT32_MAX ? (double)ix->pick_density[sub] * h.t * h.t / cos_y
+                                              : 0.0;
             if (!(cos_x > 0.0)) continue;
             acc(sum[0], sum2[0], L, Nc * cos_x / (Nc * pc + Np * pp));
         }
-    for (int j = 0; j < np; ++j) {
+    for (int j = 0; guided && j < np; ++j) {
+        /* A stratum of the pilot's grid by the guide, a point uniform in its square. */
+        const double w = (j + lm_rng_float(&g)) / np;
+        const uint32_t q = samp_cdf_pick(gp.cdf, (uint32_t)(gp.k * gp.k), w < 1.0 ? w : 0.9999999999);
+        const float u = ((float)(q % (uint32_t)gp.k) + lm_rng_float(&g)) / (float)gp.k;
+        const float v = ((float)(q / (uint32_t)gp.k) + lm_rng_float(&g)) / (float)gp.k;
+        const lm_vec3 d = samp_frame_cosine(&f, u, v);
+        float dir[3];
+        v3_store(dir, d);
+        rt_hit h;
+        if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
+        const float cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)h.tri), d);
+        if (!(cos_y > 0.0f)) continue;
+        float L[3];
+        samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
+        const double cos_x = v3_dot(d, f.n), pc = cos_x / M_PI, pp = (double)gp.ratio[q] * pc;
+        if (!(cos_x > 0.0)) continue;
+        acc(sum[1], sum2[1], L, Np * cos_x / (Nc * pc + Np * pp));
+    }
+    for (int j = 0; !guided && j < np; ++j) {
         const double u = (j + lm_rng_float(&g)) / np;
         const float a = lm_rng_float(&g), b = lm_rng_float(&g);
         uint32_t t;
@@ -230,6 +317,8 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
         E[c] = isfinite(v) ? (float)v : 0.0f;
         if (std_err) std_err[c] = isfinite(var) ? (float)sqrt(var) : 0.0f;
     }
+    free(gp.cdf);
+    free(gp.ratio);
 }
 
 /* ---- batches over threads ------------------------------------------------- */
@@ -243,6 +332,7 @@ typedef struct batch {
     uint32_t n;
     float *out;
     float *std_err;                 /* indirect: per point RGB, or NULL */
+    const samp_guide *guide;        /* indirect: or NULL */
     int k;                          /* indirect: strata per side */
     uint32_t pass;                  /* indirect: random stream */
 } batch;
@@ -251,7 +341,8 @@ static void batch_one(void *user, uint32_t i)
 {
     const batch *b = user;
     if (b->mesh)
-        indirect_one(b->e, b->mesh, b->index, &b->pts[i], b->k, b->pass, b->out + 3 * (size_t)i,
+        indirect_one(b->e, b->mesh, b->index, &b->pts[i], b->guide, b->guide && b->guide->index ? b->guide->index[i] : i,
+                     b->k, b->pass, b->out + 3 * (size_t)i,
                      b->std_err ? b->std_err + 3 * (size_t)i : NULL);
     else
         b->out[i] = direct_one(b->e, b->light, &b->pts[i]);
@@ -269,7 +360,8 @@ static lm_result embree_direct(void *impl, uint32_t light, const samp_point *pts
 }
 
 static lm_result embree_indirect_noise(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
-                                       uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err)
+                                       uint32_t pass, uint32_t scale, const samp_guide *guide, float *E,
+                                       float *std_err, lm_error *err)
 {
     (void)err;
     const embree_impl *e = impl;
@@ -277,7 +369,7 @@ static lm_result embree_indirect_noise(void *impl, const samp_radiance_mesh *mes
     if (!mesh->index) samp_radiance_index_build(e->s, mesh, &ix); /* without it (no memory): linear search */
     int k = e->indirect_k * (int)ceil(sqrt((double)(scale ? scale : 1)) - 1e-9);
     batch b = {.e = impl, .mesh = mesh, .index = mesh->index ? mesh->index : &ix, .pts = pts, .n = n, .out = E,
-               .std_err = std_err, .k = k, .pass = pass};
+               .std_err = std_err, .guide = guide, .k = k, .pass = pass};
     run_batch(impl, &b);
     samp_radiance_index_free(&ix);
     return LM_OK;
@@ -286,7 +378,7 @@ static lm_result embree_indirect_noise(void *impl, const samp_radiance_mesh *mes
 static lm_result embree_indirect(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                                  float *E, lm_error *err)
 {
-    return embree_indirect_noise(impl, mesh, pts, n, 0, 1, E, NULL, err);
+    return embree_indirect_noise(impl, mesh, pts, n, 0, 1, NULL, E, NULL, err);
 }
 
 static uint32_t embree_indirect_rays(const void *impl)

@@ -34,9 +34,11 @@ typedef struct samp_backend_ops {
                         lm_error *err);
     lm_result (*indirect)(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                           float *E, lm_error *err);
-    /* samp_indirect_noise; NULL for a back end without noise (GL's hemicube). */
+    /* samp_indirect_guided (guide NULL: samp_indirect_noise); NULL for a back end
+     * without noise (GL's hemicube). */
     lm_result (*indirect_noise)(void *impl, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
-                                uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err);
+                                uint32_t pass, uint32_t scale, const samp_guide *guide, float *E, float *std_err,
+                                lm_error *err);
     uint32_t (*indirect_rays)(const void *impl); /* rays of one pass at scale 1 */
     void (*destroy)(void *impl);
 } samp_backend_ops;

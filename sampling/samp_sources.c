@@ -58,6 +58,9 @@ static void sources_one(void *user, uint32_t i)
                 if (at != UINT32_MAX) tri[hits++] = at;
                 else L[0] = L[1] = L[2] = 0.0f;
             }
+            if (job->out->stratum)
+                job->out->stratum[(size_t)i * job->out->rays + (size_t)(b * k + a)] =
+                    (float)(M_PI * ((double)L[0] + L[1] + L[2]) / 3.0);
             for (int c = 0; c < 3; ++c) {
                 double piL = M_PI * (double)L[c];
                 if (a % 2 == 0)

@@ -182,7 +182,9 @@ static void first_image_budget(void)
         CHECK(st.indirect.samples == 64 && res.tested == 0 && !res.converged && res.outdated >= corners);
         int calls = 0;
         do {
-            CHECK(cache_refine(c, &(cache_refine_desc){.budget = 1}, &res, &err) == LM_OK);
+            /* (wait_for_indirect: the direct mesh, and so the source, stays as the
+             * borrowed values were made from, as they are compared below) */
+            CHECK(cache_refine(c, &(cache_refine_desc){.budget = 1, .wait_for_indirect = 1}, &res, &err) == LM_OK);
             cache_get_stats(c, &st);
         } while (++calls < 1000 && st.indirect.samples < 64 + corners);
         printf("first image budget: the %llu corners gathered again in %d refine calls of budget 1\n",
@@ -289,7 +291,8 @@ static void borrowed_values_tested(const GladGLContext *gl)
                 if (pass) CHECK(cache_set_jnd(c, 0.25f * jnd, &err) == LM_OK);
                 cache_refine_result res = {0};
                 int calls = 0;
-                do CHECK(cache_refine(c, &(cache_refine_desc){.pixels = px, .budget = 1}, &res, &err) == LM_OK);
+                do CHECK(cache_refine(c, &(cache_refine_desc){.pixels = px, .budget = 1, .wait_for_indirect = 1}, &res,
+                                      &err) == LM_OK);
                 while (++calls < 1000 && res.outdated > 0);
                 CHECK(res.outdated == 0);
                 cache_stats st;

@@ -198,13 +198,19 @@ typedef struct cache_refine_desc {
                                  (nothing is lost: what is left stays flagged or queued and counts in
                                  remaining). A worker being cancelled: a step of the 116k box's first
                                  regather made its client wait 1.2 s (docs/cache.md) */
+    int wait_for_indirect;    /* non-zero: no leaf is tested while indirect values are owed (the first
+                                 image's borrowed ones, or ones a rebuilt source flagged), so that
+                                 they are judged against the source they were flagged by (a test of
+                                 those values). 0: the direct and specular leaves are tested meanwhile
+                                 (the Veach door's floor showed the lamp room's direct light for the
+                                 0.6 s its first indirect values took) */
 } cache_refine_desc;
 
 typedef struct cache_refine_result {
     uint32_t tested, split, undone;  /* leaves tested; splits kept; splits undone (found nothing) */
     uint32_t remaining;              /* leaves still waiting to be tested, and outdated values */
-    uint32_t outdated;               /* indirect values still waiting to be gathered again (no leaf is
-                                        tested until they are) */
+    uint32_t outdated;               /* indirect values still waiting to be gathered again (no indirect
+                                        leaf is tested until they are) */
     uint32_t regathered_finer;       /* indirect values gathered again with more rays (their noise was seen) */
     int converged;                   /* nothing left to do, and the estimate is below the JND
                                         (cache_estimate_converged) */
@@ -335,8 +341,10 @@ typedef struct cache_stats {
     uint64_t regathered;        /* indirect values gathered again: the source had moved them (counted in
                                    indirect.samples too) */
     uint64_t toward_gathers;    /* indirect values gathered with half their rays toward the source (their
-                                   pilot saw the light come through a gap: samp_point.toward_source;
-                                   counted in indirect.samples too) */
+                                   pilot saw the light come through a gap: samp_point.toward_source,
+                                   guided by the pilot: samp_guide; counted in indirect.samples too) */
+    uint64_t guided_again;      /* of those, gathered again with more rays from a stream of their own
+                                   because their own error was seen (counted in indirect.samples too) */
     cache_bounce_stats bounces;
     uint32_t active_triangles;  /* scene triangles taken part (cache_init_seen); all of them after cache_init */
     uint64_t reach_rays;        /* rays traced to find what the seen triangles' gathers reach */

@@ -225,11 +225,32 @@ static int source_all_dark(const cache *c, const mesh_qnode *n, const uint32_t m
 
 /* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners);
  * an unseen source leaf's, source_priority. */
+/* Does a surface stand between two corners of node n (samp_points_parted)? */
+static int corners_parted(const cache *c, const mesh_qnode *n)
+{
+    samp_point p[3];
+    for (int k = 0; k < 3; ++k) p[k] = cache_vertex_point(c, n->v[k]);
+    for (int k = 0; k < 3; ++k)
+        if (samp_points_parted(c->sp, &p[k], &p[(k + 1) % 3])) return 1;
+    return 0;
+}
+
+/* A seen indirect leaf whose corners a surface parts (refine_round's parted
+ * rule) counts as the largest contrast there is, CIELAB's whole range: what it
+ * shows is a leak (the next room's light under a wall), whatever its corners say,
+ * and its test must not wait behind cheaper leaves. */
+#define PARTED_CONTRAST 100.0f
+
 static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind, uint32_t node, const mesh_qnode *n,
                            const uint32_t *pixels)
 {
     if (source_only(pixels, kind, n)) return source_priority(c, node, n);
-    return leaf_pixels(pixels, n) * (1.0f + cache_leaf_contrast(c, m, kind, n));
+    const float px = leaf_pixels(pixels, n);
+    float contrast = cache_leaf_contrast(c, m, kind, n);
+    if (kind == KIND_INDIRECT && !c->desc.single_mesh && px > c->desc.min_leaf_pixels && contrast < PARTED_CONTRAST &&
+        corners_parted(c, n))
+        contrast = PARTED_CONTRAST;
+    return px * (1.0f + contrast);
 }
 
 /* ---- scheduling ---------------------------------------------------------------- */
@@ -471,16 +492,6 @@ typedef struct round_leaf {
     double mw1[3], mw2[3];      /* their barycentrics */
     double cw1[3], cw2[3];      /* the corners' */
 } round_leaf;
-
-/* Does a surface stand between two corners of node n (samp_points_parted)? */
-static int corners_parted(const cache *c, const mesh_qnode *n)
-{
-    samp_point p[3];
-    for (int k = 0; k < 3; ++k) p[k] = cache_vertex_point(c, n->v[k]);
-    for (int k = 0; k < 3; ++k)
-        if (samp_points_parted(c->sp, &p[k], &p[(k + 1) % 3])) return 1;
-    return 0;
-}
 
 static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t max_leaves,
                               cache_refine_result *res, lm_error *err)
@@ -892,13 +903,13 @@ static void note_leaf_cost(cache *c, int kind, double rays)
  * the leaves (a fifth to indirect) gave the gathers 70% of the time and left the
  * door's strip of direct light waiting (docs/cache.md, "Leaves shared by cost").
  * A mesh not tested yet goes first, so that its cost is known. */
-static int next_kind(const cache *c, uint32_t total_left)
+static int next_kind(const cache *c, uint32_t total_left, int indirect_too)
 {
     if (!total_left) return -1;
     int best = -1;
     double best_rate = -1.0;
     for (int k = 0; k < CACHE_KINDS; ++k) {
-        if (!c->sched.waiting[k] || !cache_kind_mesh(c, (cache_kind)k)) continue;
+        if (!c->sched.waiting[k] || !cache_kind_mesh(c, (cache_kind)k) || (k == KIND_INDIRECT && !indirect_too)) continue;
         const double cost = c->sched.leaf_rays[k];
         const double rate = cost > 0.0 ? (double)top_priority(c, k) / cost : INFINITY;
         if (rate > best_rate) best = k, best_rate = rate;
@@ -942,12 +953,21 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
     int settled = 0, finer = 0;
     /* No leaf is tested while values it would be judged by are still the first
-     * image's (borrowed, or flagged by a rebuilt source). */
+     * image's (its borrowed direct and specular roots). Indirect values still
+     * to be gathered (borrowed by the first image, or flagged by a rebuilt
+     * source) hold back only the indirect leaves: the direct and specular ones
+     * are judged over them as they are, and tested meanwhile. Held back too, the
+     * Veach door's floor under its back wall showed the lamp room's direct light
+     * (a leaf with a corner there) for the 0.6 s the first image's indirect
+     * values took (docs/cache.md, "Guided gathers"). */
     const size_t borrowed = c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0;
-    while (r == LM_OK && !c->src.outdated_n && !borrowed && !cache_borrow_pending(c) && !cache_stopping(c)) {
-        int kind = by_cost ? next_kind(c, total_left) : -1;
+    while (r == LM_OK && !borrowed && !cache_stopping(c)) {
+        const int indirect_too = !c->src.outdated_n && !cache_borrow_pending(c);
+        int kind = by_cost ? next_kind(c, total_left, indirect_too) : -1;
         for (int k = 0; k < CACHE_KINDS && kind < 0 && !by_cost; ++k)
-            if (left[k] && c->sched.waiting[k]) kind = k;
+            if (left[k] && c->sched.waiting[k] && (k != KIND_INDIRECT || indirect_too)) kind = k;
+        if (kind < 0 && !indirect_too) break; /* the rest waits for the regathers */
+        if (!indirect_too && desc->wait_for_indirect) break;
         if (kind < 0) {
             if (c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] > 0) break; /* out of budget */
             /* Nothing left to test: bring the indirect source up to date with the

@@ -71,6 +71,7 @@ void cache_source_free(cache_source_state *st)
     free(st->pilot_tri);
     free(st->pilot_weight);
     free(st->pilot_strat);
+    free(st->pilot_stratum);
     memset(st, 0, sizeof *st);
 }
 
@@ -80,7 +81,7 @@ size_t cache_source_bytes(const cache_source_state *st)
            (st->rm_cap + st->rp_cap) * (6 + 9) * sizeof(float) + st->drift_cap * (10 * sizeof(float) + 3) +
            st->outdated_cap * sizeof(uint32_t) + st->leaf_cap * sizeof *st->leaf_buf +
            st->imp_cap * 3 * sizeof(float) + st->grown_cap * sizeof(uint32_t) +
-           st->pilot_cap * (2 + CACHE_IMPORTANCE_RAYS * 2) * sizeof(uint32_t);
+           st->pilot_cap * (2 + CACHE_IMPORTANCE_RAYS * 3) * sizeof(uint32_t);
 }
 
 /* ---- the cut ------------------------------------------------------------------
@@ -464,7 +465,8 @@ static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *p
             !lm_realloc_array(&st->pilot_count, st->pilot_cap, cap, sizeof *st->pilot_count) ||
             !lm_realloc_array(&st->pilot_tri, st->pilot_cap, cap, RAYS * sizeof *st->pilot_tri) ||
             !lm_realloc_array(&st->pilot_weight, st->pilot_cap, cap, RAYS * sizeof *st->pilot_weight) ||
-            !lm_realloc_array(&st->pilot_strat, st->pilot_cap, cap, 3 * sizeof *st->pilot_strat))
+            !lm_realloc_array(&st->pilot_strat, st->pilot_cap, cap, 3 * sizeof *st->pilot_strat) ||
+            !lm_realloc_array(&st->pilot_stratum, st->pilot_cap, cap, RAYS * sizeof *st->pilot_stratum))
             return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory tracing indirect light");
         st->pilot_cap = cap;
     }
@@ -472,7 +474,7 @@ static lm_result trace_pilot(cache *c, const uint32_t *vids, const samp_point *p
     lm_result r = samp_indirect_sources(
         c->sp, &st->rmesh, pts, n,
         &(samp_source_hits){.rays = RAYS, .count = st->pilot_count, .tri = st->pilot_tri, .weight = st->pilot_weight,
-                            .strat_var = st->pilot_strat},
+                            .strat_var = st->pilot_strat, .stratum = st->pilot_stratum},
         err);
     c->effort += (uint64_t)n * RAYS;
     if (r != LM_OK) return r;
@@ -520,89 +522,201 @@ static float gather_sigma(double var, double strat, double N)
     return N > 0.0 ? (float)sqrt((N >= CACHE_IMPORTANCE_RAYS ? strat : var) / N) : 0.0f;
 }
 
+/* From point i's pilot: the variance of one ray of a gather guided by it
+ * (samp_guide: half the rays cosine-weighted, half to the pilot's strata in
+ * proportion to the brightest each or a neighbour saw; balance heuristic), RGB;
+ * 0 when the pilot saw no light. With q = (p_c + p_g)/2 and N/2 rays of each kind
+ * the estimate's variance is (Var_c(f/q) + Var_g(f/q)) / (2N), and in stratum s
+ * p_g/p_c is its share of the guide × k², r_s, so both moments come from the
+ * pilot's rays, one a stratum. Light uniform over a fraction p of the hemisphere,
+ * found exactly: 2p(1 − p)/(1 + p)²·E² against the cosine rays' (1 − p)/p·E².
+ * Its rays are the strata's only samples, so where light fills part of a stratum
+ * it errs low: the value kept is never below the gather's own sample error
+ * (gather_displayed). Mirrors samp_embree.c's guide_picks_make. */
+static void pilot_guided_var(const cache *c, uint32_t i, double var[3])
+{
+    const cache_source_state *st = &c->src;
+    enum { RAYS = CACHE_IMPORTANCE_RAYS };
+    const int k = (int)lround(sqrt((double)RAYS));
+    _Static_assert(RAYS == 256, "the guide's strata: a square number of pilot rays");
+    const float *y = st->pilot_stratum + (size_t)i * RAYS;
+    double mass[RAYS], total = 0.0;
+    for (int b = 0; b < k; ++b)
+        for (int a = 0; a < k; ++a) {
+            float m = 0.0f;
+            for (int db = -1; db <= 1; ++db)
+                for (int da = -1; da <= 1; ++da) {
+                    const int aa = a + da, bb = b + db;
+                    if (aa >= 0 && aa < k && bb >= 0 && bb < k) m = fmaxf(m, y[bb * k + aa]);
+                }
+            mass[b * k + a] = m;
+            total += m;
+        }
+    var[0] = var[1] = var[2] = 0.0;
+    if (!(total > 0.0)) return;
+    /* The pilot's RGB in each stratum is not kept: the channels scale with the
+     * pilot's mean colour (E's), the luminance-like mean the strata hold. */
+    float e[3];
+    double pv[3], ps[3];
+    pilot_moments(c, i, e, pv, ps);
+    const double emean = ((double)e[0] + e[1] + e[2]) / 3.0;
+    double m1c = 0, m2c = 0, m1g = 0, m2g = 0;
+    for (int q = 0; q < RAYS; ++q) {
+        const double r = mass[q] / total * RAYS, yq = y[q] * 2.0 / (1.0 + r); /* f/q over p_c: π·L·p_c/q */
+        m1c += yq / RAYS;
+        m2c += yq * yq / RAYS;
+        m1g += r * yq / RAYS;
+        m2g += r * yq * yq / RAYS;
+    }
+    const double v = 0.5 * (fmax(m2c - m1c * m1c, 0.0) + fmax(m2g - m1g * m1g, 0.0));
+    for (int ch = 0; ch < 3; ++ch) var[ch] = emean > 0.0 ? v * ((double)e[ch] / emean) * ((double)e[ch] / emean) : v;
+}
+
+/* One chunk of gather_displayed: its points, what the pilot chose for them, and
+ * scratch for the batches (cn points each). */
+typedef struct gather_chunk {
+    const uint32_t *vids;
+    const samp_point *pts;
+    uint32_t m0;
+    uint8_t *level, *toward, *again;
+    float *predicted, *likely, *own; /* RGB a point; own: the gather's sample error */
+    uint32_t *pick;
+    samp_point *lpts;
+    float *lE, *lsig;
+} gather_chunk;
+
+/* Gathers the chunk's points (only those with again[i] when `only`) at their
+ * levels from random stream `pass`, guided by the chunk's pilot; stores E, σ and
+ * the level. */
+static lm_result gather_chunk_levels(cache *c, gather_chunk *g, int only, uint32_t pass, float *E, lm_error *err)
+{
+    const uint32_t rays = samp_indirect_rays(c->sp);
+    const samp_guide guide = {.rays = CACHE_IMPORTANCE_RAYS, .stratum = c->src.pilot_stratum, .index = g->pick};
+    lm_result r = LM_OK;
+    for (int lv = 0; r == LM_OK && lv < GATHER_FINER_LEVELS; ++lv) {
+        uint32_t m = 0;
+        for (uint32_t i = 0; i < g->m0; ++i)
+            if (g->level[i] == lv && (!only || g->again[i])) {
+                g->pick[m] = i;
+                g->lpts[m] = g->pts[i];
+                g->lpts[m++].toward_source = g->toward[i];
+            }
+        if (m == 0) continue;
+        r = samp_indirect_guided(c->sp, &c->src.rmesh, g->lpts, m, pass, (uint32_t)pow(GATHER_SCALE, lv), &guide,
+                                 g->lE, g->lsig, err);
+        c->effort += (uint64_t)m * (rays ? rays : CACHE_GL_GATHER_RAYS) * (uint64_t)pow(GATHER_SCALE, lv);
+        for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
+            const uint32_t i = g->pick[j], vid = g->vids[i];
+            memcpy(E + 3 * (size_t)i, g->lE + 3 * (size_t)j, 3 * sizeof *E);
+            memcpy(g->own + 3 * (size_t)i, g->lsig + 3 * (size_t)j, 3 * sizeof *g->own);
+            if (vid >= c->src.drift_cap) continue;
+            float *sg = c->src.sigma + 3 * (size_t)vid;
+            float *sl = c->src.sigma_likely + 3 * (size_t)vid;
+            /* Cosine rays: the pilot's prediction (the gather's own σ is as blind
+             * as its mean to a gap all its rays missed). Guided toward the
+             * source: the guided prediction, never below the gather's own
+             * (pilot_guided_var errs low where the light fills part of a stratum). */
+            for (int k = 0; k < 3; ++k) {
+                const float own = g->toward[i] ? g->lsig[3 * (size_t)j + (size_t)k] : 0.0f;
+                sg[k] = fmaxf(g->predicted[3 * (size_t)i + (size_t)k], own);
+                sl[k] = fmaxf(g->likely[3 * (size_t)i + (size_t)k], own);
+            }
+            c->src.gather_level[vid] = (uint8_t)lv;
+            if (!only) c->src.toward_gathers += g->toward[i];
+        }
+    }
+    return r;
+}
+
 /* The displayed indirect at the points, each with the rays its noise needs, and
- * at least GATHER_SCALE^min_level[i] times the plain count (min_level NULL: 0). */
+ * at least GATHER_SCALE^min_level[i] times the plain count (min_level NULL: 0).
+ * A chunk at a time: the pilot of CACHE_PILOT_CHUNK points (why: trace_pilot)
+ * chooses their counts and guides their gathers toward the source. A guided
+ * gather whose own error is still seen (the guided prediction errs low) is
+ * taken again, from an independent stream, at the count that error asks for,
+ * and only the second value is kept: the first decides the count, never the
+ * value, so the estimate stays unbiased (docs/cache.md, "Guided gathers"). */
 static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n,
                                   const uint8_t *min_level, float *E, lm_error *err)
 {
     lm_result r = cache_grow_drift(&c->src, mesh_vtable_id_limit(c->vt), err);
     if (r != LM_OK) return r;
     const uint32_t rays = samp_indirect_rays(c->sp);
-    uint8_t *level = calloc(n ? n : 1, 1), *toward = calloc(n ? n : 1, 1);
-    float *predicted = malloc(3 * (size_t)(n ? n : 1) * sizeof *predicted);
-    float *likely = malloc(3 * (size_t)(n ? n : 1) * sizeof *likely);
-    uint32_t *pick = malloc((n ? n : 1) * sizeof *pick);
-    samp_point *lpts = malloc((n ? n : 1) * sizeof *lpts);
-    float *lE = malloc(3 * (size_t)(n ? n : 1) * sizeof *lE), *lsig = malloc(3 * (size_t)(n ? n : 1) * sizeof *lsig);
-    if (!level || !toward || !predicted || !likely || !pick || !lpts || !lE || !lsig)
+    const uint32_t cn = n < CACHE_PILOT_CHUNK ? (n ? n : 1) : CACHE_PILOT_CHUNK;
+    gather_chunk g = {.level = calloc(cn, 1), .toward = calloc(cn, 1), .again = calloc(cn, 1),
+                      .predicted = malloc(3 * (size_t)cn * sizeof(float)), .likely = malloc(3 * (size_t)cn * sizeof(float)),
+                      .own = malloc(3 * (size_t)cn * sizeof(float)), .pick = malloc(cn * sizeof(uint32_t)),
+                      .lpts = malloc(cn * sizeof(samp_point)), .lE = malloc(3 * (size_t)cn * sizeof(float)),
+                      .lsig = malloc(3 * (size_t)cn * sizeof(float))};
+    if (!g.level || !g.toward || !g.again || !g.predicted || !g.likely || !g.own || !g.pick || !g.lpts || !g.lE ||
+        !g.lsig)
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
-    /* The count: the fewest rays whose predicted error cannot be seen, from the
-     * pilot traced CACHE_PILOT_CHUNK points at a time (why: trace_pilot). */
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
-        if (i % CACHE_PILOT_CHUNK == 0) r = trace_pilot(c, vids + i, pts + i, n - i < CACHE_PILOT_CHUNK ? n - i : CACHE_PILOT_CHUNK, err);
-        if (r != LM_OK) break;
-        float e[3];
-        double var[3], strat[3];
-        pilot_moments(c, i % CACHE_PILOT_CHUNK, e, var, strat);
-        const double esum = (double)e[0] + e[1] + e[2], vsum = var[0] + var[1] + var[2];
-        toward[i] = !(esum > 0.0) || vsum > GATHER_GAP_RATIO * esum * esum;
-        for (int lv = 0; lv < GATHER_LEVELS; ++lv) {
-            double N = (double)rays * pow(GATHER_SCALE, lv);
-            for (int k = 0; k < 3; ++k) {
-                predicted[3 * (size_t)i + (size_t)k] = (float)sqrt(var[k] / N);
-                likely[3 * (size_t)i + (size_t)k] = gather_sigma(var[k], strat[k], N);
+    for (uint32_t at = 0; r == LM_OK && at < n; at += CACHE_PILOT_CHUNK) {
+        g.m0 = n - at < CACHE_PILOT_CHUNK ? n - at : CACHE_PILOT_CHUNK;
+        g.vids = vids + at;
+        g.pts = pts + at;
+        r = trace_pilot(c, g.vids, g.pts, g.m0, err);
+        /* The count: the fewest rays whose predicted error cannot be seen. */
+        for (uint32_t i = 0; r == LM_OK && i < g.m0; ++i) {
+            float e[3];
+            double var[3], strat[3];
+            pilot_moments(c, i, e, var, strat);
+            const double esum = (double)e[0] + e[1] + e[2], vsum = var[0] + var[1] + var[2];
+            g.toward[i] = !(esum > 0.0) || vsum > GATHER_GAP_RATIO * esum * esum;
+            if (g.toward[i] && esum > 0.0) { /* guided: its own variance, for every count */
+                pilot_guided_var(c, i, var);
+                memcpy(strat, var, sizeof strat);
             }
-            level[i] = (uint8_t)lv;
-            if (!rays || !noise_seen(c, vids[i], e, predicted + 3 * (size_t)i)) break;
+            const uint8_t floor_level = min_level ? min_level[at + i] : 0;
+            for (int lv = 0; lv < GATHER_LEVELS || lv <= floor_level; ++lv) {
+                double N = (double)rays * pow(GATHER_SCALE, lv);
+                for (int k = 0; k < 3; ++k) {
+                    g.predicted[3 * (size_t)i + (size_t)k] = (float)sqrt(var[k] / N);
+                    g.likely[3 * (size_t)i + (size_t)k] = gather_sigma(var[k], strat[k], N);
+                }
+                g.level[i] = (uint8_t)lv;
+                if (lv < floor_level) continue;
+                if (!rays || lv + 1 >= GATHER_LEVELS || !noise_seen(c, g.vids[i], e, g.predicted + 3 * (size_t)i))
+                    break;
+            }
         }
-        if (min_level && min_level[i] > level[i]) {
-            level[i] = min_level[i];
-            double N = (double)rays * pow(GATHER_SCALE, level[i]);
-            for (int k = 0; k < 3; ++k) {
-                predicted[3 * (size_t)i + (size_t)k] = (float)sqrt(var[k] / N);
-                likely[3 * (size_t)i + (size_t)k] = gather_sigma(var[k], strat[k], N);
+        if (r == LM_OK) r = gather_chunk_levels(c, &g, 0, 0, E + 3 * (size_t)at, err);
+        /* Guided gathers whose own error is seen: again, at the count it asks for. */
+        uint32_t again = 0;
+        for (uint32_t i = 0; r == LM_OK && i < g.m0; ++i) {
+            g.again[i] = 0;
+            const float *own = g.own + 3 * (size_t)i, *e = E + 3 * ((size_t)at + i);
+            if (!g.toward[i] || !rays || g.level[i] + 1 >= GATHER_LEVELS || !noise_seen(c, g.vids[i], e, own))
+                continue;
+            const int from = g.level[i];
+            for (int lv = from + 1; lv < GATHER_LEVELS; ++lv) {
+                const float f = (float)pow(GATHER_SCALE, -0.5 * (lv - from));
+                for (int k = 0; k < 3; ++k) {
+                    g.predicted[3 * (size_t)i + (size_t)k] *= f;
+                    g.likely[3 * (size_t)i + (size_t)k] *= f;
+                }
+                const float scaled[3] = {own[0] * f, own[1] * f, own[2] * f};
+                g.level[i] = (uint8_t)lv;
+                if (!noise_seen(c, g.vids[i], e, scaled)) break;
             }
+            g.again[i] = 1;
+            again++;
         }
-    }
-    for (int lv = 0; r == LM_OK && lv < GATHER_FINER_LEVELS; ++lv) {
-        uint32_t m = 0;
-        for (uint32_t i = 0; i < n; ++i)
-            if (level[i] == lv) {
-                pick[m] = i;
-                lpts[m] = pts[i];
-                lpts[m++].toward_source = toward[i];
-            }
-        if (m == 0) continue;
-        r = samp_indirect_noise(c->sp, &c->src.rmesh, lpts, m, 0, (uint32_t)pow(GATHER_SCALE, lv), lE, lsig, err);
-        c->effort += (uint64_t)m * (rays ? rays : CACHE_GL_GATHER_RAYS) * (uint64_t)pow(GATHER_SCALE, lv);
-        for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
-            uint32_t i = pick[j];
-            memcpy(E + 3 * (size_t)i, lE + 3 * (size_t)j, 3 * sizeof *E);
-            if (vids[i] >= c->src.drift_cap) continue;
-            float *sg = c->src.sigma + 3 * (size_t)vids[i];
-            float *sl = c->src.sigma_likely + 3 * (size_t)vids[i];
-            /* Gathered toward the source too, the cosine pilot's prediction,
-             * which errs high there (docs/cache.md: the door's 4,096-ray values
-             * measured σ 0.006 against 0.010 predicted); the gather's own σ is as
-             * blind as its mean to a gap all its rays missed. */
-            for (int k = 0; k < 3; ++k) {
-                sg[k] = predicted[3 * (size_t)i + (size_t)k];
-                sl[k] = likely[3 * (size_t)i + (size_t)k];
-            }
-            c->src.gather_level[vids[i]] = (uint8_t)lv;
-            c->src.toward_gathers += toward[i];
-        }
+        if (r == LM_OK && again) r = gather_chunk_levels(c, &g, 1, 1, E + 3 * (size_t)at, err);
+        c->src.guided_again += again;
     }
     /* Kept only whole: a pilot of several chunks holds the last one's points. */
     if (n > CACHE_PILOT_CHUNK) c->src.pilot_n = 0;
-    free(level);
-    free(toward);
-    free(predicted);
-    free(likely);
-    free(pick);
-    free(lpts);
-    free(lE);
-    free(lsig);
+    free(g.level);
+    free(g.toward);
+    free(g.again);
+    free(g.predicted);
+    free(g.likely);
+    free(g.own);
+    free(g.pick);
+    free(g.lpts);
+    free(g.lE);
+    free(g.lsig);
     return r;
 }
 
