@@ -475,7 +475,6 @@ void cache_get_stats(cache *c, cache_stats *out)
     out->revised = c->vis.revised;
     out->regathered = c->src.regathered;
     out->toward_gathers = c->src.toward_gathers;
-    out->guided_again = c->src.guided_again;
     if (c->indirect1) {
         out->bounces = c->bnc.stats;
         mesh_qmesh_stats ms;

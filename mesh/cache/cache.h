@@ -343,8 +343,6 @@ typedef struct cache_stats {
     uint64_t toward_gathers;    /* indirect values gathered with half their rays toward the source (their
                                    pilot saw the light come through a gap: samp_point.toward_source,
                                    guided by the pilot: samp_guide; counted in indirect.samples too) */
-    uint64_t guided_again;      /* of those, gathered again with more rays from a stream of their own
-                                   because their own error was seen (counted in indirect.samples too) */
     cache_bounce_stats bounces;
     uint32_t active_triangles;  /* scene triangles taken part (cache_init_seen); all of them after cache_init */
     uint64_t reach_rays;        /* rays traced to find what the seen triangles' gathers reach */

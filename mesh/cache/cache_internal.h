@@ -163,7 +163,6 @@ typedef struct cache_source_state {
     size_t outdated_n, outdated_cap;
     uint64_t regathered;       /* indirect values gathered again because they were outdated */
     uint64_t toward_gathers;   /* indirect values gathered toward the source (samp_point.toward_source) */
-    uint64_t guided_again;     /* of those, gathered again: their own error was seen (gather_displayed) */
     int64_t built_at;          /* direct mesh changes (net splits + revised values) when last built */
     uint32_t built_nodes;      /* direct mesh nodes when last built */
     int settle;                /* rebuild on any change (cache_settle_source) */

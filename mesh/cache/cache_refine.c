@@ -225,32 +225,11 @@ static int source_all_dark(const cache *c, const mesh_qnode *n, const uint32_t m
 
 /* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners);
  * an unseen source leaf's, source_priority. */
-/* Does a surface stand between two corners of node n (samp_points_parted)? */
-static int corners_parted(const cache *c, const mesh_qnode *n)
-{
-    samp_point p[3];
-    for (int k = 0; k < 3; ++k) p[k] = cache_vertex_point(c, n->v[k]);
-    for (int k = 0; k < 3; ++k)
-        if (samp_points_parted(c->sp, &p[k], &p[(k + 1) % 3])) return 1;
-    return 0;
-}
-
-/* A seen indirect leaf whose corners a surface parts (refine_round's parted
- * rule) counts as the largest contrast there is, CIELAB's whole range: what it
- * shows is a leak (the next room's light under a wall), whatever its corners say,
- * and its test must not wait behind cheaper leaves. */
-#define PARTED_CONTRAST 100.0f
-
 static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind, uint32_t node, const mesh_qnode *n,
                            const uint32_t *pixels)
 {
     if (source_only(pixels, kind, n)) return source_priority(c, node, n);
-    const float px = leaf_pixels(pixels, n);
-    float contrast = cache_leaf_contrast(c, m, kind, n);
-    if (kind == KIND_INDIRECT && !c->desc.single_mesh && px > c->desc.min_leaf_pixels && contrast < PARTED_CONTRAST &&
-        corners_parted(c, n))
-        contrast = PARTED_CONTRAST;
-    return px * (1.0f + contrast);
+    return leaf_pixels(pixels, n) * (1.0f + cache_leaf_contrast(c, m, kind, n));
 }
 
 /* ---- scheduling ---------------------------------------------------------------- */
@@ -492,6 +471,16 @@ typedef struct round_leaf {
     double mw1[3], mw2[3];      /* their barycentrics */
     double cw1[3], cw2[3];      /* the corners' */
 } round_leaf;
+
+/* Does a surface stand between two corners of node n (samp_points_parted)? */
+static int corners_parted(const cache *c, const mesh_qnode *n)
+{
+    samp_point p[3];
+    for (int k = 0; k < 3; ++k) p[k] = cache_vertex_point(c, n->v[k]);
+    for (int k = 0; k < 3; ++k)
+        if (samp_points_parted(c->sp, &p[k], &p[(k + 1) % 3])) return 1;
+    return 0;
+}
 
 static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t max_leaves,
                               cache_refine_result *res, lm_error *err)
@@ -909,7 +898,8 @@ static int next_kind(const cache *c, uint32_t total_left, int indirect_too)
     int best = -1;
     double best_rate = -1.0;
     for (int k = 0; k < CACHE_KINDS; ++k) {
-        if (!c->sched.waiting[k] || !cache_kind_mesh(c, (cache_kind)k) || (k == KIND_INDIRECT && !indirect_too)) continue;
+        if (!c->sched.waiting[k] || !cache_kind_mesh(c, (cache_kind)k)) continue;
+        if (k == KIND_INDIRECT && !indirect_too) continue;
         const double cost = c->sched.leaf_rays[k];
         const double rate = cost > 0.0 ? (double)top_priority(c, k) / cost : INFINITY;
         if (rate > best_rate) best = k, best_rate = rate;

@@ -532,7 +532,7 @@ static float gather_sigma(double var, double strat, double N)
  * found exactly: 2p(1 − p)/(1 + p)²·E² against the cosine rays' (1 − p)/p·E².
  * Its rays are the strata's only samples, so where light fills part of a stratum
  * it errs low: the value kept is never below the gather's own sample error
- * (gather_displayed). Mirrors samp_embree.c's guide_picks_make. */
+ * (gather_chunk_levels). Mirrors samp_embree.c's guide_picks_make. */
 static void pilot_guided_var(const cache *c, uint32_t i, double var[3])
 {
     const cache_source_state *st = &c->src;
@@ -578,17 +578,16 @@ typedef struct gather_chunk {
     const uint32_t *vids;
     const samp_point *pts;
     uint32_t m0;
-    uint8_t *level, *toward, *again;
-    float *predicted, *likely, *own; /* RGB a point; own: the gather's sample error */
+    uint8_t *level, *toward;
+    float *predicted, *likely; /* RGB a point */
     uint32_t *pick;
     samp_point *lpts;
     float *lE, *lsig;
 } gather_chunk;
 
-/* Gathers the chunk's points (only those with again[i] when `only`) at their
- * levels from random stream `pass`, guided by the chunk's pilot; stores E, σ and
- * the level. */
-static lm_result gather_chunk_levels(cache *c, gather_chunk *g, int only, uint32_t pass, float *E, lm_error *err)
+/* Gathers the chunk's points at their levels, guided by the chunk's pilot;
+ * stores E, σ and the level. */
+static lm_result gather_chunk_levels(cache *c, gather_chunk *g, float *E, lm_error *err)
 {
     const uint32_t rays = samp_indirect_rays(c->sp);
     const samp_guide guide = {.rays = CACHE_IMPORTANCE_RAYS, .stratum = c->src.pilot_stratum, .index = g->pick};
@@ -596,19 +595,18 @@ static lm_result gather_chunk_levels(cache *c, gather_chunk *g, int only, uint32
     for (int lv = 0; r == LM_OK && lv < GATHER_FINER_LEVELS; ++lv) {
         uint32_t m = 0;
         for (uint32_t i = 0; i < g->m0; ++i)
-            if (g->level[i] == lv && (!only || g->again[i])) {
+            if (g->level[i] == lv) {
                 g->pick[m] = i;
                 g->lpts[m] = g->pts[i];
                 g->lpts[m++].toward_source = g->toward[i];
             }
         if (m == 0) continue;
-        r = samp_indirect_guided(c->sp, &c->src.rmesh, g->lpts, m, pass, (uint32_t)pow(GATHER_SCALE, lv), &guide,
+        r = samp_indirect_guided(c->sp, &c->src.rmesh, g->lpts, m, 0, (uint32_t)pow(GATHER_SCALE, lv), &guide,
                                  g->lE, g->lsig, err);
         c->effort += (uint64_t)m * (rays ? rays : CACHE_GL_GATHER_RAYS) * (uint64_t)pow(GATHER_SCALE, lv);
         for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
             const uint32_t i = g->pick[j], vid = g->vids[i];
             memcpy(E + 3 * (size_t)i, g->lE + 3 * (size_t)j, 3 * sizeof *E);
-            memcpy(g->own + 3 * (size_t)i, g->lsig + 3 * (size_t)j, 3 * sizeof *g->own);
             if (vid >= c->src.drift_cap) continue;
             float *sg = c->src.sigma + 3 * (size_t)vid;
             float *sl = c->src.sigma_likely + 3 * (size_t)vid;
@@ -622,7 +620,7 @@ static lm_result gather_chunk_levels(cache *c, gather_chunk *g, int only, uint32
                 sl[k] = fmaxf(g->likely[3 * (size_t)i + (size_t)k], own);
             }
             c->src.gather_level[vid] = (uint8_t)lv;
-            if (!only) c->src.toward_gathers += g->toward[i];
+            c->src.toward_gathers += g->toward[i];
         }
     }
     return r;
@@ -631,11 +629,7 @@ static lm_result gather_chunk_levels(cache *c, gather_chunk *g, int only, uint32
 /* The displayed indirect at the points, each with the rays its noise needs, and
  * at least GATHER_SCALE^min_level[i] times the plain count (min_level NULL: 0).
  * A chunk at a time: the pilot of CACHE_PILOT_CHUNK points (why: trace_pilot)
- * chooses their counts and guides their gathers toward the source. A guided
- * gather whose own error is still seen (the guided prediction errs low) is
- * taken again, from an independent stream, at the count that error asks for,
- * and only the second value is kept: the first decides the count, never the
- * value, so the estimate stays unbiased (docs/cache.md, "Guided gathers"). */
+ * chooses their counts and guides their gathers toward the source. */
 static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n,
                                   const uint8_t *min_level, float *E, lm_error *err)
 {
@@ -643,13 +637,12 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
     if (r != LM_OK) return r;
     const uint32_t rays = samp_indirect_rays(c->sp);
     const uint32_t cn = n < CACHE_PILOT_CHUNK ? (n ? n : 1) : CACHE_PILOT_CHUNK;
-    gather_chunk g = {.level = calloc(cn, 1), .toward = calloc(cn, 1), .again = calloc(cn, 1),
+    gather_chunk g = {.level = calloc(cn, 1), .toward = calloc(cn, 1),
                       .predicted = malloc(3 * (size_t)cn * sizeof(float)), .likely = malloc(3 * (size_t)cn * sizeof(float)),
-                      .own = malloc(3 * (size_t)cn * sizeof(float)), .pick = malloc(cn * sizeof(uint32_t)),
+                      .pick = malloc(cn * sizeof(uint32_t)),
                       .lpts = malloc(cn * sizeof(samp_point)), .lE = malloc(3 * (size_t)cn * sizeof(float)),
                       .lsig = malloc(3 * (size_t)cn * sizeof(float))};
-    if (!g.level || !g.toward || !g.again || !g.predicted || !g.likely || !g.own || !g.pick || !g.lpts || !g.lE ||
-        !g.lsig)
+    if (!g.level || !g.toward || !g.predicted || !g.likely || !g.pick || !g.lpts || !g.lE || !g.lsig)
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     for (uint32_t at = 0; r == LM_OK && at < n; at += CACHE_PILOT_CHUNK) {
         g.m0 = n - at < CACHE_PILOT_CHUNK ? n - at : CACHE_PILOT_CHUNK;
@@ -680,39 +673,14 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
                     break;
             }
         }
-        if (r == LM_OK) r = gather_chunk_levels(c, &g, 0, 0, E + 3 * (size_t)at, err);
-        /* Guided gathers whose own error is seen: again, at the count it asks for. */
-        uint32_t again = 0;
-        for (uint32_t i = 0; r == LM_OK && i < g.m0; ++i) {
-            g.again[i] = 0;
-            const float *own = g.own + 3 * (size_t)i, *e = E + 3 * ((size_t)at + i);
-            if (!g.toward[i] || !rays || g.level[i] + 1 >= GATHER_LEVELS || !noise_seen(c, g.vids[i], e, own))
-                continue;
-            const int from = g.level[i];
-            for (int lv = from + 1; lv < GATHER_LEVELS; ++lv) {
-                const float f = (float)pow(GATHER_SCALE, -0.5 * (lv - from));
-                for (int k = 0; k < 3; ++k) {
-                    g.predicted[3 * (size_t)i + (size_t)k] *= f;
-                    g.likely[3 * (size_t)i + (size_t)k] *= f;
-                }
-                const float scaled[3] = {own[0] * f, own[1] * f, own[2] * f};
-                g.level[i] = (uint8_t)lv;
-                if (!noise_seen(c, g.vids[i], e, scaled)) break;
-            }
-            g.again[i] = 1;
-            again++;
-        }
-        if (r == LM_OK && again) r = gather_chunk_levels(c, &g, 1, 1, E + 3 * (size_t)at, err);
-        c->src.guided_again += again;
+        if (r == LM_OK) r = gather_chunk_levels(c, &g, E + 3 * (size_t)at, err);
     }
     /* Kept only whole: a pilot of several chunks holds the last one's points. */
     if (n > CACHE_PILOT_CHUNK) c->src.pilot_n = 0;
     free(g.level);
     free(g.toward);
-    free(g.again);
     free(g.predicted);
     free(g.likely);
-    free(g.own);
     free(g.pick);
     free(g.lpts);
     free(g.lE);

@@ -129,7 +129,6 @@ cJSON *app_stats_json(const app_stats_desc *d)
     cJSON_AddNumberToObject(j, "snapshot", (double)snap->generation);
     cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);
     cJSON_AddNumberToObject(j, "toward_source_gathers", (double)st->toward_gathers);
-    cJSON_AddNumberToObject(j, "guided_gathers_again", (double)st->guided_again);
     cJSON_AddNumberToObject(j, "active_triangles", (double)st->active_triangles);
     cJSON_AddNumberToObject(j, "reach_rays", (double)st->reach_rays);
     cJSON *su = cJSON_AddObjectToObject(j, "startup");
