@@ -172,17 +172,18 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
                               uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err);
 /* samp_indirect_noise with a guide for the points marked toward_source: what a
  * pilot of the same point saw in each stratum of its cosine-weighted hemisphere
- * (samp_source_hits.stratum). Their second half of rays, instead of going to
- * points of the whole source picked by power, goes to strata of the pilot's
- * grid picked in proportion to the brightest the pilot saw in the stratum or its
- * eight neighbours (uniform in the stratum's square, mapped as the cosine rays
- * are), combined with the cosine rays by the balance heuristic as before: a
- * direction the guide leaves out is still found by those. Through a gap the
- * guided rays go where the pilot saw the gap, and every one of them is traced
- * as a plain ray: none is lost to a wall, as a pick on the source behind the gap
- * mostly is (docs/cache.md, "Guided gathers"). Point i's row is index[i] (index
- * NULL: row i); a row that saw no light falls back to the picks by power. Back
- * ends without noise ignore the guide, as they ignore toward_source. */
+ * (samp_source_hits.stratum). Of the half of their rays that do not go
+ * cosine-weighted, half go to strata of the pilot's grid picked in proportion to
+ * the brightest the pilot saw in the stratum or its eight neighbours (uniform in
+ * the stratum's square, mapped as the cosine rays are), and half toward points of
+ * the source picked by power, as without a guide; all combined by the balance
+ * heuristic, so a direction the guide leaves out is still found by the others.
+ * Through a gap the guided rays go where the pilot saw the gap and none is lost to
+ * a wall, as most picks on the source behind it are; a thin gap fills a stratum
+ * only in part, where the picks do better (docs/cache.md, "Guided gathers").
+ * Point i's row is index[i] (index NULL: row i); a row that saw no light falls
+ * back to the picks by power alone. Back ends without noise ignore the guide, as
+ * they ignore toward_source. */
 typedef struct samp_guide {
     uint32_t rays;          /* the pilot's rays a point: k², k = 2..64 */
     const float *stratum;   /* rows × rays: samp_source_hits.stratum */

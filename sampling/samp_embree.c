@@ -14,8 +14,9 @@
  * barycentrics (found through a grid per scene triangle, built per call). A ray
  * that leaves the scene, or meets the back of a surface, brings nothing. For a
  * receiver marked toward_source (samp.h), about half the rays go instead to
- * points of the mesh picked by power, combined with the cosine rays by multiple
- * importance sampling (indirect_one).
+ * points of the mesh picked by power and, with a guide (samp_guide), to the
+ * strata of the receiver's pilot that saw light, combined with the cosine rays
+ * by multiple importance sampling (indirect_one).
  *
  * Random numbers: a point's stream is seeded by (seed, light, the bits of its
  * position and normal), so a value depends on the point alone, not on the batch
@@ -143,19 +144,6 @@ static void acc(double sum[3], double sum2[3], const float L[3], double scale)
     }
 }
 
-/* k×k rays a point from random stream `pass` (0: the plain gather's); std_err:
- * the standard error of E per channel, from the rays' sample variance (the
- * strata ignored, so it errs high), or NULL.
- *
- * Two strategies, combined by the balance heuristic (Veach 1997, §9.2): about
- * half the rays cosine-weighted in strata (pdf cosθ_x/π), the rest toward points
- * of the source picked by power (the index's pick table: area density
- * pick_density, pdf pick_density·r²/cosθ_y in solid angle), each sample worth
- * f/(N_c·p_c + N_p·p_p), f = L·cosθ_x. Light that comes through a gap (a door
- * ajar, the slot test's slit) is a few per cent of the hemisphere, which cosine
- * rays find by chance; the picks go to the bright source behind it, and those
- * the gap lets through count. Otherwise, and without a pick table (the source
- * sends nothing, or no memory), all rays are cosine-weighted, E = π/N·Σ L(hit). */
 /* The guided picks of one point (samp_guide): over the pilot's k × k strata, the
  * cumulative share of each (last = 1) and its share × k² (the guided pdf over
  * the cosine pdf in that stratum: both map the stratum's square alike). */
@@ -218,6 +206,53 @@ static double guide_ratio(const guide_picks *g, float u, float v)
     return g->ratio[b * g->k + a];
 }
 
+/* The unit-square sample (u, v) of samp_frame_cosine that gives direction d. */
+static void frame_square(const samp_frame *f, lm_vec3 d, float *u, float *v)
+{
+    const float lx = v3_dot(d, f->t1), ly = v3_dot(d, f->t2);
+    *u = fminf(lx * lx + ly * ly, 1.0f);
+    float phi = atan2f(ly, lx) / (2.0f * (float)M_PI);
+    *v = phi < 0.0f ? phi + 1.0f : phi;
+}
+
+/* The rays of one gather by strategy and what each strategy's pdf is at a
+ * sample, for the balance heuristic: a sample of strategy q with integrand
+ * f = L·cosθ_x is worth N_q·f / Σ_j N_j·p_j, averaged over strategy q's N_q. */
+typedef struct mix {
+    double N[3];         /* cosine, guided, by power */
+    const guide_picks *gp; /* or NULL */
+    const samp_radiance_index *ix;
+} mix;
+
+/* Σ_j N_j·p_j for a direction at cos_x from the normal and at the unit-square
+ * sample (u, v), meeting radiance-mesh triangle sub (UINT32_MAX: none) at
+ * distance t with cos_y there. */
+static double mix_density(const mix *mx, double cos_x, float u, float v, uint32_t sub, double t, double cos_y)
+{
+    double d = mx->N[0] * cos_x / M_PI;
+    if (mx->N[1] > 0.0) d += mx->N[1] * guide_ratio(mx->gp, u, v) * cos_x / M_PI;
+    if (mx->N[2] > 0.0 && sub != UINT32_MAX && cos_y > 0.0) d += mx->N[2] * (double)mx->ix->pick_density[sub] * t * t / cos_y;
+    return d;
+}
+
+/* k×k rays a point from random stream `pass` (0: the plain gather's); std_err:
+ * the standard error of E per channel, from each strategy's sample variance (the
+ * strata ignored, so it errs high), or NULL.
+ *
+ * Up to three strategies, combined by the balance heuristic (Veach 1997, §9.2):
+ * cosine-weighted rays in strata (pdf cosθ_x/π); for a receiver marked
+ * toward_source, about half the rays go elsewhere: with a guide (samp_guide),
+ * half of those to the strata where its pilot saw light (pdf r_s·cosθ_x/π, r_s
+ * the stratum's share × k²) and half toward points of the source picked by power
+ * (the index's pick table: area density pick_density, pdf pick_density·r²/cosθ_y
+ * in solid angle); without one, all of them by power. Light that comes through a
+ * gap (a door ajar, the slot test's slit) is a few per cent of the hemisphere,
+ * which cosine rays find by chance. The guided rays go where the pilot saw the
+ * gap and none is lost to a wall, but a thin gap fills a stratum only in part;
+ * the picks by power go to the bright source behind it, and count where the gap
+ * lets them through: each covers the other's weakness (the slot test). Otherwise,
+ * and without a pick table (the source sends nothing, or no memory), all rays are
+ * cosine-weighted, E = π/N·Σ L(hit). */
 static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_radiance_index *ix,
                          const samp_point *x, const samp_guide *gd, uint32_t row, int k, uint32_t pass, float E[3],
                          float *std_err)
@@ -230,11 +265,13 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     const scene *s = e->s;
     guide_picks gp = {0};
     const int guided = x->toward_source && gd && guide_picks_make(gd, row, &gp);
-    int kc = x->toward_source && (guided || ix->pick_cdf) ? (int)lround(k / 1.4142135623730951) : k;
+    const int by_power = x->toward_source && ix->pick_cdf != NULL;
+    int kc = guided || by_power ? (int)lround(k / 1.4142135623730951) : k;
     kc = kc < 1 ? 1 : kc;
-    const int np = k * k - kc * kc;
-    const double Nc = (double)kc * kc, Np = np;
-    double sum[2][3] = {{0}}, sum2[2][3] = {{0}};
+    const int rest = k * k - kc * kc;
+    const int ng = guided ? (by_power ? (rest + 1) / 2 : rest) : 0, npw = rest - ng;
+    const mix mx = {{(double)kc * kc, ng, npw}, guided ? &gp : NULL, ix};
+    double sum[3][3] = {{0}}, sum2[3][3] = {{0}};
     for (int j = 0; j < kc; ++j)
         for (int i = 0; i < kc; ++i) {
             const float u = (i + lm_rng_float(&g)) / kc, v = (j + lm_rng_float(&g)) / kc;
@@ -247,18 +284,15 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
             const float cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)h.tri), d);
             if (!(cos_y > 0.0f)) continue;
             float L[3];
-            uint32_t sub = samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
-            const double cos_x = v3_dot(d, f.n), pc = cos_x / M_PI;
-            const double pp = !np           ? 0.0
-                              : guided        ? guide_ratio(&gp, u, v) * pc
-                              : sub != UINT32_MAX ? (double)ix->pick_density[sub] * h.t * h.t / cos_y
-                                              : 0.0;
+            const uint32_t sub = samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
+            const double cos_x = v3_dot(d, f.n);
             if (!(cos_x > 0.0)) continue;
-            acc(sum[0], sum2[0], L, Nc * cos_x / (Nc * pc + Np * pp));
+            const double D = mix_density(&mx, cos_x, u, v, sub, h.t, cos_y);
+            acc(sum[0], sum2[0], L, mx.N[0] * cos_x / D);
         }
-    for (int j = 0; guided && j < np; ++j) {
+    for (int j = 0; j < ng; ++j) {
         /* A stratum of the pilot's grid by the guide, a point uniform in its square. */
-        const double w = (j + lm_rng_float(&g)) / np;
+        const double w = (j + lm_rng_float(&g)) / ng;
         const uint32_t q = samp_cdf_pick(gp.cdf, (uint32_t)(gp.k * gp.k), w < 1.0 ? w : 0.9999999999);
         const float u = ((float)(q % (uint32_t)gp.k) + lm_rng_float(&g)) / (float)gp.k;
         const float v = ((float)(q / (uint32_t)gp.k) + lm_rng_float(&g)) / (float)gp.k;
@@ -270,13 +304,14 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
         const float cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)h.tri), d);
         if (!(cos_y > 0.0f)) continue;
         float L[3];
-        samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
-        const double cos_x = v3_dot(d, f.n), pc = cos_x / M_PI, pp = (double)gp.ratio[q] * pc;
+        const uint32_t sub = samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
+        const double cos_x = v3_dot(d, f.n);
         if (!(cos_x > 0.0)) continue;
-        acc(sum[1], sum2[1], L, Np * cos_x / (Nc * pc + Np * pp));
+        const double D = mix_density(&mx, cos_x, u, v, sub, h.t, cos_y);
+        acc(sum[1], sum2[1], L, mx.N[1] * cos_x / D);
     }
-    for (int j = 0; !guided && j < np; ++j) {
-        const double u = (j + lm_rng_float(&g)) / np;
+    for (int j = 0; j < npw; ++j) {
+        const double u = (j + lm_rng_float(&g)) / npw;
         const float a = lm_rng_float(&g), b = lm_rng_float(&g);
         uint32_t t;
         float w1, w2;
@@ -302,17 +337,18 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
             continue;
         float L[3];
         samp_radiance_at(m, ix, t, w1, w2, L);
-        const double pc = cos_x / M_PI, pp = (double)ix->pick_density[sub] * (double)r * r / cos_y;
-        acc(sum[1], sum2[1], L, Np * cos_x / (Nc * pc + Np * pp));
+        float us = 0.0f, vs = 0.0f;
+        if (guided) frame_square(&f, d, &us, &vs);
+        const double D = mix_density(&mx, cos_x, us, vs, sub, r, cos_y);
+        acc(sum[2], sum2[2], L, mx.N[2] * cos_x / D);
     }
     for (int c = 0; c < 3; ++c) {
         double v = 0.0, var = 0.0;
-        const double N[2] = {Nc, Np};
-        for (int q = 0; q < 2; ++q) {
-            if (!(N[q] > 0.0)) continue;
-            const double mean = sum[q][c] / N[q];
+        for (int q = 0; q < 3; ++q) {
+            if (!(mx.N[q] > 0.0)) continue;
+            const double mean = sum[q][c] / mx.N[q];
             v += mean;
-            var += fmax(sum2[q][c] / N[q] - mean * mean, 0.0) / (N[q] > 1.0 ? N[q] - 1.0 : 1.0);
+            var += fmax(sum2[q][c] / mx.N[q] - mean * mean, 0.0) / (mx.N[q] > 1.0 ? mx.N[q] - 1.0 : 1.0);
         }
         E[c] = isfinite(v) ? (float)v : 0.0f;
         if (std_err) std_err[c] = isfinite(var) ? (float)sqrt(var) : 0.0f;

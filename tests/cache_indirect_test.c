@@ -274,10 +274,9 @@ static void test_slot(void)
      * standard errors of the 65,536-ray value), and less noisy here, where the
      * light comes through the slit: measured variance summed over the receivers
      * 0.43 of the cosine gathers'. Guided by a pilot of the same point
-     * (samp_guide: the second half of the rays to the strata where the pilot saw
-     * light), unbiased too, and 0.30 of the cosine gathers' (most receivers 5-20
-     * times less than with the picks by power; where the slit shows the far
-     * room's hot spot by the lamp, within a stratum, about as noisy). */
+     * (samp_guide: a quarter of the rays to the strata where the pilot saw light,
+     * a quarter by power), unbiased too, and 0.21 of the cosine gathers' (0.30
+     * with the guided strata alone, which a slit fills only in part). */
     double var_sum[3] = {0, 0, 0};
     static uint32_t pilot_count[1], pilot_tri[256];
     static float pilot_weight[256], pilot_stratum[256];
@@ -308,7 +307,8 @@ static void test_slot(void)
     printf("slot: 256-ray gathers' variance summed over the receivers: cosine %.3g, toward the source %.3g (%.2f), guided %.3g (%.2f)\n",
            var_sum[0], var_sum[1], var_sum[1] / var_sum[0], var_sum[2], var_sum[2] / var_sum[0]);
     CHECK_MSG(var_sum[1] < 0.7 * var_sum[0], "toward the source %.3g against cosine %.3g", var_sum[1], var_sum[0]);
-    CHECK_MSG(var_sum[2] < 0.5 * var_sum[0], "guided %.3g against cosine %.3g", var_sum[2], var_sum[0]);
+    CHECK_MSG(var_sum[2] < 0.35 * var_sum[0] && var_sum[2] < 0.8 * var_sum[1], "guided %.3g against cosine %.3g, by power %.3g",
+              var_sum[2], var_sum[0], var_sum[1]);
     cache_stats st;
     cache_get_stats(c, &st);
     printf("slot: %u receivers; E_i from the cache's source worst %.2f%% off the exact source (coarse cache's source: "

@@ -523,16 +523,19 @@ static float gather_sigma(double var, double strat, double N)
 }
 
 /* From point i's pilot: the variance of one ray of a gather guided by it
- * (samp_guide: half the rays cosine-weighted, half to the pilot's strata in
- * proportion to the brightest each or a neighbour saw; balance heuristic), RGB;
- * 0 when the pilot saw no light. With q = (p_c + p_g)/2 and N/2 rays of each kind
- * the estimate's variance is (Var_c(f/q) + Var_g(f/q)) / (2N), and in stratum s
- * p_g/p_c is its share of the guide × k², r_s, so both moments come from the
- * pilot's rays, one a stratum. Light uniform over a fraction p of the hemisphere,
- * found exactly: 2p(1 − p)/(1 + p)²·E² against the cosine rays' (1 − p)/p·E².
- * Its rays are the strata's only samples, so where light fills part of a stratum
- * it errs low: the value kept is never below the gather's own sample error
- * (gather_chunk_levels). Mirrors samp_embree.c's guide_picks_make. */
+ * (samp_embree.c's indirect_one with a samp_guide: a fraction f_c ≈ ½ of the rays
+ * cosine-weighted, f_g ≈ ¼ to the pilot's strata in proportion to the brightest
+ * each or a neighbour saw, the rest toward the source by power; balance
+ * heuristic), RGB; 0 when the pilot saw no light. With q = Σ_j f_j·p_j the
+ * estimate's variance is Σ_j f_j·Var_j(f/q) / N, and in stratum s p_g/p_c is its
+ * share of the guide × k², r_s, so the cosine and guided moments come from the
+ * pilot's rays, one a stratum; the picks by power are left out of q (their pdf
+ * is not in the pilot), which errs high, and out of the sum, which errs low.
+ * Light uniform over a fraction p of the hemisphere, found exactly: about 8p·E²
+ * against the cosine rays' (1 − p)/p·E². Its rays are the strata's only
+ * samples, so where light fills part of a stratum it errs low: the value kept is
+ * never below the gather's own sample error (gather_chunk_levels). Mirrors
+ * samp_embree.c's guide_picks_make. */
 static void pilot_guided_var(const cache *c, uint32_t i, double var[3])
 {
     const cache_source_state *st = &c->src;
@@ -560,15 +563,16 @@ static void pilot_guided_var(const cache *c, uint32_t i, double var[3])
     double pv[3], ps[3];
     pilot_moments(c, i, e, pv, ps);
     const double emean = ((double)e[0] + e[1] + e[2]) / 3.0;
+    const double fc = 0.5, fg = 0.25;
     double m1c = 0, m2c = 0, m1g = 0, m2g = 0;
     for (int q = 0; q < RAYS; ++q) {
-        const double r = mass[q] / total * RAYS, yq = y[q] * 2.0 / (1.0 + r); /* f/q over p_c: π·L·p_c/q */
+        const double r = mass[q] / total * RAYS, yq = y[q] / (fc + fg * r); /* f/q over p_c: π·L·p_c/q */
         m1c += yq / RAYS;
         m2c += yq * yq / RAYS;
         m1g += r * yq / RAYS;
         m2g += r * yq * yq / RAYS;
     }
-    const double v = 0.5 * (fmax(m2c - m1c * m1c, 0.0) + fmax(m2g - m1g * m1g, 0.0));
+    const double v = fc * fmax(m2c - m1c * m1c, 0.0) + fg * fmax(m2g - m1g * m1g, 0.0);
     for (int ch = 0; ch < 3; ++ch) var[ch] = emean > 0.0 ? v * ((double)e[ch] / emean) * ((double)e[ch] / emean) : v;
 }
 
