@@ -546,10 +546,18 @@ void cache_indirect_likely_sigma(const cache *c, uint32_t vid, float out[3]);
 /* Samples E_i at the given vertices (batched): gathered from kd·L_dd, and with
  * further bounces from kd·(L_dd + E_m/π) (c->indirect1, cache_bounces.c). */
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
+/* cache_sample_indirect with at least the rays vertex like[i] was last gathered
+ * with (MESH_VTABLE_NONE: no floor): an edge's midpoint, compared with its ends,
+ * as precise as they (refine_round). */
+lm_result cache_sample_indirect_like(cache *c, const uint32_t *vids, const uint32_t *like, uint32_t n, float *E,
+                                     lm_error *err);
 /* Is vertex vid on an edge of its triangle that no triangle continues (a mesh
  * boundary)? Gathers there start where the triangle's inside can be seen from
  * (samp_point_pull_inside; docs/cache.md, cause 4). */
 int cache_vertex_on_open_edge(const cache *c, uint32_t vid);
+/* The level vertex vid's displayed value was last gathered at (0: the plain
+ * count, or none; GATHER_SCALE times the rays a level). */
+int cache_gather_level(const cache *c, uint32_t vid);
 /* Could vertex vid's displayed value be gathered with more rays (cache_regather_finer)? */
 int cache_gather_can_refine(const cache *c, uint32_t vid);
 /* Displayed values gathered again with GATHER_SCALE times the rays they last had

@@ -540,6 +540,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     if (r != LM_OK || nl == 0) return r;
     /* Values at the midpoints that have none yet, in one batch. */
     cache_site sites[3 * ROUND_LEAVES];
+    uint32_t like[3 * ROUND_LEAVES]; /* indirect: the edge's end with the more rays */
     uint32_t ns = 0;
     for (uint32_t i = 0; i < nl; ++i) {
         const mesh_qnode *n = mesh_qmesh_node(m, leaves[i].node);
@@ -548,8 +549,10 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             if (mesh_qmesh_get_value(m, leaves[i].mid[k], tmp) == 1) continue;
             int dup = 0;
             for (uint32_t j = 0; j < ns && !dup; ++j) dup = sites[j].vid == leaves[i].mid[k];
-            if (!dup)
-                sites[ns++] = (cache_site){leaves[i].mid[k], n->tri, leaves[i].mw1[k], leaves[i].mw2[k], n->depth};
+            if (dup) continue;
+            const uint32_t a = n->v[k], b = n->v[(k + 1) % 3];
+            like[ns] = kind == KIND_INDIRECT && cache_gather_level(c, b) > cache_gather_level(c, a) ? b : a;
+            sites[ns++] = (cache_site){leaves[i].mid[k], n->tri, leaves[i].mw1[k], leaves[i].mw2[k], n->depth};
         }
     }
     float *vals = malloc(3 * (size_t)(ns ? ns : 1) * sizeof *vals);
@@ -575,7 +578,12 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             free(need);
         }
     } else if (r == LM_OK) {
-        r = cache_sample_indirect(c, vids, ns, vals, err);
+        /* A midpoint is compared with its edge's ends: gathered with at least the
+         * rays of the one with more, or the edges of leaves whose corners were
+         * gathered again for their noise (regather_noisy) are tested again with
+         * midpoints as noisy as before, and a real difference still passes as
+         * noise (the slot test, docs/cache.md "Guided gathers"). */
+        r = cache_sample_indirect_like(c, vids, like, ns, vals, err);
     }
     for (uint32_t i = 0; r == LM_OK && i < ns; ++i) r = mesh_qmesh_set_value(m, vids[i], vals + 3 * (size_t)i, err);
     free(vals);

@@ -383,31 +383,33 @@ lm_result cache_settle_source(cache *c, lm_error *err)
 
 /* ---- gathers ----------------------------------------------------------------------
  *
- * A displayed indirect value knows its noise, and its ray count is chosen before
- * it is sampled. A pilot of CACHE_IMPORTANCE_RAYS rays (samp_indirect_sources,
- * a stream of its own; the same trace records importance) says which source
- * triangles the point sees and how much of its hemisphere each fills; with their
- * mean radiance that gives the variance of one ray's radiance, hence the
- * standard error σ(N) = π·√(var/N) of an N-ray gather. The point is gathered in
- * one pass with the plain rays, or GATHER_SCALE or GATHER_SCALE² times as many
- * (the strata refined), the fewest for which E ± σ(N) cannot be told from E
- * through the tone map (GATHER_NOISE_JND of the JND). Chosen from the gather's
- * own first estimate instead, the count biased the values low: a gather whose
- * rays all missed a gap has E = σ = 0 and was never taken again, while lucky
- * ones were pulled back (docs/cache.md, cause 5); chosen from an independent
- * pilot the estimate is unbiased whatever the count. The σ kept per value is the
+ * A displayed indirect value knows its noise. A pilot of CACHE_IMPORTANCE_RAYS
+ * rays (samp_indirect_sources, a stream of its own; the same trace records
+ * importance) says which source triangles the point sees and how much of its
+ * hemisphere each fills; with their mean radiance that gives the variance of one
+ * ray's radiance, hence the standard error σ(N) = π·√(var/N) of an N-ray gather.
+ * The point is gathered with the plain rays (or the level its caller asks for:
+ * a midpoint as precise as its edge's ends, a value taken again), and
+ * cache_regather_finer takes it again with GATHER_SCALE times the rays, up to
+ * GATHER_FINER_LEVELS, where the cache's error estimate says its noise is still
+ * seen (cache_estimate.c). Choosing the first count up front instead (the fewest
+ * rays for which E ± σ could not be told from E through the tone map, up to 16×)
+ * spent the first seconds on precise values where the picture's structure was
+ * not there yet: the Veach door measured relMSE 0.54 / 0.28 at 2.3 / 3.5 s against
+ * 0.28 / 0.11 with the plain count first (docs/cache.md, "Guided gathers").
+ * Chosen from the gather's own estimate, a count biased the values low: a gather
+ * whose rays all missed a gap has E = σ = 0 and was never taken again, while
+ * lucky ones were pulled back (docs/cache.md, cause 5); the estimate's noise
+ * comes from the pilot, independent of the value. The σ kept per value is the
  * pilot's prediction for the rays taken (the gather's own sample variance is as
- * blind as its mean to a gap all its rays missed). cache_regather_finer takes a
- * value again at the next count, up to GATHER_FINER_LEVELS, where the cache's
- * error estimate says its noise is still seen (cache_estimate.c). */
-#define GATHER_NOISE_JND 0.5f
+ * blind as its mean to a gap all its rays missed). */
 /* A point whose pilot says its light comes through a gap is gathered toward the
  * source (samp_point.toward_source): when the variance of one pilot ray's π·L is
  * more than GATHER_GAP_RATIO times E² (light uniform over a fraction p of the
  * cosine-weighted hemisphere gives (1 − p)/p: a fifth of it or less), or the
  * pilot found no light at all. Elsewhere the stratified cosine rays are better. */
 #define GATHER_GAP_RATIO 4.0
-enum { GATHER_SCALE = 4, GATHER_LEVELS = 3, GATHER_FINER_LEVELS = 4 };
+enum { GATHER_SCALE = 4, GATHER_FINER_LEVELS = 4 };
 
 void cache_indirect_likely_sigma(const cache *c, uint32_t vid, float out[3])
 {
@@ -425,24 +427,6 @@ void cache_indirect_sigma(const cache *c, uint32_t vid, float out[3])
         return;
     }
     out[0] = out[1] = out[2] = 0.0f;
-}
-
-/* Could E ± σ be told from E at vertex vid? */
-static int noise_seen(const cache *c, uint32_t vid, const float e[3], const float sigma[3])
-{
-    float ldd[3], e0[3], up[3], down[3], lab0[3], lab1[3];
-    cache_vertex_direct(c, vid, ldd);
-    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
-    for (int k = 0; k < 3; ++k) {
-        e0[k] = fmaxf(e[k], 0.0f);
-        up[k] = e0[k] + sigma[k];
-        down[k] = fmaxf(e[k] - sigma[k], 0.0f);
-    }
-    cache_seen_lab(c, mv->tri, ldd, e0, NULL, lab0);
-    cache_seen_lab(c, mv->tri, ldd, up, NULL, lab1);
-    if (tm_delta_e(lab0, lab1) > GATHER_NOISE_JND * c->desc.jnd) return 1;
-    cache_seen_lab(c, mv->tri, ldd, down, NULL, lab1);
-    return tm_delta_e(lab0, lab1) > GATHER_NOISE_JND * c->desc.jnd;
 }
 
 /* The pilot trace of n ≤ CACHE_PILOT_CHUNK points into c->src.pilot_* (kept for
@@ -653,7 +637,7 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
         g.vids = vids + at;
         g.pts = pts + at;
         r = trace_pilot(c, g.vids, g.pts, g.m0, err);
-        /* The count: the fewest rays whose predicted error cannot be seen. */
+        /* Toward the source or not, the count asked for, and the noise predicted. */
         for (uint32_t i = 0; r == LM_OK && i < g.m0; ++i) {
             float e[3];
             double var[3], strat[3];
@@ -664,18 +648,14 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
                 pilot_guided_var(c, i, var);
                 memcpy(strat, var, sizeof strat);
             }
-            const uint8_t floor_level = min_level ? min_level[at + i] : 0;
-            for (int lv = 0; lv < GATHER_LEVELS || lv <= floor_level; ++lv) {
-                double N = (double)rays * pow(GATHER_SCALE, lv);
-                for (int k = 0; k < 3; ++k) {
-                    g.predicted[3 * (size_t)i + (size_t)k] = (float)sqrt(var[k] / N);
-                    g.likely[3 * (size_t)i + (size_t)k] = gather_sigma(var[k], strat[k], N);
-                }
-                g.level[i] = (uint8_t)lv;
-                if (lv < floor_level) continue;
-                if (!rays || lv + 1 >= GATHER_LEVELS || !noise_seen(c, g.vids[i], e, g.predicted + 3 * (size_t)i))
-                    break;
+            const int asked = min_level ? min_level[at + i] : 0;
+            const uint8_t lv = (uint8_t)(asked < GATHER_FINER_LEVELS ? asked : GATHER_FINER_LEVELS - 1);
+            const double N = (double)rays * pow(GATHER_SCALE, lv);
+            for (int k = 0; k < 3; ++k) {
+                g.predicted[3 * (size_t)i + (size_t)k] = (float)sqrt(var[k] / N);
+                g.likely[3 * (size_t)i + (size_t)k] = gather_sigma(var[k], strat[k], N);
             }
+            g.level[i] = lv;
         }
         if (r == LM_OK) r = gather_chunk_levels(c, &g, E + 3 * (size_t)at, err);
     }
@@ -744,6 +724,23 @@ static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_
 lm_result cache_sample_indirect(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err)
 {
     return gather(c, vids, n, NULL, E, err);
+}
+
+lm_result cache_sample_indirect_like(cache *c, const uint32_t *vids, const uint32_t *like, uint32_t n, float *E,
+                                     lm_error *err)
+{
+    if (n == 0) return LM_OK;
+    uint8_t *lv = malloc(n);
+    if (!lv) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
+    for (uint32_t i = 0; i < n; ++i) lv[i] = (uint8_t)cache_gather_level(c, like[i]);
+    lm_result r = gather(c, vids, n, lv, E, err);
+    free(lv);
+    return r;
+}
+
+int cache_gather_level(const cache *c, uint32_t vid)
+{
+    return vid < c->src.drift_cap ? c->src.gather_level[vid] : 0;
 }
 
 int cache_gather_can_refine(const cache *c, uint32_t vid)
