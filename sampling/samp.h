@@ -190,6 +190,12 @@ typedef struct samp_guide {
     const uint32_t *index;  /* per point: its row; or NULL */
 } samp_guide;
 
+/* The guide's mass of stratum (a, b) of a pilot's k × k strata (one row of
+ * samp_source_hits.stratum): the brightest value in it or its eight neighbours,
+ * non-finite as 0. What samp_indirect_guided picks strata by, for a caller that
+ * predicts its noise. */
+float samp_guide_mass(const float *stratum, int k, int a, int b);
+
 lm_result samp_indirect_guided(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                                uint32_t pass, uint32_t scale, const samp_guide *guide, float *E, float *std_err,
                                lm_error *err);

@@ -172,13 +172,7 @@ static int guide_picks_make(const samp_guide *gd, uint32_t row, guide_picks *out
     double total = 0.0;
     for (int b = 0; b < k; ++b)
         for (int a = 0; a < k; ++a) {
-            float m = 0.0f;
-            for (int db = -1; db <= 1; ++db)
-                for (int da = -1; da <= 1; ++da) {
-                    const int aa = a + da, bb = b + db;
-                    if (aa >= 0 && aa < k && bb >= 0 && bb < k) m = fmaxf(m, y[bb * k + aa]);
-                }
-            total += isfinite(m) ? m : 0.0;
+            total += samp_guide_mass(y, k, a, b);
             cdf[b * k + a] = total;
         }
     if (!(total > 0.0) || !isfinite(total)) {
@@ -235,6 +229,28 @@ static double mix_density(const mix *mx, double cos_x, float u, float v, uint32_
     return d;
 }
 
+/* One ray of strategy q along the unit-square sample (u, v) of frame f (a
+ * cosine or a guided ray: both map the square alike), its balance-heuristic
+ * sample added to sum[q], sum2[q]. A miss or a back brings nothing. */
+static void mix_ray(const embree_impl *e, const samp_radiance_mesh *m, const mix *mx, const samp_frame *f,
+                    const float origin[3], float u, float v, int q, double sum[3], double sum2[3])
+{
+    const scene *s = e->s;
+    const lm_vec3 d = samp_frame_cosine(f, u, v);
+    float dir[3];
+    v3_store(dir, d);
+    rt_hit h;
+    if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) return;
+    /* The back of a surface sends nothing: the mesh holds what leaves its front. */
+    const float cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)h.tri), d);
+    if (!(cos_y > 0.0f)) return;
+    float L[3];
+    const uint32_t sub = samp_radiance_at(m, mx->ix, h.tri, h.u, h.v, L);
+    const double cos_x = v3_dot(d, f->n);
+    if (!(cos_x > 0.0)) return;
+    acc(sum, sum2, L, mx->N[q] * cos_x / mix_density(mx, cos_x, u, v, sub, h.t, cos_y));
+}
+
 /* k×k rays a point from random stream `pass` (0: the plain gather's); std_err:
  * the standard error of E per channel, from each strategy's sample variance (the
  * strata ignored, so it errs high), or NULL.
@@ -275,20 +291,7 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     for (int j = 0; j < kc; ++j)
         for (int i = 0; i < kc; ++i) {
             const float u = (i + lm_rng_float(&g)) / kc, v = (j + lm_rng_float(&g)) / kc;
-            const lm_vec3 d = samp_frame_cosine(&f, u, v);
-            float dir[3];
-            v3_store(dir, d);
-            rt_hit h;
-            if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
-            /* The back of a surface sends nothing: the mesh holds what leaves its front. */
-            const float cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)h.tri), d);
-            if (!(cos_y > 0.0f)) continue;
-            float L[3];
-            const uint32_t sub = samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
-            const double cos_x = v3_dot(d, f.n);
-            if (!(cos_x > 0.0)) continue;
-            const double D = mix_density(&mx, cos_x, u, v, sub, h.t, cos_y);
-            acc(sum[0], sum2[0], L, mx.N[0] * cos_x / D);
+            mix_ray(e, m, &mx, &f, origin, u, v, 0, sum[0], sum2[0]);
         }
     for (int j = 0; j < ng; ++j) {
         /* A stratum of the pilot's grid by the guide, a point uniform in its square. */
@@ -296,19 +299,7 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
         const uint32_t q = samp_cdf_pick(gp.cdf, (uint32_t)(gp.k * gp.k), w < 1.0 ? w : 0.9999999999);
         const float u = ((float)(q % (uint32_t)gp.k) + lm_rng_float(&g)) / (float)gp.k;
         const float v = ((float)(q / (uint32_t)gp.k) + lm_rng_float(&g)) / (float)gp.k;
-        const lm_vec3 d = samp_frame_cosine(&f, u, v);
-        float dir[3];
-        v3_store(dir, d);
-        rt_hit h;
-        if (!rt_intersect(e->rt, origin, dir, 0.0f, INFINITY, &h)) continue;
-        const float cos_y = -v3_dot(v3_load(s->tri_normals + 3 * (size_t)h.tri), d);
-        if (!(cos_y > 0.0f)) continue;
-        float L[3];
-        const uint32_t sub = samp_radiance_at(m, ix, h.tri, h.u, h.v, L);
-        const double cos_x = v3_dot(d, f.n);
-        if (!(cos_x > 0.0)) continue;
-        const double D = mix_density(&mx, cos_x, u, v, sub, h.t, cos_y);
-        acc(sum[1], sum2[1], L, mx.N[1] * cos_x / D);
+        mix_ray(e, m, &mx, &f, origin, u, v, 1, sum[1], sum2[1]);
     }
     for (int j = 0; j < npw; ++j) {
         const double u = (j + lm_rng_float(&g)) / npw;

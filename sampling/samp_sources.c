@@ -29,6 +29,18 @@ typedef struct sources_job {
     int k; /* strata per side: k² ≤ rays */
 } sources_job;
 
+float samp_guide_mass(const float *stratum, int k, int a, int b)
+{
+    float m = 0.0f;
+    for (int db = -1; db <= 1; ++db)
+        for (int da = -1; da <= 1; ++da) {
+            const int aa = a + da, bb = b + db;
+            if (aa >= 0 && aa < k && bb >= 0 && bb < k && isfinite(stratum[bb * k + aa]))
+                m = fmaxf(m, stratum[bb * k + aa]);
+        }
+    return m;
+}
+
 static int cmp_u32(const void *a, const void *b)
 {
     uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;

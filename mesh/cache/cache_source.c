@@ -530,14 +530,8 @@ static void pilot_guided_var(const cache *c, uint32_t i, double var[3])
     double mass[RAYS], total = 0.0;
     for (int b = 0; b < k; ++b)
         for (int a = 0; a < k; ++a) {
-            float m = 0.0f;
-            for (int db = -1; db <= 1; ++db)
-                for (int da = -1; da <= 1; ++da) {
-                    const int aa = a + da, bb = b + db;
-                    if (aa >= 0 && aa < k && bb >= 0 && bb < k) m = fmaxf(m, y[bb * k + aa]);
-                }
-            mass[b * k + a] = m;
-            total += m;
+            mass[b * k + a] = samp_guide_mass(y, k, a, b);
+            total += mass[b * k + a];
         }
     var[0] = var[1] = var[2] = 0.0;
     if (!(total > 0.0)) return;
