@@ -413,9 +413,49 @@ static void first_image_light_budget(void)
     scene_destroy(s);
 }
 
+/* While indirect values are owed (the first image's borrowed ones, flagged by
+ * cache_regather_indirect), a refine call tests direct leaves beside gathering
+ * them, and no indirect leaf; with wait_for_indirect it tests none. */
+static void direct_while_indirect_owed(void)
+{
+    scene *s = load("startup_owed.xml",
+                    "  <shape type='sphere' id='ball'><point name='center' x='0.3' y='0.4' z='0'/>"
+                    "<float name='radius' value='0.4'/><ref id='white'/></shape>\n");
+    if (!s) return;
+    for (int wait = 0; wait < 2; ++wait) {
+        lm_error err;
+        samp_sampler *sp = NULL;
+        cache *c = NULL;
+        int ok = samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .seed = 3, .threads = 1}, &sp,
+                             &err) == LM_OK &&
+                 cache_create(&(cache_desc){.scene = s, .sampler = sp, .coarse_gathers = 64}, &c, &err) == LM_OK &&
+                 cache_init(c, &err) == LM_OK && cache_regather_indirect(c, &err) == LM_OK;
+        CHECK_MSG(ok, "%s", err.msg);
+        if (ok) {
+            cache_stats before, after;
+            cache_get_stats(c, &before);
+            cache_refine_result res = {0};
+            CHECK(cache_refine(c, &(cache_refine_desc){.budget = 16, .regather = 16, .wait_for_indirect = wait}, &res,
+                               &err) == LM_OK);
+            cache_get_stats(c, &after);
+            printf("indirect values owed (%u left after the call), %s: %u leaves tested; splits tried: %llu direct, %llu indirect\n",
+                   res.outdated, wait ? "waiting for them" : "direct meanwhile", res.tested,
+                   (unsigned long long)(after.direct.mesh.splits - before.direct.mesh.splits),
+                   (unsigned long long)(after.indirect.mesh.splits - before.indirect.mesh.splits));
+            CHECK(res.outdated > 0);
+            CHECK(after.indirect.mesh.splits == before.indirect.mesh.splits);
+            CHECK(wait ? res.tested == 0 : res.tested > 0 && after.direct.mesh.splits > before.direct.mesh.splits);
+        }
+        cache_destroy(c);
+        samp_destroy(sp);
+    }
+    scene_destroy(s);
+}
+
 int main(void)
 {
     first_image_budget();
+    direct_while_indirect_owed();
     first_image_light_budget();
     scene *room = load("startup_room.xml", ""), *boxed = load("startup_boxed.xml", BOX_XML);
     if (!room || !boxed) return test_finish("startup_test");
