@@ -520,7 +520,7 @@ static float gather_sigma(double var, double strat, double N)
  * samples, so where light fills part of a stratum it errs low: the value kept is
  * never below the gather's own sample error (gather_chunk_levels). Mirrors
  * samp_embree.c's guide_picks_make. */
-static void pilot_guided_var(const cache *c, uint32_t i, double var[3])
+static void pilot_guided_var(const cache *c, uint32_t i, const float e[3], double var[3])
 {
     const cache_source_state *st = &c->src;
     enum { RAYS = CACHE_IMPORTANCE_RAYS };
@@ -536,10 +536,7 @@ static void pilot_guided_var(const cache *c, uint32_t i, double var[3])
     var[0] = var[1] = var[2] = 0.0;
     if (!(total > 0.0)) return;
     /* The pilot's RGB in each stratum is not kept: the channels scale with the
-     * pilot's mean colour (E's), the luminance-like mean the strata hold. */
-    float e[3];
-    double pv[3], ps[3];
-    pilot_moments(c, i, e, pv, ps);
+     * pilot's mean colour (e, pilot_moments'), the luminance-like mean the strata hold. */
     const double emean = ((double)e[0] + e[1] + e[2]) / 3.0;
     const double fc = 0.5, fg = 0.25;
     double m1c = 0, m2c = 0, m1g = 0, m2g = 0;
@@ -608,10 +605,10 @@ static lm_result gather_chunk_levels(cache *c, gather_chunk *g, float *E, lm_err
     return r;
 }
 
-/* The displayed indirect at the points, each with the rays its noise needs, and
- * at least GATHER_SCALE^min_level[i] times the plain count (min_level NULL: 0).
- * A chunk at a time: the pilot of CACHE_PILOT_CHUNK points (why: trace_pilot)
- * chooses their counts and guides their gathers toward the source. */
+/* The displayed indirect at the points, each with GATHER_SCALE^min_level[i] times
+ * the plain count (min_level NULL: the plain count). A chunk at a time: the pilot
+ * of CACHE_PILOT_CHUNK points (why: trace_pilot) predicts their noise, says which
+ * go toward the source and guides those. */
 static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_point *pts, uint32_t n,
                                   const uint8_t *min_level, float *E, lm_error *err)
 {
@@ -639,7 +636,7 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
             const double esum = (double)e[0] + e[1] + e[2], vsum = var[0] + var[1] + var[2];
             g.toward[i] = !(esum > 0.0) || vsum > GATHER_GAP_RATIO * esum * esum;
             if (g.toward[i] && esum > 0.0) { /* guided: its own variance, for every count */
-                pilot_guided_var(c, i, var);
+                pilot_guided_var(c, i, e, var);
                 memcpy(strat, var, sizeof strat);
             }
             const int asked = min_level ? min_level[at + i] : 0;
