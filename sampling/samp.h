@@ -113,8 +113,10 @@ typedef struct samp_point {
     float n[3];
     uint32_t tri_plus_one;
     /* Indirect gathers of the Embree back end: 0 casts every ray cosine-weighted;
-     * non-zero sends about half of them toward points of the radiance mesh picked
-     * by power, combined by multiple importance sampling (samp_embree.c). For a
+     * non-zero sends three quarters of them (SAMP_TOWARD_COSINE_SHARE) toward points
+     * of the radiance mesh picked by power, combined by multiple importance
+     * sampling (samp_embree.c), and with a guide half of those to the guide's
+     * strata (samp_indirect_guided). For a
      * receiver whose light comes through a gap (the caller knows from a pilot):
      * the cosine rays find a gap by chance, the picks go to what shines behind it.
      * Where the light comes from most of the hemisphere the stratified cosine rays
@@ -172,7 +174,7 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
                               uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err);
 /* samp_indirect_noise with a guide for the points marked toward_source: what a
  * pilot of the same point saw in each stratum of its cosine-weighted hemisphere
- * (samp_source_hits.stratum). Of the half of their rays that do not go
+ * (samp_source_hits.stratum). Of the three quarters of their rays that do not go
  * cosine-weighted, half go to strata of the pilot's grid picked in proportion to
  * the brightest the pilot saw in the stratum or its eight neighbours (uniform in
  * the stratum's square, mapped as the cosine rays are), and half toward points of
@@ -184,6 +186,24 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
  * Point i's row is index[i] (index NULL: row i); a row that saw no light falls
  * back to the picks by power alone. Back ends without noise ignore the guide, as
  * they ignore toward_source. */
+/* The shares of a toward_source point's rays: SAMP_TOWARD_COSINE_SHARE of them
+ * cosine-weighted in strata (the nearest square count), and of the rest
+ * SAMP_TOWARD_GUIDED_SHARE to the guide's strata when there is a guide, the
+ * others by power. A caller that predicts the noise mirrors them (the cache's
+ * pilot_guided_var). A quarter, not a half, cosine-weighted: where a point goes
+ * toward the source its pilot saw light from a fifth of the hemisphere or less,
+ * which most cosine rays miss; the slot test's 256-ray variance went from 0.22
+ * to 0.13 of all-cosine rays, the Veach door's relMSE at 10 s from 0.0025-0.0031
+ * to 0.0017 (docs/cache.md, "A quarter of the rays cosine-weighted"). */
+#define SAMP_TOWARD_COSINE_SHARE 0.25
+#define SAMP_TOWARD_GUIDED_SHARE 0.5
+
+/* How a toward_source point of k × k rays splits them: kc × kc cosine-weighted
+ * in strata, ng to the guide's strata (0 without a guide) and npw by power (0
+ * without picks): the shares above, rounded as samp_indirect_guided rounds them
+ * (at 4 rays 1, 2 and 1). For a caller that predicts the noise. */
+void samp_toward_split(int k, int guided, int by_power, int *kc, int *ng, int *npw);
+
 typedef struct samp_guide {
     uint32_t rays;          /* the pilot's rays a point: k², k = 2..64 */
     const float *stratum;   /* rows × rays: samp_source_hits.stratum */

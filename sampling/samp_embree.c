@@ -13,7 +13,7 @@
  * interpolated in the coarse radiance mesh's sub-triangle that contains the hit's
  * barycentrics (found through a grid per scene triangle, built per call). A ray
  * that leaves the scene, or meets the back of a surface, brings nothing. For a
- * receiver marked toward_source (samp.h), about half the rays go instead to
+ * receiver marked toward_source (samp.h), three quarters of the rays go instead to
  * points of the mesh picked by power and, with a guide (samp_guide), to the
  * strata of the receiver's pilot that saw light, combined with the cosine rays
  * by multiple importance sampling (indirect_one).
@@ -257,9 +257,10 @@ static void mix_ray(const embree_impl *e, const samp_radiance_mesh *m, const mix
  *
  * Up to three strategies, combined by the balance heuristic (Veach 1997, §9.2):
  * cosine-weighted rays in strata (pdf cosθ_x/π); for a receiver marked
- * toward_source, about half the rays go elsewhere: with a guide (samp_guide),
- * half of those to the strata where its pilot saw light (pdf r_s·cosθ_x/π, r_s
- * the stratum's share × k²) and half toward points of the source picked by power
+ * toward_source, three quarters of the rays go elsewhere (SAMP_TOWARD_COSINE_SHARE):
+ * with a guide (samp_guide), half of those to the strata where its pilot saw
+ * light (pdf r_s·cosθ_x/π, r_s the stratum's share × k²) and half toward points
+ * of the source picked by power
  * (the index's pick table: area density pick_density, pdf pick_density·r²/cosθ_y
  * in solid angle); without one, all of them by power. Light that comes through a
  * gap (a door ajar, the slot test's slit) is a few per cent of the hemisphere,
@@ -269,6 +270,16 @@ static void mix_ray(const embree_impl *e, const samp_radiance_mesh *m, const mix
  * lets them through: each covers the other's weakness (the slot test). Otherwise,
  * and without a pick table (the source sends nothing, or no memory), all rays are
  * cosine-weighted, E = π/N·Σ L(hit). */
+void samp_toward_split(int k, int guided, int by_power, int *kc, int *ng, int *npw)
+{
+    int c = guided || by_power ? (int)lround(k * sqrt(SAMP_TOWARD_COSINE_SHARE)) : k;
+    c = c < 1 ? 1 : c;
+    const int rest = k * k - c * c;
+    *kc = c;
+    *ng = guided ? (by_power ? (int)lround(rest * SAMP_TOWARD_GUIDED_SHARE) : rest) : 0;
+    *npw = rest - *ng;
+}
+
 static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_radiance_index *ix,
                          const samp_point *x, const samp_guide *gd, uint32_t row, int k, uint32_t pass, float E[3],
                          float *std_err)
@@ -282,10 +293,8 @@ static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, cons
     guide_picks gp = {0};
     const int guided = x->toward_source && gd && guide_picks_make(gd, row, &gp);
     const int by_power = x->toward_source && ix->pick_cdf != NULL;
-    int kc = guided || by_power ? (int)lround(k / 1.4142135623730951) : k;
-    kc = kc < 1 ? 1 : kc;
-    const int rest = k * k - kc * kc;
-    const int ng = guided ? (by_power ? (rest + 1) / 2 : rest) : 0, npw = rest - ng;
+    int kc, ng, npw;
+    samp_toward_split(k, guided, by_power, &kc, &ng, &npw);
     const mix mx = {{(double)kc * kc, ng, npw}, guided ? &gp : NULL, ix};
     double sum[3][3] = {{0}}, sum2[3][3] = {{0}};
     for (int j = 0; j < kc; ++j)

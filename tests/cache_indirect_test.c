@@ -11,23 +11,26 @@
  *     exact, cut 64² times finer than the scene's triangles). Measured 2.0%: the
  *     source is refined to the JND, about 2.5% at these levels. The coarse
  *     cache's source is wrong there by more than 5%, so the check can fail;
- *   - the cache's own E_i (its gathers interpolated): within 30% (measured
+ *   - the cache's own E_i (its gathers interpolated): within 25% (measured
  *     13.5-15.5% at worst from run to run, 19% since the rounds are shared by
- *     cost, 19.5% with the gathers toward the source; the issue's target, 5%, is
- *     not met yet: the worst receivers' leaves have corners within 5% of the
- *     exact values and midpoints 27% off the linear interpolation, which the
- *     gathers' noise hides: σ 35-65% at 256 rays, 10-30% at the last level;
- *     docs/cache.md, "Gathers toward the source"). Measured when the edge tests
- *     have settled, before the finer gathers (which cost 6× the samples here
- *     and do not help);
+ *     cost, 19.5% with the gathers toward the source, 23.3% with the plain count
+ *     first, 17.7% with a quarter of the guided rays cosine-weighted; the
+ *     issue's target, 5%, is not met yet: the worst receivers' leaves have
+ *     corners within 5% of the exact values and midpoints 10-27% off the linear
+ *     interpolation, which the gathers' noise hides: σ 17-40% at 256 rays;
+ *     docs/cache.md, "Gathers toward the source" and "A quarter of the rays
+ *     cosine-weighted"). Measured when the edge tests have settled, before the
+ *     finer gathers (which cost 6× the samples here and do not help);
  *   - gathers toward the source (samp_point.toward_source, MIS with points
  *     picked by power) at the receivers: unbiased (32 gathers' mean within 4
  *     standard errors of the 65,536-ray value) and, through the slit, less noisy
- *     than the cosine rays (variance 0.44 of theirs, required below 0.7).
+ *     than the cosine rays (variance 0.23 of theirs, required below 0.5).
  * The error estimate (cache_estimate_error) against the error: the same box's
  * floor with 4, 64 and 1024 rays a gather, against 65,536-ray gathers from the
- * cache's own source; within 2× either way (measured 1.42/0.92, 0.61/0.43,
- * 0.31/0.44), and "converged" only with the measured error below the JND.
+ * cache's own source; within 2× either way (estimated/measured 5.83/3.41,
+ * 1.13/0.92, 0.57/0.43; with interpolation and noise added instead of in
+ * quadrature 7.34/3.41 at 4 rays), and "converged" only with the measured error
+ * below the JND.
  * Noise alone does not refine: a closed box whose floor has only indirect light
  * (smooth), the floor the only thing seen, gathered with 16 rays (one gather's
  * noise moves the floor's colour by ΔE 8, measured here and required above 2),
@@ -265,18 +268,20 @@ static void test_slot(void)
         source_worst = fmax(source_worst, src);
         CHECK_MSG(src <= 0.03, "receiver %u at (%.2f %.2f %.2f): from the cache's source %.5g, exact source %.5g (%.2f%%)",
                   i, pts[i].p[0], pts[i].p[1], pts[i].p[2], got[3 * i], want[3 * i], 100.0 * src);
-        CHECK_MSG(rel <= 0.30, "receiver %u at (%.2f %.2f %.2f): cache %.5g, brute force %.5g (%.1f%%)", i, pts[i].p[0],
+        CHECK_MSG(rel <= 0.25, "receiver %u at (%.2f %.2f %.2f): cache %.5g, brute force %.5g (%.1f%%)", i, pts[i].p[0],
                   pts[i].p[1], pts[i].p[2], e[0], want[3 * i], 100.0 * rel);
     }
-    /* Gathers toward the source (samp_point.toward_source: half the rays to points
-     * of the source picked by power, combined by MIS) against cosine-weighted ones:
-     * 32 gathers of 256 rays at each receiver. Unbiased (their mean within 4
-     * standard errors of the 65,536-ray value), and less noisy here, where the
-     * light comes through the slit: measured variance summed over the receivers
-     * 0.43 of the cosine gathers'. Guided by a pilot of the same point
-     * (samp_guide: a quarter of the rays to the strata where the pilot saw light,
-     * a quarter by power), unbiased too, and 0.21 of the cosine gathers' (0.30
-     * with the guided strata alone, which a slit fills only in part). */
+    /* Gathers toward the source (samp_point.toward_source: three quarters of the
+     * rays to points of the source picked by power, combined by MIS) against
+     * cosine-weighted ones: 32 gathers of 256 rays at each receiver. Unbiased
+     * (their mean within 4 standard errors of the 65,536-ray value), and less
+     * noisy here, where the light comes through the slit: measured variance
+     * summed over the receivers 0.22-0.24 of the cosine gathers' (0.41-0.43 with
+     * half the rays cosine-weighted). Guided by a pilot of the same point
+     * (samp_guide: ⅜ of the rays to the strata where the pilot saw light, ⅜ by
+     * power), unbiased too, and 0.13-0.14 of the cosine gathers' (0.21-0.22 with
+     * half the rays cosine-weighted, 0.30 with the guided strata alone, which a
+     * slit fills only in part). */
     double var_sum[3] = {0, 0, 0};
     static uint32_t pilot_count[1], pilot_tri[256];
     static float pilot_weight[256], pilot_stratum[256];
@@ -307,8 +312,8 @@ static void test_slot(void)
     }
     printf("slot: 256-ray gathers' variance summed over the receivers: cosine %.3g, toward the source %.3g (%.2f), guided %.3g (%.2f)\n",
            var_sum[0], var_sum[1], var_sum[1] / var_sum[0], var_sum[2], var_sum[2] / var_sum[0]);
-    CHECK_MSG(var_sum[1] < 0.7 * var_sum[0], "toward the source %.3g against cosine %.3g", var_sum[1], var_sum[0]);
-    CHECK_MSG(var_sum[2] < 0.35 * var_sum[0] && var_sum[2] < 0.8 * var_sum[1], "guided %.3g against cosine %.3g, by power %.3g",
+    CHECK_MSG(var_sum[1] < 0.5 * var_sum[0], "toward the source %.3g against cosine %.3g", var_sum[1], var_sum[0]);
+    CHECK_MSG(var_sum[2] < 0.2 * var_sum[0] && var_sum[2] < 0.8 * var_sum[1], "guided %.3g against cosine %.3g, by power %.3g",
               var_sum[2], var_sum[0], var_sum[1]);
     cache_stats st;
     cache_get_stats(c, &st);

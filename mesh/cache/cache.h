@@ -156,8 +156,10 @@ typedef struct cache_mesh_estimate {
     double pixels;            /* pixels this mesh's visible leaves cover */
     double interpolation;     /* pixel-weighted mean ΔE */
     double noise;             /* pixel-weighted mean ΔE */
-    double max;               /* the largest leaf's interpolation + noise */
-    double pixels_above_jnd;  /* pixels in leaves whose interpolation + noise exceeds the JND */
+    double combined;          /* pixel-weighted mean of each leaf's √(interpolation² + noise²): the
+                                 two are independent (a leaf's fixed shape, its values' noise) */
+    double max;               /* the largest leaf's combined ΔE */
+    double pixels_above_jnd;  /* pixels in leaves whose combined ΔE exceeds the JND */
     double pixels_untested;   /* pixels in leaves larger than a pixel that no test of their own has
                                  looked at (a root, or a child taking its parent's figure): there the
                                  estimate is a guess */
@@ -166,7 +168,7 @@ typedef struct cache_mesh_estimate {
 typedef struct cache_estimate {
     cache_mesh_estimate direct, indirect, specular; /* specular: zero without a specular mesh */
     double pixels;            /* pixels that see a scene triangle (the pixel counts' sum) */
-    double mean;              /* mean ΔE over those pixels: the meshes' errors added */
+    double mean;              /* mean ΔE over those pixels: the meshes' combined errors added */
     double above_jnd;         /* fraction of those pixels in a leaf above the JND (the meshes' summed, ≤ 1) */
     double untested;          /* fraction of those pixels in a leaf not tested yet (the worst mesh's):
                                  the estimate means little until this is near 0 */

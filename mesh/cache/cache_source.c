@@ -507,8 +507,8 @@ static float gather_sigma(double var, double strat, double N)
 }
 
 /* From point i's pilot: the variance of one ray of a gather guided by it
- * (samp_embree.c's indirect_one with a samp_guide: a fraction f_c ≈ ½ of the rays
- * cosine-weighted, f_g ≈ ¼ to the pilot's strata in proportion to the brightest
+ * (samp_embree.c's indirect_one with a samp_guide: a fraction f_c ≈ ¼ of the rays
+ * cosine-weighted, f_g ≈ ⅜ to the pilot's strata in proportion to the brightest
  * each or a neighbour saw, the rest toward the source by power; balance
  * heuristic), RGB; 0 when the pilot saw no light. With q = Σ_j f_j·p_j the
  * estimate's variance is Σ_j f_j·Var_j(f/q) / N, and in stratum s p_g/p_c is its
@@ -538,7 +538,11 @@ static void pilot_guided_var(const cache *c, uint32_t i, const float e[3], doubl
     /* The pilot's RGB in each stratum is not kept: the channels scale with the
      * pilot's mean colour (e, pilot_moments'), the luminance-like mean the strata hold. */
     const double emean = ((double)e[0] + e[1] + e[2]) / 3.0;
-    const double fc = 0.5, fg = 0.25;
+    /* The split of the plain count (finer counts split as the shares say). */
+    const uint32_t rays = samp_indirect_rays(c->sp);
+    int kc, ng, npw;
+    samp_toward_split(rays ? (int)ceil(sqrt((double)rays) - 1e-9) : k, 1, 1, &kc, &ng, &npw);
+    const double all = (double)kc * kc + ng + npw, fc = kc * kc / all, fg = ng / all;
     double m1c = 0, m2c = 0, m1g = 0, m2g = 0;
     for (int q = 0; q < RAYS; ++q) {
         const double r = mass[q] / total * RAYS, yq = y[q] / (fc + fg * r); /* f/q over p_c: π·L·p_c/q */

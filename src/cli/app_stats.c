@@ -17,7 +17,7 @@ static cJSON *estimate_json(const cache_mesh_estimate *e)
     cJSON *o = cJSON_CreateObject();
     if (!o) return NULL;
     cJSON_AddNumberToObject(o, "pixels", e->pixels);
-    cJSON_AddNumberToObject(o, "mean_delta_e", e->interpolation + e->noise);
+    cJSON_AddNumberToObject(o, "mean_delta_e", e->combined);
     cJSON_AddNumberToObject(o, "interpolation_delta_e", e->interpolation);
     cJSON_AddNumberToObject(o, "noise_delta_e", e->noise);
     cJSON_AddNumberToObject(o, "max_delta_e", e->max);
