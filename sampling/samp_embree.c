@@ -251,6 +251,16 @@ static void mix_ray(const embree_impl *e, const samp_radiance_mesh *m, const mix
     acc(sum, sum2, L, mx->N[q] * cos_x / mix_density(mx, cos_x, u, v, sub, h.t, cos_y));
 }
 
+void samp_toward_split(int k, int guided, int by_power, int *kc, int *ng, int *npw)
+{
+    int c = guided || by_power ? (int)lround(k * sqrt(SAMP_TOWARD_COSINE_SHARE)) : k;
+    c = c < 1 ? 1 : c;
+    const int rest = k * k - c * c;
+    *kc = c;
+    *ng = guided ? (by_power ? (int)lround(rest * SAMP_TOWARD_GUIDED_SHARE) : rest) : 0;
+    *npw = rest - *ng;
+}
+
 /* k×k rays a point from random stream `pass` (0: the plain gather's); std_err:
  * the standard error of E per channel, from each strategy's sample variance (the
  * strata ignored, so it errs high), or NULL.
@@ -270,16 +280,6 @@ static void mix_ray(const embree_impl *e, const samp_radiance_mesh *m, const mix
  * lets them through: each covers the other's weakness (the slot test). Otherwise,
  * and without a pick table (the source sends nothing, or no memory), all rays are
  * cosine-weighted, E = π/N·Σ L(hit). */
-void samp_toward_split(int k, int guided, int by_power, int *kc, int *ng, int *npw)
-{
-    int c = guided || by_power ? (int)lround(k * sqrt(SAMP_TOWARD_COSINE_SHARE)) : k;
-    c = c < 1 ? 1 : c;
-    const int rest = k * k - c * c;
-    *kc = c;
-    *ng = guided ? (by_power ? (int)lround(rest * SAMP_TOWARD_GUIDED_SHARE) : rest) : 0;
-    *npw = rest - *ng;
-}
-
 static void indirect_one(const embree_impl *e, const samp_radiance_mesh *m, const samp_radiance_index *ix,
                          const samp_point *x, const samp_guide *gd, uint32_t row, int k, uint32_t pass, float E[3],
                          float *std_err)
