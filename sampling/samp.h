@@ -172,6 +172,24 @@ lm_result samp_indirect(samp_sampler *sp, const samp_radiance_mesh *mesh, const 
  * plain value and an error of 0, whatever scale. */
 lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, uint32_t n,
                               uint32_t pass, uint32_t scale, float *E, float *std_err, lm_error *err);
+/* The shares of a toward_source point's rays: SAMP_TOWARD_COSINE_SHARE of them
+ * cosine-weighted in strata (the nearest square count), and of the rest
+ * SAMP_TOWARD_GUIDED_SHARE to the guide's strata when there is a guide, the
+ * others by power. A caller that predicts the noise mirrors them (the cache's
+ * pilot_guided_var). A quarter, not a half, cosine-weighted: where a point goes
+ * toward the source its pilot saw light from a fifth of the hemisphere or less,
+ * which most cosine rays miss; the slot test's 256-ray variance went from 0.22
+ * to 0.13 of all-cosine rays, the Veach door's relMSE at 10 s from 0.0034-0.0037
+ * to 0.0019-0.0029 (docs/cache.md, "A quarter of the rays cosine-weighted"). */
+#define SAMP_TOWARD_COSINE_SHARE 0.25
+#define SAMP_TOWARD_GUIDED_SHARE 0.5
+
+/* How a toward_source point of k × k rays splits them: kc × kc cosine-weighted
+ * in strata, ng to the guide's strata (0 without a guide) and npw by power (0
+ * without picks): the shares above, rounded as samp_indirect_guided rounds them
+ * (at 4 rays 1, 2 and 1). For a caller that predicts the noise. */
+void samp_toward_split(int k, int guided, int by_power, int *kc, int *ng, int *npw);
+
 /* samp_indirect_noise with a guide for the points marked toward_source: what a
  * pilot of the same point saw in each stratum of its cosine-weighted hemisphere
  * (samp_source_hits.stratum). Of the three quarters of their rays that do not go
@@ -186,24 +204,6 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
  * Point i's row is index[i] (index NULL: row i); a row that saw no light falls
  * back to the picks by power alone. Back ends without noise ignore the guide, as
  * they ignore toward_source. */
-/* The shares of a toward_source point's rays: SAMP_TOWARD_COSINE_SHARE of them
- * cosine-weighted in strata (the nearest square count), and of the rest
- * SAMP_TOWARD_GUIDED_SHARE to the guide's strata when there is a guide, the
- * others by power. A caller that predicts the noise mirrors them (the cache's
- * pilot_guided_var). A quarter, not a half, cosine-weighted: where a point goes
- * toward the source its pilot saw light from a fifth of the hemisphere or less,
- * which most cosine rays miss; the slot test's 256-ray variance went from 0.22
- * to 0.13 of all-cosine rays, the Veach door's relMSE at 10 s from 0.0025-0.0031
- * to 0.0017 (docs/cache.md, "A quarter of the rays cosine-weighted"). */
-#define SAMP_TOWARD_COSINE_SHARE 0.25
-#define SAMP_TOWARD_GUIDED_SHARE 0.5
-
-/* How a toward_source point of k × k rays splits them: kc × kc cosine-weighted
- * in strata, ng to the guide's strata (0 without a guide) and npw by power (0
- * without picks): the shares above, rounded as samp_indirect_guided rounds them
- * (at 4 rays 1, 2 and 1). For a caller that predicts the noise. */
-void samp_toward_split(int k, int guided, int by_power, int *kc, int *ng, int *npw);
-
 typedef struct samp_guide {
     uint32_t rays;          /* the pilot's rays a point: k², k = 2..64 */
     const float *stratum;   /* rows × rays: samp_source_hits.stratum */
