@@ -73,6 +73,7 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
     CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = {.backend = SAMP_BACKEND_EMBREE},
                                                    .pixels = pixels, .step_budget = 32},
                               &wk, &err) == LM_OK);
+    if (wk) cache_worker_pause(wk);
     /* In bands of three pixel rows (rend_frame_desc.band_samples): a partial
      * redraw's rectangle crosses several; `whole` draws the image as one band. */
     rend_frame *inc = NULL, *full = NULL, *whole = NULL;
@@ -102,8 +103,12 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
             differ += !same_floats(a, b, (size_t)w * h * 3);
         }
         if (snap && (snap->converged || snap->failed)) break;
-        for (volatile int i = 0; i < 200000; ++i) {
-        }
+        /* A step or so at a time: paused, the worker publishes its last step, so
+         * every turn of this loop meets a new snapshot however fast the machine
+         * (waiting on the clock instead, a worker that converged in two steps
+         * under load was seen once, and nothing was compared). */
+        cache_worker_resume(wk);
+        cache_worker_pause(wk);
     }
     printf("  incremental against full redraws (s = 2, bands of 3 rows): %d snapshots, %d partly redrawn, %d not "
            "redrawn, %d differ\n",
