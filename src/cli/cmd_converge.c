@@ -308,6 +308,7 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
      * GL context and the renderer; the ID pass, whose pixel counts the worker needs
      * only to refine, follows the first image. */
     if (r == LM_OK) r = rend_session_create(sd, &rs, err);
+    else rend_session_early_gl_end(sd->early_gl); /* no session to take it */
     if (r == LM_OK) r = first_image(c, rs, t0, rgb, err);
     if (r == LM_OK) r = rend_session_set_pixels(rs, cam, err);
     rend_session_info in;
@@ -743,18 +744,29 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
                                     "e.g. 0.1,0.5,1,5");
 
     lm_error err = {{0}};
+    /* The GL context is made while the reference is read and the scene loads
+     * (rend_session_early_gl: the driver's start then costs the first image
+     * nothing); without the thread, the session makes it as before. */
+    rend_session_early_gl *early = NULL;
+    if (rend_session_early_gl_start(sd.gl_platform, &early, &err) != LM_OK) early = NULL;
     lm_result r = img_read(ref_path, &c.ref, &err);
-    if (r != LM_OK) return app_report(r, &err);
+    if (r != LM_OK) {
+        rend_session_early_gl_end(early);
+        return app_report(r, &err);
+    }
     if ((rc = reference_transport(&c, ref_path, transport, bounces != NULL, &sd)) != APP_EXIT_OK) {
+        rend_session_early_gl_end(early);
         img_free(&c.ref);
         return rc;
     }
     r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &c.s, &err);
     double t0 = lm_now_seconds(); /* the clock starts with the scene loaded */
     if (r != LM_OK) {
+        rend_session_early_gl_end(early);
         img_free(&c.ref);
         return app_report(r, &err);
     }
+    sd.early_gl = early; /* the session's now (a wait for it counts: it is after t0) */
     c.cam = scene_find_camera(c.s, camera);
     c.w = c.ref.width;
     c.h = c.ref.height;
@@ -781,6 +793,8 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         runs[nrun].method = single ? "lumesh-single-mesh" : "lumesh";
         r = run_lumesh(&c, &sd, t0, &runs[nrun], &err);
         nrun++;
+    } else {
+        rend_session_early_gl_end(early); /* no session took it */
     }
     if (r == LM_OK && vs_pt && !interrupted) {
         runs[nrun].method = "path-tracer";

@@ -115,6 +115,13 @@ lm_result glctx_make_current(glctx *ctx, lm_error *err)
     return r;
 }
 
+void glctx_release(glctx *ctx)
+{
+    if (!ctx || glctx_current != ctx) return;
+    ctx->ops->release(ctx->plat);
+    glctx_current = NULL;
+}
+
 const GladGLContext *glctx_gl(const glctx *ctx) { return &ctx->gl; }
 const char *glctx_name(const glctx *ctx) { return ctx->ops->name; }
 const char *glctx_renderer(const glctx *ctx) { return ctx->renderer; }

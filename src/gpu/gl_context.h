@@ -54,6 +54,10 @@ void glctx_destroy(glctx *ctx); /* NULL is a no-op */
 
 /* Makes ctx current on the calling thread (cheap when it already is). */
 lm_result glctx_make_current(glctx *ctx, lm_error *err);
+/* Releases ctx from the calling thread, where it is current (else a no-op), so
+ * that another thread may make it current: a context made on a helper thread
+ * while the main one loads the scene (`converge`). */
+void glctx_release(glctx *ctx);
 
 /* The context's function table; valid while ctx lives; call only while ctx is
  * current on the calling thread. */

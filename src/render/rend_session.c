@@ -3,6 +3,7 @@
 #include "src/render/rend_session.h"
 
 #include <math.h>
+#include <pthread.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -14,6 +15,7 @@ struct rend_session {
     rend_session_desc d;              /* defaults applied; d.camera points at cam */
     scene_camera cam;                 /* the first view (ID_FIRST) */
     glctx *ctx;                       /* NULL when d.gl is borrowed */
+    rend_session_early_gl *early_gl;  /* d.early_gl until make_context takes it */
     const GladGLContext *gl;
     rend_id *ip;
     scene_camera id_cam;              /* the last ID pass's camera (id_done): made again after release_gl */
@@ -61,12 +63,77 @@ static lm_result check_desc(const rend_session_desc *d, lm_error *err)
     return LM_OK;
 }
 
+/* The helper thread's context: it writes ctx and r before its join. */
+struct rend_session_early_gl {
+    glctx_platform platform;
+    pthread_t thread;
+    int joined;
+    glctx *ctx;
+    lm_result r;
+    lm_error err;
+};
+
+static void *early_gl_main(void *user)
+{
+    rend_session_early_gl *e = user;
+    e->r = glctx_create(&(glctx_desc){.platform = e->platform}, &e->ctx, &e->err);
+    if (e->r == LM_OK) glctx_release(e->ctx); /* for the session's thread to take */
+    return NULL;
+}
+
+lm_result rend_session_early_gl_start(glctx_platform platform, rend_session_early_gl **out, lm_error *err)
+{
+    *out = NULL;
+    rend_session_early_gl *e = calloc(1, sizeof *e);
+    if (!e) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory starting the GL context");
+    e->platform = platform;
+    e->r = LM_ERR_RUNTIME;
+    if (pthread_create(&e->thread, NULL, early_gl_main, e) != 0) {
+        free(e);
+        return lm_fail(err, LM_ERR_RUNTIME, "cannot start a thread for the GL context");
+    }
+    *out = e;
+    return LM_OK;
+}
+
+/* Waits for the helper; its context, current on this thread, or NULL. */
+static glctx *early_gl_take(rend_session_early_gl *e)
+{
+    if (!e->joined) pthread_join(e->thread, NULL);
+    e->joined = 1;
+    lm_error err;
+    glctx *ctx = e->ctx;
+    e->ctx = NULL;
+    if (ctx && (e->r != LM_OK || glctx_make_current(ctx, &err) != LM_OK)) {
+        glctx_destroy(ctx);
+        ctx = NULL;
+    }
+    return ctx;
+}
+
+void rend_session_early_gl_end(rend_session_early_gl *e)
+{
+    if (!e) return;
+    if (!e->joined) pthread_join(e->thread, NULL);
+    glctx_destroy(e->ctx);
+    free(e);
+}
+
 static lm_result make_context(rend_session *rs, lm_error *err)
 {
     if (rs->gl) return LM_OK; /* made, or borrowed, already */
     if (rs->d.gl) {
         rs->gl = rs->d.gl;
         return LM_OK;
+    }
+    if (rs->early_gl) {
+        rs->ctx = early_gl_take(rs->early_gl);
+        rend_session_early_gl_end(rs->early_gl);
+        rs->early_gl = NULL;
+        if (rs->ctx) {
+            rs->gl = glctx_gl(rs->ctx);
+            return LM_OK;
+        }
     }
     lm_result r = glctx_create(&(glctx_desc){.platform = rs->d.gl_platform}, &rs->ctx, err);
     if (r == LM_OK) rs->gl = glctx_gl(rs->ctx);
@@ -124,15 +191,23 @@ static lm_result id_pass(rend_session *rs, const scene_camera *cam, rend_id_resu
 
 lm_result rend_session_create(const rend_session_desc *desc, rend_session **out, lm_error *err)
 {
+    rend_session_early_gl *early = desc ? desc->early_gl : NULL; /* ours, whatever happens */
     if (out) *out = NULL;
-    if (!out) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: no place for the session");
+    if (!out) {
+        rend_session_early_gl_end(early);
+        return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_create: no place for the session");
+    }
     rend_session_desc d = desc ? *desc : (rend_session_desc){0};
+    d.early_gl = NULL;
     rend_session_desc_defaults(&d);
     lm_result r = check_desc(&d, err);
-    if (r != LM_OK) return r;
-    rend_session *rs = calloc(1, sizeof *rs);
-    if (!rs) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a render session");
+    rend_session *rs = r == LM_OK ? calloc(1, sizeof *rs) : NULL;
+    if (!rs) {
+        rend_session_early_gl_end(early);
+        return r != LM_OK ? r : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a render session");
+    }
     rs->d = d;
+    rs->early_gl = early;
     if (d.camera) {
         rs->cam = *d.camera;
         rs->d.camera = &rs->cam;
@@ -182,6 +257,7 @@ void rend_session_destroy(rend_session *rs)
     cache_worker_destroy(rs->wk); /* cancels and joins: nothing refers to the snapshots after this */
     drop_gl_objects(rs);
     glctx_destroy(rs->ctx);
+    rend_session_early_gl_end(rs->early_gl); /* never taken: the session failed before its context */
     free(rs);
 }
 

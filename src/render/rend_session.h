@@ -93,6 +93,20 @@ typedef enum rend_session_renderer_kind {
     REND_SESSION_RENDERER_COUNT
 } rend_session_renderer_kind;
 
+/* A GL context being made on a helper thread, for a client that loads its scene
+ * meanwhile (as a viewer opens its window while it loads): the driver's start
+ * (about 80 ms of llvmpipe's on a 2-core machine) then overlaps the loading
+ * instead of delaying the first image (`converge`: CornellBox-Original's first
+ * image 0.20-0.25 s -> 0.14-0.18 s; docs/renderer.md). Started before the load;
+ * handed to rend_session_create (rend_session_desc.early_gl), which waits for it,
+ * makes it current on its own thread and owns it from then on, as a context of
+ * its own; a client that makes no session ends it (rend_session_early_gl_end).
+ * If it fails, the session makes its context as without it (and reports that
+ * attempt's error). Threads: start, end and the session's create on one thread. */
+typedef struct rend_session_early_gl rend_session_early_gl;
+lm_result rend_session_early_gl_start(glctx_platform platform, rend_session_early_gl **out, lm_error *err);
+void rend_session_early_gl_end(rend_session_early_gl *e); /* NULL is a no-op */
+
 /* Zero fields mean "default" (rend_session_desc_defaults says which). */
 typedef struct rend_session_desc {
     const scene *scene;            /* required; must outlive the session */
@@ -101,6 +115,8 @@ typedef struct rend_session_desc {
                                       (WORKER_FIRST without a camera: 0 until rend_session_resize) */
     rend_session_order order;
     const GladGLContext *gl;       /* a context current on this thread, borrowed; NULL = make one */
+    rend_session_early_gl *early_gl; /* or NULL: taken over by rend_session_create (not with gl), whatever
+                                      it returns */
     glctx_platform gl_platform;    /* the context made, and the GL sampler's when sampler.gl_platform
                                       is 0; 0 = GLCTX_EGL */
     samp_desc sampler;             /* the worker's sampler (.scene is set); target errors 0 =
