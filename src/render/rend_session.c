@@ -63,7 +63,9 @@ static lm_result check_desc(const rend_session_desc *d, lm_error *err)
     return LM_OK;
 }
 
-/* The helper thread's context: it writes ctx and r before its join. */
+/* Shared with the helper thread: it writes ctx, r and err until it is joined;
+ * the client's thread (start, the session's create, end) reads them after the
+ * join only, and owns the rest. */
 struct rend_session_early_gl {
     glctx_platform platform;
     pthread_t thread;
