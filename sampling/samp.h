@@ -187,7 +187,8 @@ lm_result samp_indirect_noise(samp_sampler *sp, const samp_radiance_mesh *mesh, 
 /* How a toward_source point of k × k rays splits them: kc × kc cosine-weighted
  * in strata, ng to the guide's strata (0 without a guide) and npw by power (0
  * without picks): the shares above, rounded as samp_indirect_guided rounds them
- * (at 4 rays 1, 2 and 1). For a caller that predicts the noise. */
+ * (at 4 rays 1, 2 and 1). For a caller that predicts the noise, k is the square
+ * root of samp_indirect_rays (a square). */
 void samp_toward_split(int k, int guided, int by_power, int *kc, int *ng, int *npw);
 
 /* samp_indirect_noise with a guide for the points marked toward_source: what a

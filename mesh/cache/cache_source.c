@@ -541,7 +541,7 @@ static void pilot_guided_var(const cache *c, uint32_t i, const float e[3], doubl
     /* The split of the plain count (finer counts split as the shares say). */
     const uint32_t rays = samp_indirect_rays(c->sp);
     int kc, ng, npw;
-    samp_toward_split(rays ? (int)ceil(sqrt((double)rays) - 1e-9) : k, 1, 1, &kc, &ng, &npw);
+    samp_toward_split(rays ? (int)lround(sqrt((double)rays)) : k, 1, 1, &kc, &ng, &npw);
     const double all = (double)kc * kc + ng + npw, fc = kc * kc / all, fg = ng / all;
     double m1c = 0, m2c = 0, m1g = 0, m2g = 0;
     for (int q = 0; q < RAYS; ++q) {

@@ -63,7 +63,7 @@ static lm_result check_desc(const rend_session_desc *d, lm_error *err)
     return LM_OK;
 }
 
-/* Shared with the helper thread: it writes ctx, r and err until it is joined;
+/* Shared with the helper thread: it writes ctx and r until it is joined;
  * the client's thread (start, the session's create, end) reads them after the
  * join only, and owns the rest. */
 struct rend_session_early_gl {
@@ -71,14 +71,14 @@ struct rend_session_early_gl {
     pthread_t thread;
     int joined;
     glctx *ctx;
-    lm_result r;
-    lm_error err;
+    lm_result r; /* its error is not kept: a failed start makes the session try once more, and report that */
 };
 
 static void *early_gl_main(void *user)
 {
     rend_session_early_gl *e = user;
-    e->r = glctx_create(&(glctx_desc){.platform = e->platform}, &e->ctx, &e->err);
+    lm_error err;
+    e->r = glctx_create(&(glctx_desc){.platform = e->platform}, &e->ctx, &err);
     if (e->r == LM_OK) glctx_release(e->ctx); /* for the session's thread to take */
     return NULL;
 }
