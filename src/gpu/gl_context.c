@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "src/base/fork_guard.h"
 #include "src/gpu/gl_context_internal.h"
 
 struct glctx {
@@ -47,7 +48,7 @@ static GLADapiproc load_proc(void *user, const char *name)
     return ctx->ops->get_proc(ctx->plat, name);
 }
 
-lm_result glctx_create(const glctx_desc *desc, glctx **out, lm_error *err)
+static lm_result create_context(const glctx_desc *desc, glctx **out, lm_error *err)
 {
     *out = NULL;
     glctx_platform p = desc ? desc->platform : GLCTX_DEFAULT;
@@ -97,11 +98,24 @@ lm_result glctx_create(const glctx_desc *desc, glctx **out, lm_error *err)
     return LM_OK;
 }
 
+/* The driver is loaded, started and (at the last context's end) unloaded inside
+ * the fork guard: a child forked meanwhile would inherit the loader's locks
+ * held (fork_guard.h). */
+lm_result glctx_create(const glctx_desc *desc, glctx **out, lm_error *err)
+{
+    lm_fork_guard_enter();
+    lm_result r = create_context(desc, out, err);
+    lm_fork_guard_leave();
+    return r;
+}
+
 void glctx_destroy(glctx *ctx)
 {
     if (!ctx) return;
     if (glctx_current == ctx) glctx_current = NULL;
+    lm_fork_guard_enter();
     ctx->ops->destroy(ctx->plat);
+    lm_fork_guard_leave();
     free(ctx);
 }
 

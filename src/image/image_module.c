@@ -15,6 +15,7 @@
  */
 #define _POSIX_C_SOURCE 200809L /* readlink */
 #include "src/image/image_internal.h"
+#include "src/base/fork_guard.h"
 
 #include <dlfcn.h>
 #include <limits.h> /* PATH_MAX through linux/limits.h */
@@ -82,7 +83,9 @@ static void module_open(void)
             snprintf(tried + used, sizeof tried - used, "%s%.120s", used ? ", " : "", dirs[i]);
             continue;
         }
+        lm_fork_guard_enter(); /* its constructors run under the loader's lock (fork_guard.h) */
         void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+        lm_fork_guard_leave();
         char why[512];
         const img_oiio_api *api = NULL;
         if (!lib) {

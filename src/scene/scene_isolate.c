@@ -12,7 +12,9 @@
  *
  * The child runs only the reader and plain C library calls (no threads, no GL,
  * no Embree), which is what fork() in a threaded process allows in practice with
- * glibc (malloc is fork-safe there). The child restores the default action of
+ * glibc (malloc is fork-safe there), and it is forked only while no thread of
+ * ours is loading a library (lm_fork_guarded: a GL context made beside the load
+ * once left the child blocked in atexit for good). The child restores the default action of
  * the crash signals, so a crash ends it by its signal whatever handlers the
  * parent installed. LUMESH_IMPORT_IN_PROCESS=1 runs the reader in the process
  * instead (for a debugger), as does a failed fork().
@@ -34,6 +36,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include "src/base/fork_guard.h"
 #include "src/scene/scene_internal.h"
 
 /* CPU seconds the reader may use: generous for a large file (Assimp reads a
@@ -216,7 +219,7 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
     if ((inproc && inproc[0] == '1') || pipe(fds) != 0) return fill(b, user, material_override, err);
     fflush(NULL); /* nothing buffered may be written twice */
     FILE *child_err = tmpfile(); /* what the reader prints (Assimp's assertions): the message's detail */
-    pid_t pid = fork();
+    pid_t pid = lm_fork_guarded(); /* not while another thread starts a library */
     if (pid < 0) {
         close(fds[0]);
         close(fds[1]);
