@@ -115,6 +115,13 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNumberToObject(j, "first_image_seconds", d->first_image_seconds);
     else
         cJSON_AddNullToObject(j, "first_image_seconds");
+    if (d->phase_count > 0) {
+        cJSON *ph = cJSON_AddObjectToObject(j, "first_image_phases");
+        for (int i = 0; ph && i < d->phase_count; ++i) {
+            if (d->phase_seconds[i] >= 0) cJSON_AddNumberToObject(ph, d->phase_names[i], d->phase_seconds[i]);
+            else cJSON_AddNullToObject(ph, d->phase_names[i]);
+        }
+    }
     cJSON_AddNumberToObject(j, "leaves_tested", (double)snap->tested);
     cJSON_AddBoolToObject(j, "converged", snap->converged);
     cJSON *est = cJSON_AddObjectToObject(j, "estimated_error");

@@ -31,6 +31,11 @@ typedef struct app_stats_desc {
     const rend_frame_times *frame;/* the last frame's passes; NULL = none drawn */
     uint64_t frames;              /* frames drawn */
     const rend_residual_info *residual; /* the path-traced residual that corrected the picture; NULL = none */
+    /* Named moments before the first image ("first_image_phases": seconds from the
+     * clock's start, in this order; < 0 = not reached, written as null). */
+    const char *const *phase_names;
+    const double *phase_seconds;
+    int phase_count;
 } app_stats_desc;
 
 /* The statistics object; NULL when out of memory. The caller deletes it. */

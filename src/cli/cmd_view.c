@@ -47,12 +47,16 @@ static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
            (unsigned long long)rep->id_passes, rep->renderer);
     if (!c->stats) return LM_OK;
     if (!rep->snap) return lm_fail(err, LM_ERR_RUNTIME, "%s: no snapshot was drawn, no statistics to write", c->stats);
+    static const char *const phase_names[] = {"session", "display", "residual", "first_snapshot"};
+    const double phases[] = {rep->startup.session, rep->startup.display, rep->startup.residual,
+                             rep->startup.first_snapshot};
     cJSON *j = app_stats_json(&(app_stats_desc){.command = "view", .scene = rep->scene->source, .width = rep->width,
                                                .height = rep->height, .supersample = 1,
                                                .seconds = lm_now_seconds() - c->t_loaded,
                                                .first_image_seconds = rep->first_image_seconds, .snap = rep->snap,
                                                .id_seconds = rep->id_seconds, .frame = rep->frame,
-                                               .frames = rep->frames});
+                                               .frames = rep->frames, .phase_names = phase_names,
+                                               .phase_seconds = phases, .phase_count = 4});
     if (!j) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the statistics");
     lm_result r = app_write_json(c->stats, j, err);
     cJSON_Delete(j);

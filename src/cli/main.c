@@ -1,8 +1,10 @@
 /* main.c — `lumesh`, git-style: lumesh COMMAND [ARGS]. */
+#define _POSIX_C_SOURCE 200809L /* setenv, execv */
 #include <malloc.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "src/cli/cli.h"
 
@@ -212,8 +214,45 @@ static void print_help(FILE *f)
             "exit codes: 0 ok, 1 usage, 2 bad input, 3 runtime failure\n");
 }
 
+/* Big blocks in transparent huge pages: glibc's glibc.malloc.hugetlb=1 tunable
+ * has malloc advise the kernel (madvise MADV_HUGEPAGE) for the blocks it maps.
+ * On the machine these targets are measured on a 4 KiB page fault costs ~10 µs
+ * (a paravirtualised guest): `view`'s renderer at 1280×720 (about 70 MB of
+ * llvmpipe targets, zeroed as they are made) took 0.17-0.20 s of its first
+ * image faulting them in (docs/viewer.md, "Huge pages"). A tunable is read
+ * only when a program starts, so lumesh starts itself once more with it (execv
+ * keeps the process id; ~20 ms). Not with a sanitizer (its own allocator), not
+ * where the kernel has huge pages off, not when GLIBC_TUNABLES already names
+ * the tunable (the user's choice, or this start's), and not with
+ * LUMESH_HUGE_PAGES=0. If the start fails, this one goes on as it is. */
+static void restart_with_huge_pages(char **argv)
+{
+#if defined(__SANITIZE_ADDRESS__) || defined(__SANITIZE_THREAD__)
+    (void)argv;
+#else
+    const char *off = getenv("LUMESH_HUGE_PAGES");
+    if (off && strcmp(off, "0") == 0) return;
+    const char *tunables = getenv("GLIBC_TUNABLES");
+    if (tunables && strstr(tunables, "glibc.malloc.hugetlb")) return;
+    FILE *f = fopen("/sys/kernel/mm/transparent_hugepage/enabled", "r");
+    if (!f) return;
+    char mode[128] = "";
+    int got = fgets(mode, sizeof mode, f) != NULL;
+    fclose(f);
+    if (!got || strstr(mode, "[never]")) return;
+    char value[1024];
+    int n = snprintf(value, sizeof value, "%s%sglibc.malloc.hugetlb=1", tunables ? tunables : "",
+                     tunables && tunables[0] ? ":" : "");
+    if (n < 0 || (size_t)n >= sizeof value || setenv("GLIBC_TUNABLES", value, 1) != 0) return;
+    fflush(NULL);
+    execv("/proc/self/exe", argv);
+    /* Not started: go on without (the variable now names the tunable: no loop). */
+#endif
+}
+
 int main(int argc, char **argv)
 {
+    restart_with_huge_pages(argv);
     /* At most two malloc arenas (glibc makes up to 8 per core, one per thread that
      * allocates: the refinement worker, Embree's and llvmpipe's threads), each
      * keeping its freed memory: 39 MB less peak on the 116k-triangle box over

@@ -48,6 +48,7 @@ void view_app_report_of(const view_state *v, view_app_report *r)
 {
     *r = (view_app_report){.scene = v->s, .camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
                            .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
+                           .startup = v->startup,
                            .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
                            .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win),
                            .rest_draws = view_app_showing_mean(v) ? v->accum_n : 0,
@@ -647,11 +648,15 @@ static lm_result frame(view_state *v, lm_error *err)
             v->motion_paused = 1;
         }
     }
-    /* The ID pass once the camera rests (or at once for the first frame and for a
+    /* The ID pass once the camera rests (or at once for the first view and for a
      * screenshot of the picture, which must show the view refined; a window-shot
-     * shows what the window shows). */
-    int at_rest = now_m - v->last_motion >= k_motion_rest || v->frames == 0 || v->shot[0];
-    if (r == LM_OK && v->view_pending && at_rest) {
+     * shows what the window shows). The first view's pass waits for the first
+     * image, as in `converge`: until then the worker refines by the pixel counts
+     * guessed from the camera (start_session), and the pass (65 ms at 1280×720
+     * here) came before the first picture (docs/viewer.md). */
+    int first_wait = v->id_passes == 0 && v->first_image < 0 && !v->shot[0];
+    int at_rest = now_m - v->last_motion >= k_motion_rest || v->id_passes == 0 || v->shot[0];
+    if (r == LM_OK && v->view_pending && at_rest && !first_wait) {
         r = rend_session_set_view(v->rs, &v->cam, err);
         rend_session_info in;
         rend_session_get_info(v->rs, &in);
@@ -681,6 +686,7 @@ static lm_result frame(view_state *v, lm_error *err)
                 v->fresh_view = 0;
             }
             v->snap = s;
+            if (v->startup.first_snapshot < 0) v->startup.first_snapshot = lm_now_seconds() - v->t_open;
         }
         if (r != LM_OK) return r; /* refinement failed */
     }
@@ -692,7 +698,8 @@ static lm_result frame(view_state *v, lm_error *err)
     v->start_changed = 0;
     /* Moving: the half-size renderer, its picture stretched by the tone mapping;
      * made at the first move after a resize (its shaders cost start-up time). */
-    if (v->view_pending && !v->motion_frame) {
+    int moving = v->view_pending && !first_wait;
+    if (moving && !v->motion_frame) {
         r = rend_frame_create(v->gl,
                               &(rend_frame_desc){.scene = v->s, .width = (w + 1) / 2, .height = (h + 1) / 2,
                                                  .supersample = 1},
@@ -701,7 +708,7 @@ static lm_result frame(view_state *v, lm_error *err)
         if (r == LM_OK) rend_frame_set_components(v->motion_frame, v->components);
         if (r != LM_OK) return r;
     }
-    rend_frame *f = v->view_pending ? v->motion_frame : v->frame;
+    rend_frame *f = moving ? v->motion_frame : v->frame;
     scene_camera cam = v->cam;
     rend_frame_output o;
     rend_frame_get_output(f, &o);
@@ -742,7 +749,8 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     if (!d || !d->scene || d->camera < 0 || (uint32_t)d->camera >= d->scene->camera_count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "view_app_run: no scene or no such camera");
     view_state v = {.d = d, .s = d->scene, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
-                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL};
+                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL,
+                    .startup = {-1, -1, -1, -1}};
     lm_result r = reset_lights(&v, err);
     if (r != LM_OK) return r;
     r = view_window_create(&(view_window_desc){.title = "lumesh view", .width = d->width,
@@ -758,10 +766,13 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     v.t_open = v.last_input = lm_now_seconds();
     v.camera_index = (uint32_t)d->camera;
     r = start_session(&v, err);
+    v.startup.session = lm_now_seconds() - v.t_open;
     if (r == LM_OK) r = view_tm_create(v.gl, &v.tm, err);
     if (r == LM_OK) r = view_hud_create(v.gl, &v.hud, err);
     if (r == LM_OK) r = view_accum_create(v.gl, &v.accum, err);
+    v.startup.display = lm_now_seconds() - v.t_open;
     if (r == LM_OK && !d->no_residual) r = make_residual(&v, err);
+    v.startup.residual = lm_now_seconds() - v.t_open;
     double period = d->max_fps < 0 ? 0 : 1.0 / (d->max_fps > 0 ? d->max_fps : VIEW_APP_DEFAULT_FPS);
     double next = lm_now_seconds(), next_title = next;
     while (r == LM_OK && !v.quit) {

@@ -44,6 +44,15 @@ extern "C" {
 enum { VIEW_APP_DEFAULT_FPS = 60 };
 
 /* What the run measured, for the caller's report and --stats. */
+/* Where the time to the first image went, in seconds from the window opening
+ * (each < 0 until reached): what a slow first image is looked for in. */
+typedef struct view_app_startup {
+    double session;        /* the render session made: the worker started (the renderer comes at the first frame) */
+    double display;        /* the tone mapping, HUD and resting-picture objects made */
+    double residual;       /* the path-traced residual made (its Embree scene); = display without one */
+    double first_snapshot; /* the worker's first snapshot acquired (after the first frame's renderer is made) */
+} view_app_startup;
+
 typedef struct view_app_report {
     const scene *scene;                /* the scene now (d->scene, or the last reload's) */
     const scene_camera *camera;        /* the camera now */
@@ -51,6 +60,7 @@ typedef struct view_app_report {
     uint64_t frames;                   /* frames drawn */
     double seconds;                    /* from the window opening to now */
     double first_image_seconds;        /* from the window opening to the first frame with a snapshot; < 0 = none */
+    view_app_startup startup;          /* the phases before it */
     double id_seconds;                 /* the last ID pass */
     uint64_t id_passes;                /* ID passes run (1 + camera moves and resizes) */
     const cache_snapshot *snap;        /* the last snapshot drawn; NULL = none yet */
