@@ -114,6 +114,10 @@ typedef struct conv_ctx {
     int tty;
     uint32_t light_count;     /* mesh columns: light_count + 3 */
     double first_image;       /* seconds from the scene loaded; < 0 until drawn */
+    /* Where that time went (first_image_phases in the JSON), seconds from the
+     * scene loaded; < 0 until reached: the session made (worker started, GL
+     * context taken), the preview renderer made, the first snapshot taken. */
+    double phase[3];
     double converged_at;      /* published time of the first converged snapshot; < 0: never */
     cache_snapshot final;     /* statistics of the last snapshot measured (lights copied below) */
     cache_mesh_stats final_lights[MAX_MESHES];
@@ -232,10 +236,12 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
      * it is drawn, so the draw has both cores (docs/viewer.md). */
     cache_worker_request_pause(rend_session_worker(rs));
     lm_result r = rend_session_renderer(rs, REND_SESSION_PREVIEW, NULL, err);
+    c->phase[1] = lm_now_seconds() - t0;
     const cache_snapshot *snap = NULL;
     if (r == LM_OK)
         r = rend_session_wait(rs, &(rend_session_wait_desc){.first = 1, .stop = &interrupted, .nap = 0.001}, &snap,
                               err);
+    c->phase[2] = lm_now_seconds() - t0;
     if (r == LM_OK && snap) {
         r = rend_session_draw(rs, REND_SESSION_PREVIEW, cam, NULL, err); /* a viewer shows it from the GPU */
         c->first_image = lm_now_seconds() - t0;
@@ -309,6 +315,7 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
      * only to refine, follows the first image. */
     if (r == LM_OK) r = rend_session_create(sd, &rs, err);
     else rend_session_early_gl_end(sd->early_gl); /* no session to take it */
+    c->phase[0] = lm_now_seconds() - t0;
     if (r == LM_OK) r = first_image(c, rs, t0, rgb, err);
     if (r == LM_OK) r = rend_session_set_pixels(rs, cam, err);
     rend_session_info in;
@@ -568,6 +575,12 @@ static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_
         cJSON_AddNumberToObject(j, "first_image_seconds", rounded(c->first_image, 1e-5));
     else
         cJSON_AddNullToObject(j, "first_image_seconds");
+    static const char *const phase_names[] = {"session", "renderer", "first_snapshot"};
+    cJSON *ph = cJSON_AddObjectToObject(j, "first_image_phases");
+    for (int i = 0; ph && i < 3; ++i) {
+        if (c->phase[i] >= 0) cJSON_AddNumberToObject(ph, phase_names[i], rounded(c->phase[i], 1e-5));
+        else cJSON_AddNullToObject(ph, phase_names[i]);
+    }
     if (c->converged_at >= 0)
         cJSON_AddNumberToObject(j, "converged_seconds", rounded(c->converged_at, 1e-4));
     else
@@ -739,6 +752,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     if (!c.residual && strcmp(residual, "off") != 0) return app_usage_error(cmd, "--residual takes on or off");
     c.residual_seed = (uint32_t)seed ^ 0x5eed0001u; /* not the path tracer's: independent of it */
     c.first_image = c.converged_at = -1;
+    c.phase[0] = c.phase[1] = c.phase[2] = -1;
     if (!parse_times(list, seconds, c.times, &c.time_count))
         return app_usage_error(cmd, "--snapshots takes increasing positive seconds separated by commas, "
                                     "e.g. 0.1,0.5,1,5");

@@ -98,6 +98,19 @@ static const char *const value_names[] = {"rend_value.vert", "rend_value.frag", 
 static const char *const resolve_names[] = {"rend_composite.vert", "rend_resolve.frag", NULL};
 static const char *const composite_names[] = {"rend_composite.vert", "rend_composite.frag", NULL};
 
+void rend_frame_warm_up(const GladGLContext *gl)
+{
+    if (!gl) return;
+    /* As a viewer's renderer (s = 1) makes them. */
+    static const char *const *const all[] = {material_names, value_names, composite_names};
+    static const char *const defines[] = {"", "", "#define SS 1\n"};
+    lm_error err;
+    for (size_t i = 0; i < sizeof all / sizeof *all; ++i) {
+        GLuint p = 0;
+        if (glprog_build(gl, "renderer", all[i], defines[i], &p, &err) == LM_OK) gl->DeleteProgram(p);
+    }
+}
+
 void rend_frame_destroy(rend_frame *f)
 {
     if (!f) return;

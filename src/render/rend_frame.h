@@ -143,6 +143,12 @@ typedef struct rend_frame rend_frame;
 lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc, rend_frame **out, lm_error *err);
 void rend_frame_destroy(rend_frame *f); /* NULL is a no-op; needs gl's context current */
 
+/* Compiles and links the renderer's programs once and deletes them: what a
+ * thread that makes a context early does (rend_session_early_gl), so that the
+ * GLSL compiler's own start (its built-in functions) is not paid by the first
+ * renderer. Failures are left to rend_frame_create. Needs gl's context current. */
+void rend_frame_warm_up(const GladGLContext *gl);
+
 /* Draws the snapshot seen from cam into the output texture and, when rgb is not
  * NULL, reads it into rgb (width·height·3 floats, linear, top row first). A NULL
  * snapshot draws emission only. Put back as they were: viewport, scissor, draw

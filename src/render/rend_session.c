@@ -79,6 +79,7 @@ static void *early_gl_main(void *user)
     rend_session_early_gl *e = user;
     lm_error err;
     e->r = glctx_create(&(glctx_desc){.platform = e->platform}, &e->ctx, &err);
+    if (e->r == LM_OK) rend_frame_warm_up(glctx_gl(e->ctx)); /* the compiler started here too */
     if (e->r == LM_OK) glctx_release(e->ctx); /* for the session's thread to take */
     return NULL;
 }
