@@ -118,6 +118,10 @@ typedef struct conv_ctx {
      * scene loaded; < 0 until reached: the session made (worker started, GL
      * context taken), the preview renderer made, the first snapshot taken. */
     double phase[3];
+    /* Before the clock: seconds from the command's start to the reference read
+     * and to the scene loaded ("load_phases"; the early GL context is made
+     * meanwhile, and the load's forks wait for its start: fork_guard.h). */
+    double load[2];
     double converged_at;      /* published time of the first converged snapshot; < 0: never */
     cache_snapshot final;     /* statistics of the last snapshot measured (lights copied below) */
     cache_mesh_stats final_lights[MAX_MESHES];
@@ -581,6 +585,11 @@ static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_
         if (c->phase[i] >= 0) cJSON_AddNumberToObject(ph, phase_names[i], rounded(c->phase[i], 1e-5));
         else cJSON_AddNullToObject(ph, phase_names[i]);
     }
+    cJSON *lp = cJSON_AddObjectToObject(j, "load_phases");
+    if (lp) {
+        cJSON_AddNumberToObject(lp, "reference", rounded(c->load[0], 1e-5));
+        cJSON_AddNumberToObject(lp, "scene", rounded(c->load[1], 1e-5));
+    }
     if (c->converged_at >= 0)
         cJSON_AddNumberToObject(j, "converged_seconds", rounded(c->converged_at, 1e-4));
     else
@@ -761,9 +770,11 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     /* The GL context is made while the reference is read and the scene loads
      * (rend_session_early_gl: the driver's start then costs the first image
      * nothing); without the thread, the session makes it as before. */
+    const double t_start = lm_now_seconds();
     rend_session_early_gl *early = NULL;
     if (rend_session_early_gl_start(sd.gl_platform, &early, &err) != LM_OK) early = NULL;
     lm_result r = img_read(ref_path, &c.ref, &err);
+    c.load[0] = lm_now_seconds() - t_start;
     if (r != LM_OK) {
         rend_session_early_gl_end(early);
         return app_report(r, &err);
@@ -775,6 +786,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     }
     r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &c.s, &err);
     double t0 = lm_now_seconds(); /* the clock starts with the scene loaded */
+    c.load[1] = t0 - t_start;
     if (r != LM_OK) {
         rend_session_early_gl_end(early);
         img_free(&c.ref);

@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "src/base/fork_guard.h"
 #include "src/gpu/gl_context.h"
 #include "src/render/rend_id.h"
 #include "src/scene/camera.h"
@@ -79,7 +80,13 @@ static void *early_gl_main(void *user)
     rend_session_early_gl *e = user;
     lm_error err;
     e->r = glctx_create(&(glctx_desc){.platform = e->platform}, &e->ctx, &err);
-    if (e->r == LM_OK) rend_frame_warm_up(glctx_gl(e->ctx)); /* the compiler started here too */
+    /* The compiler started here too, inside the fork guard: Mesa's and LLVM's C++
+     * statics register exit functions the first time they are used (fork_guard.h). */
+    if (e->r == LM_OK) {
+        lm_fork_guard_enter();
+        rend_frame_warm_up(glctx_gl(e->ctx));
+        lm_fork_guard_leave();
+    }
     if (e->r == LM_OK) glctx_release(e->ctx); /* for the session's thread to take */
     return NULL;
 }
