@@ -74,5 +74,11 @@ print("the reference's own noise: relMSE %.3g of every number above (net ratio: 
 conv = j.get("converged_seconds")
 print("first image after %.3f s: mean dE %.2f, relMSE %.3g; converged at its JND at %s" % (
     j["first_image_seconds"], first["delta_e_mean"], first["relmse"], "%.2f s" % conv if conv is not None else "never"))
+ph, lp = j.get("first_image_phases"), j.get("load_phases")
+if ph and lp:
+    fmt = lambda v: "%.3f" % v if v is not None else "-"
+    print("  its phases (s after the load): session %s, renderer %s, first snapshot %s; before the clock: reference read "
+          "%s s, scene loaded %s s after the start" % (fmt(ph["session"]), fmt(ph["renderer"]), fmt(ph["first_snapshot"]),
+                                                       fmt(lp["reference"]), fmt(lp["scene"])))
 EOF
 done
