@@ -98,6 +98,15 @@ static cJSON *sampler_json(const samp_stats *st, const samp_stats *quick)
     return o;
 }
 
+void app_stats_add_phases(cJSON *j, const char *key, const char *const *names, const double *seconds, int n)
+{
+    cJSON *ph = cJSON_AddObjectToObject(j, key);
+    for (int i = 0; ph && i < n; ++i) {
+        if (seconds[i] >= 0) cJSON_AddNumberToObject(ph, names[i], seconds[i]);
+        else cJSON_AddNullToObject(ph, names[i]);
+    }
+}
+
 cJSON *app_stats_json(const app_stats_desc *d)
 {
     const cache_snapshot *snap = d->snap;
@@ -115,13 +124,8 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNumberToObject(j, "first_image_seconds", d->first_image_seconds);
     else
         cJSON_AddNullToObject(j, "first_image_seconds");
-    if (d->phase_count > 0) {
-        cJSON *ph = cJSON_AddObjectToObject(j, "first_image_phases");
-        for (int i = 0; ph && i < d->phase_count; ++i) {
-            if (d->phase_seconds[i] >= 0) cJSON_AddNumberToObject(ph, d->phase_names[i], d->phase_seconds[i]);
-            else cJSON_AddNullToObject(ph, d->phase_names[i]);
-        }
-    }
+    if (d->phase_count > 0)
+        app_stats_add_phases(j, "first_image_phases", d->phase_names, d->phase_seconds, d->phase_count);
     cJSON_AddNumberToObject(j, "leaves_tested", (double)snap->tested);
     cJSON_AddBoolToObject(j, "converged", snap->converged);
     cJSON *est = cJSON_AddObjectToObject(j, "estimated_error");

@@ -38,6 +38,10 @@ typedef struct app_stats_desc {
     int phase_count;
 } app_stats_desc;
 
+/* Adds j[key] = {names[i]: seconds[i]} for i < n, a negative time as null (a
+ * moment not reached): the first image's phases of `view` and `converge`. */
+void app_stats_add_phases(cJSON *j, const char *key, const char *const *names, const double *seconds, int n);
+
 /* The statistics object; NULL when out of memory. The caller deletes it. */
 cJSON *app_stats_json(const app_stats_desc *d);
 

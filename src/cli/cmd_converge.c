@@ -580,16 +580,11 @@ static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_
     else
         cJSON_AddNullToObject(j, "first_image_seconds");
     static const char *const phase_names[] = {"session", "renderer", "first_snapshot"};
-    cJSON *ph = cJSON_AddObjectToObject(j, "first_image_phases");
-    for (int i = 0; ph && i < 3; ++i) {
-        if (c->phase[i] >= 0) cJSON_AddNumberToObject(ph, phase_names[i], rounded(c->phase[i], 1e-5));
-        else cJSON_AddNullToObject(ph, phase_names[i]);
-    }
-    cJSON *lp = cJSON_AddObjectToObject(j, "load_phases");
-    if (lp) {
-        cJSON_AddNumberToObject(lp, "reference", rounded(c->load[0], 1e-5));
-        cJSON_AddNumberToObject(lp, "scene", rounded(c->load[1], 1e-5));
-    }
+    static const char *const load_names[] = {"reference", "scene"};
+    const double phases[] = {rounded(c->phase[0], 1e-5), rounded(c->phase[1], 1e-5), rounded(c->phase[2], 1e-5)};
+    const double loads[] = {rounded(c->load[0], 1e-5), rounded(c->load[1], 1e-5)};
+    app_stats_add_phases(j, "first_image_phases", phase_names, phases, 3);
+    app_stats_add_phases(j, "load_phases", load_names, loads, 2);
     if (c->converged_at >= 0)
         cJSON_AddNumberToObject(j, "converged_seconds", rounded(c->converged_at, 1e-4));
     else

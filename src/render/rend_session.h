@@ -95,9 +95,11 @@ typedef enum rend_session_renderer_kind {
 
 /* A GL context being made on a helper thread, for a client that loads its scene
  * meanwhile (as a viewer opens its window while it loads): the driver's start
- * (about 80 ms of llvmpipe's on a 2-core machine) then overlaps the loading
- * instead of delaying the first image (`converge`: CornellBox-Original's first
- * image 0.20-0.25 s -> 0.14-0.18 s; docs/renderer.md). Started before the load;
+ * (about 80 ms of llvmpipe's on a 2-core machine) and the GLSL compiler's
+ * (rend_frame_warm_up, ~22 ms) then overlap the loading instead of delaying the
+ * first image (`converge`: CornellBox-Original's first image 0.20-0.25 s ->
+ * 0.14-0.18 s, and with the warm-up and huge pages 0.082-0.093 s;
+ * docs/renderer.md). Started before the load;
  * handed to rend_session_create (rend_session_desc.early_gl), which waits for it,
  * makes it current on its own thread and owns it from then on, as a context of
  * its own; a client that makes no session ends it (rend_session_early_gl_end).
