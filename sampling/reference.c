@@ -519,9 +519,21 @@ void ref_get_stats(const ref_renderer *r, ref_stats *out)
 
 void ref_get_image(const ref_renderer *r, float *rgb, float *stderr_rgb, float *samples)
 {
-    size_t n = (size_t)r->width * (size_t)r->height;
+    ref_get_rows(r, 0, r->height, rgb, stderr_rgb, samples);
+}
+
+void ref_get_rows(const ref_renderer *r, int y0, int rows, float *rgb, float *stderr_rgb, float *samples)
+{
+    if (y0 < 0) {
+        rows += y0;
+        y0 = 0;
+    }
+    if (rows > r->height - y0) rows = r->height - y0;
+    if (rows <= 0) return;
+    size_t n = (size_t)r->width * (size_t)rows;
+    const ref_pixel *first = r->pixels + (size_t)y0 * (size_t)r->width;
     for (size_t i = 0; i < n; ++i) {
-        const ref_pixel *p = &r->pixels[i];
+        const ref_pixel *p = &first[i];
         for (int k = 0; k < 3; ++k) {
             if (rgb) rgb[3 * i + (size_t)k] = p->count ? (float)(p->sum[k] / p->count) : 0.0f;
             if (stderr_rgb) stderr_rgb[3 * i + (size_t)k] = (float)stderr_of_mean(p->sum[k], p->sum2[k], p->count);

@@ -109,6 +109,10 @@ void ref_get_stats(const ref_renderer *r, ref_stats *out);
 /* Writes width*height pixels: mean RGB, standard error of the mean per channel
  * (INFINITY below two samples), and sample counts. Any pointer may be NULL. */
 void ref_get_image(const ref_renderer *r, float *rgb, float *stderr_rgb, float *samples);
+/* The same for the rows y0 .. y0+rows−1 only (clipped to the image), their
+ * width·rows values from the start of each array: a caller that reads the image
+ * a band at a time keeps no copy of it (rend_residual). */
+void ref_get_rows(const ref_renderer *r, int y0, int rows, float *rgb, float *stderr_rgb, float *samples);
 void ref_get_size(const ref_renderer *r, int *width, int *height);
 
 #ifdef __cplusplus

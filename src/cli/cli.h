@@ -67,6 +67,12 @@ int app_parse_options(const app_command *cmd, int argc, char **argv, app_opt *op
 enum { APP_PROGRESS_WIDTH = 30 };
 void app_progress_bar(double fraction, char bar[APP_PROGRESS_WIDTH + 1]);
 
+/* Gives the heap's free pages back to the system (glibc's malloc_trim; nothing
+ * elsewhere). Freed blocks below the mmap threshold (main.c: 1 MiB) stay resident
+ * in the heap until then: after `render` frees its cache, ~30 MB on Water stayed
+ * in the peak of what came next (docs/memory.md). Main thread, between phases. */
+void app_return_freed_memory(void);
+
 /* --sampler NAME, --gl NAME and --bounces K|auto (render, converge, view; NULL:
  * not given) into the session's sampler back end, GL platform and bounces
  * (rend_session.h), its other fields left alone: APP_EXIT_OK, or a usage error printed and APP_EXIT_USAGE. */

@@ -1,5 +1,8 @@
 /* cli_args.c — argument parsing and error reporting shared by the commands. */
 #include <errno.h>
+#ifdef __GLIBC__
+#include <malloc.h>
+#endif
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -139,6 +142,13 @@ int app_session_options(const app_command *cmd, const char *sampler, const char 
     if (gl && !glctx_platform_from_name(gl, &d->gl_platform))
         return app_usage_error(cmd, "--gl must be egl or osmesa, not '%s'", gl);
     return APP_EXIT_OK;
+}
+
+void app_return_freed_memory(void)
+{
+#ifdef __GLIBC__
+    malloc_trim(0);
+#endif
 }
 
 void app_progress_bar(double fraction, char bar[APP_PROGRESS_WIDTH + 1])

@@ -116,9 +116,11 @@ static lm_result residual_until(render_residual *res, const cache_snapshot *snap
         double t = lm_now_seconds() - t0, limit = until - t0;
         char bar[APP_PROGRESS_WIDTH + 1];
         app_progress_bar(limit > 0 ? t / limit : 1, bar);
+        char est[32] = "-"; /* unknown below the samples the residual trusts */
+        if (isfinite(info->est_relmse)) snprintf(est, sizeof est, "%.3g", info->est_relmse);
         fprintf(stderr, "\rresidual [%s] %.1f s  %u..%u path samples a pixel  %.1f%% of the blocks corrected  "
-                        "est. relMSE %.3g   ",
-                bar, t, info->min_samples, info->max_samples, 100.0 * info->corrected, info->est_relmse);
+                        "est. relMSE %s   ",
+                bar, t, info->min_samples, info->max_samples, 100.0 * info->corrected, est);
         fflush(stderr);
     }
     if (tty) fputc('\n', stderr);
@@ -284,6 +286,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
      * 116k-triangle box's peak: docs/memory.md, "The cache gone before the final
      * draw"). */
     rend_session_retire_worker(rs);
+    app_return_freed_memory();
     rgb = r == LM_OK ? malloc((size_t)w * (size_t)h * 3 * sizeof *rgb) : NULL;
     if (r == LM_OK && !rgb) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", w, h);
     if (r == LM_OK && mask != REND_FRAME_COMPONENTS_ALL) {
@@ -294,6 +297,13 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     if (r == LM_OK) r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, &cam, (int)accumulate, rgb, &err);
     rend_residual_info res = {0};
     int corrected = r == LM_OK && with_residual && !snap->failed;
+    /* The residual's passes need the drawn picture, not the context that drew it:
+     * LLVM, llvmpipe's threads and the renderer's images (~50 MB on Water) are
+     * freed before they run with every core (docs/memory.md). --debug draws again. */
+    if (corrected && !debug_dir) {
+        rend_session_release_gl(rs);
+        app_return_freed_memory();
+    }
     if (corrected) r = residual_until(&residual, snap, t0, rgb, &res, &err);
     rend_residual_destroy(residual.rr);
     double elapsed = lm_now_seconds() - t0;
@@ -328,10 +338,17 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
                  100.0 * snap->estimate.above_jnd, (double)snap->jnd, 100.0 * snap->estimate.untested,
                  snap->finished && !snap->converged && !snap->failed ? " (nothing left it can improve)" : "");
         if (corrected) {
+            /* The estimate is unknown while a block has fewer samples than the
+             * residual trusts (rend_residual.h): said so, not printed as nan. */
+            char est[96];
+            if (isfinite(res.est_relmse))
+                snprintf(est, sizeof est, "estimated relMSE %.3g", res.est_relmse);
+            else
+                snprintf(est, sizeof est, "relMSE not estimated below %d samples a pixel",
+                         REND_RESIDUAL_MIN_SAMPLES_DEFAULT);
             size_t len = strlen(summary);
-            snprintf(summary + len, sizeof summary - len,
-                     "; then %u..%u path samples a pixel corrected %.1f%% of its blocks (estimated relMSE %.3g)",
-                     res.min_samples, res.max_samples, 100.0 * res.corrected, res.est_relmse);
+            snprintf(summary + len, sizeof summary - len, "; then %u..%u path samples a pixel corrected %.1f%% of its blocks (%s)",
+                     res.min_samples, res.max_samples, 100.0 * res.corrected, est);
         }
     }
     rend_session_destroy(rs);

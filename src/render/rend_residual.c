@@ -15,6 +15,39 @@ typedef struct block_sums {
     double energy, noise, finite_noise, finite_count, region_noise;
 } block_sums;
 
+/* Where the path tracer's means and standard errors are read: whole arrays
+ * (rend_residual_blend), or the path tracer itself, one row of blocks at a time
+ * into a band of scratch. The residual kept a read-back copy of the whole
+ * picture, 28 bytes a pixel beside the path tracer's own 72 (8.6 MB at 640×480,
+ * in Water's peak while `render` draws: docs/memory.md). */
+typedef struct pt_picture {
+    const float *mean, *se;  /* width·height·3 each, or NULL: read from pt */
+    const ref_renderer *pt;
+    float min_samples;       /* fewer samples: the pixel's error is unknown (infinite) */
+    float *band;             /* band_floats(width, block): means, errors, counts of the band's rows */
+} pt_picture;
+
+/* Floats of a band's scratch: `block` rows of three means, three errors and a count. */
+static size_t band_floats(int width, int block) { return (size_t)width * (size_t)block * 7; }
+
+/* The rows y0 .. y0+rows−1 (rows ≤ the block): pointers to their first mean and
+ * standard error, width·rows·3 values each. */
+static void pt_band(const pt_picture *p, int width, int y0, int rows, const float **mean, const float **se)
+{
+    if (p->mean) {
+        *mean = p->mean + 3 * (size_t)y0 * (size_t)width;
+        *se = p->se + 3 * (size_t)y0 * (size_t)width;
+        return;
+    }
+    size_t n = (size_t)width * (size_t)rows;
+    float *m = p->band, *e = m + 3 * n, *count = e + 3 * n;
+    ref_get_rows(p->pt, y0, rows, m, e, count);
+    for (size_t i = 0; i < n; ++i)
+        if (count[i] < p->min_samples) e[3 * i] = e[3 * i + 1] = e[3 * i + 2] = INFINITY;
+    *mean = m;
+    *se = e;
+}
+
 /* Blocks of `block` pixels over a width × height picture. */
 static size_t block_count(int width, int height, int block)
 {
@@ -25,7 +58,7 @@ struct rend_residual {
     rend_residual_desc desc;
     ref_renderer *pt;
     double seconds_before; /* the path tracer's seconds at the last restart */
-    float *mean, *se, *count; /* width·height·3, ·3, ·1: the path tracer's read-back */
+    float *band;              /* the path tracer's read-back, one block's rows at a time (pt_picture) */
     float *cached_copy;       /* width·height·3: a copy of the last picture applied (the adaptive
                                  passes' mask is made against it); the caller may free or reuse its own */
     int have_cached;          /* cached_copy holds one (none since create or the last restart) */
@@ -53,16 +86,14 @@ lm_result rend_residual_create(const rend_residual_desc *desc, rend_residual **o
     rend_residual *rr = calloc(1, sizeof *rr);
     size_t n = (size_t)desc->width * (size_t)desc->height;
     if (rr) {
-        rr->mean = malloc(n * 3 * sizeof *rr->mean);
-        rr->se = malloc(n * 3 * sizeof *rr->se);
-        rr->count = malloc(n * sizeof *rr->count);
-        rr->cached_copy = malloc(n * 3 * sizeof *rr->cached_copy);
-        rr->mask = malloc(n);
         rend_residual_desc d = *desc;
         rend_residual_desc_defaults(&d);
+        rr->band = malloc(band_floats(desc->width, d.block) * sizeof *rr->band);
+        rr->cached_copy = malloc(n * 3 * sizeof *rr->cached_copy);
+        rr->mask = malloc(n);
         rr->sums = malloc(block_count(desc->width, desc->height, d.block) * sizeof *rr->sums);
     }
-    if (!rr || !rr->mean || !rr->se || !rr->count || !rr->cached_copy || !rr->mask || !rr->sums) {
+    if (!rr || !rr->band || !rr->cached_copy || !rr->mask || !rr->sums) {
         rend_residual_destroy(rr);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the residual of a %dx%d picture", desc->width,
                        desc->height);
@@ -92,9 +123,7 @@ void rend_residual_destroy(rend_residual *rr)
 {
     if (!rr) return;
     ref_destroy(rr->pt);
-    free(rr->mean);
-    free(rr->se);
-    free(rr->count);
+    free(rr->band);
     free(rr->cached_copy);
     free(rr->mask);
     free(rr->sums);
@@ -121,30 +150,34 @@ static double rel_weight(float cached) { return 1.0 / ((double)cached * cached +
 /* Every block's sums, bw × bh row by row into s (blocks of `block` pixels from the
  * top left; the last row and column may be smaller). The regions come from the
  * blocks' finite sums, so each value is read once. */
-static void block_sums_all(int width, int height, int block, const float *cached, const float *mean,
-                           const float *stderr_rgb, block_sums *s)
+static void block_sums_all(int width, int height, int block, const float *cached, const pt_picture *pt,
+                           block_sums *s)
 {
     const int bw = (width + block - 1) / block, bh = (height + block - 1) / block, R = REND_RESIDUAL_NOISE_REGION;
-    for (int j = 0; j < bh; ++j)
+    for (int j = 0; j < bh; ++j) {
+        const int by = j * block, y1 = by + block < height ? by + block : height;
+        const float *mean, *stderr_rgb; /* the band's rows, from row by */
+        pt_band(pt, width, by, y1 - by, &mean, &stderr_rgb);
         for (int i = 0; i < bw; ++i) {
             block_sums b = {0.0, 0.0, 0.0, 0.0, 0.0};
-            const int bx = i * block, by = j * block;
-            const int x1 = bx + block < width ? bx + block : width, y1 = by + block < height ? by + block : height;
+            const int bx = i * block, x1 = bx + block < width ? bx + block : width;
             for (int y = by; y < y1; ++y)
                 for (int x = bx; x < x1; ++x)
                     for (int k = 0; k < 3; ++k) {
                         size_t v = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
-                        double q = rel_weight(cached[v]), r = (double)mean[v] - cached[v];
-                        double n = q * (double)stderr_rgb[v] * stderr_rgb[v];
+                        size_t u = 3 * ((size_t)(y - by) * (size_t)width + (size_t)x) + (size_t)k;
+                        double q = rel_weight(cached[v]), r = (double)mean[u] - cached[v];
+                        double n = q * (double)stderr_rgb[u] * stderr_rgb[u];
                         b.noise += n;
                         b.energy += q * r * r;
-                        if (isfinite(stderr_rgb[v])) {
+                        if (isfinite(stderr_rgb[u])) {
                             b.finite_noise += n;
                             b.finite_count += 1.0;
                         }
                     }
             s[(size_t)j * (size_t)bw + (size_t)i] = b;
         }
+    }
     for (int j = 0; j < bh; ++j)
         for (int i = 0; i < bw; ++i) {
             double sum = 0.0, n = 0.0;
@@ -171,24 +204,28 @@ static double block_weight(block_sums b)
 
 /* rend_residual_blend with the blocks' sums in `sums` (room for every block):
  * they are all made before out is written, since out may be cached. */
-static void blend_with(int width, int height, int block, const float *cached, const float *mean,
-                       const float *stderr_rgb, float *out, rend_residual_info *info, block_sums *sums)
+static void blend_with(int width, int height, int block, const float *cached, const pt_picture *pt, float *out,
+                       rend_residual_info *info, block_sums *sums)
 {
     const int bw = (width + block - 1) / block;
-    block_sums_all(width, height, block, cached, mean, stderr_rgb, sums);
+    block_sums_all(width, height, block, cached, pt, sums);
     double weight_sum = 0.0, est = 0.0;
     size_t blocks = 0, corrected = 0;
     int unknown = 0; /* a block short of samples: no estimate of its error */
-    for (int by = 0; by < height; by += block)
+    for (int by = 0; by < height; by += block) {
+        const int y1 = by + block < height ? by + block : height;
+        const float *mean, *stderr_rgb; /* the band's rows, from row by */
+        pt_band(pt, width, by, y1 - by, &mean, &stderr_rgb);
         for (int bx = 0; bx < width; bx += block) {
-            int x1 = bx + block < width ? bx + block : width, y1 = by + block < height ? by + block : height;
+            int x1 = bx + block < width ? bx + block : width;
             const block_sums b = sums[(size_t)(by / block) * (size_t)bw + (size_t)(bx / block)];
             double w = block_weight(b);
             for (int y = by; y < y1; ++y)
                 for (int x = bx; x < x1; ++x)
                     for (int k = 0; k < 3; ++k) {
                         size_t i = 3 * ((size_t)y * (size_t)width + (size_t)x) + (size_t)k;
-                        out[i] = (float)(cached[i] + w * ((double)mean[i] - cached[i]));
+                        size_t u = 3 * ((size_t)(y - by) * (size_t)width + (size_t)x) + (size_t)k;
+                        out[i] = (float)(cached[i] + w * ((double)mean[u] - cached[i]));
                     }
             /* The corrected block's error: w² of the noise, and (1 − w)² of the bias,
              * whose energy is what the noise does not explain: E − N, kept signed
@@ -203,6 +240,7 @@ static void blend_with(int width, int height, int block, const float *cached, co
             corrected += w > 0.0;
             blocks++;
         }
+    }
     if (info) {
         info->mean_weight = blocks ? weight_sum / (double)blocks : 0.0;
         info->corrected = blocks ? (double)corrected / (double)blocks : 0.0;
@@ -216,7 +254,7 @@ void rend_residual_blend(int width, int height, int block, const float *cached, 
     if (block <= 0) block = REND_RESIDUAL_BLOCK_DEFAULT;
     block_sums *sums = malloc(block_count(width, height, block) * sizeof *sums);
     if (sums) {
-        blend_with(width, height, block, cached, mean, stderr_rgb, out, info, sums);
+        blend_with(width, height, block, cached, &(pt_picture){.mean = mean, .se = stderr_rgb}, out, info, sums);
         free(sums);
         return;
     }
@@ -228,14 +266,11 @@ void rend_residual_blend(int width, int height, int block, const float *cached, 
     }
 }
 
-/* The path tracer's mean and standard error now, with pixels short of
- * desc.min_samples marked unknown (infinite error). */
-static void read_back(rend_residual *rr)
+/* The path tracer as the blend reads it: a band at a time, pixels short of
+ * desc.min_samples unknown (infinite error). */
+static pt_picture pt_of(const rend_residual *rr)
 {
-    size_t n = (size_t)rr->desc.width * (size_t)rr->desc.height;
-    ref_get_image(rr->pt, rr->mean, rr->se, rr->count);
-    for (size_t i = 0; i < n; ++i)
-        if (rr->count[i] < (float)rr->desc.min_samples) rr->se[3 * i] = rr->se[3 * i + 1] = rr->se[3 * i + 2] = INFINITY;
+    return (pt_picture){.pt = rr->pt, .min_samples = (float)rr->desc.min_samples, .band = rr->band};
 }
 
 /* The mask of the adaptive passes: every pixel of a block with w_B > 0 against
@@ -248,8 +283,8 @@ static void update_mask(rend_residual *rr)
     memset(rr->mask, 0, (size_t)width * (size_t)height);
     rr->mask_live = 0;
     if (!rr->have_cached) return;
-    read_back(rr);
-    block_sums_all(width, height, b, rr->cached_copy, rr->mean, rr->se, rr->sums);
+    const pt_picture pt = pt_of(rr);
+    block_sums_all(width, height, b, rr->cached_copy, &pt, rr->sums);
     for (int j = 0; j < bh; ++j)
         for (int i = 0; i < bw; ++i) {
             if (!(block_weight(rr->sums[(size_t)j * (size_t)bw + (size_t)i]) > 0.0)) continue;
@@ -305,13 +340,13 @@ void rend_residual_apply(rend_residual *rr, const float *cached, float *out, ren
 {
     int w = rr->desc.width, h = rr->desc.height;
     size_t n = (size_t)w * (size_t)h;
-    read_back(rr);
     memcpy(rr->cached_copy, cached, n * 3 * sizeof *cached);
     rr->have_cached = 1;
     rend_residual_info local;
     if (!info) info = &local;
     memset(info, 0, sizeof *info);
-    blend_with(w, h, rr->desc.block, cached, rr->mean, rr->se, out, info, rr->sums);
+    const pt_picture pt = pt_of(rr);
+    blend_with(w, h, rr->desc.block, cached, &pt, out, info, rr->sums);
     ref_stats st;
     ref_get_stats(rr->pt, &st);
     info->min_samples = st.min_samples;
