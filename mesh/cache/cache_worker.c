@@ -397,7 +397,7 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
      * needs no calibration); the calibration comes once the cache has converged
      * (calibrate_later, below), so no refinement waits for it. */
     samp_desc start = sd;
-    if (sd.backend == SAMP_BACKEND_AUTO && !w->desc.calibrate_first) {
+    if (sd.backend == SAMP_BACKEND_AUTO) {
         start.backend = SAMP_BACKEND_EMBREE;
         w->calibrate_later = 1;
         snprintf(w->calibration_note, sizeof w->calibration_note,

@@ -64,9 +64,6 @@ typedef struct cache_worker_desc {
                                     by `pixels` (a first image with shadows and the light's falloff:
                                     docs/renderer.md, "The first image"); 0 = none (and without pixels) */
     uint64_t max_tested;         /* stop after this many leaves tested (deterministic runs); 0 = no limit */
-    int calibrate_first;         /* AUTO: calibrate before refining, as before issue 14 (the viewer:
-                                    docs/viewer.md says why); 0 = start with Embree at its defaults
-                                    and calibrate after the first convergence */
     float jnd_floor;             /* ΔE; > 0: never plateau. Once the cache has converged at its JND
                                     (cache_desc.jnd), the worker halves the JND and refines on, and
                                     again at each convergence, down to this floor; only then is it

@@ -2,8 +2,11 @@
  * (gl_context.h): platform dispatch, loading the glad MX function table,
  * KHR_debug in debug builds, and tracking which context is current on each
  * thread so that EGL and OSMesa contexts can take turns on one thread. */
+#define _GNU_SOURCE /* dl_iterate_phdr, RTLD_NODELETE, RTLD_NOLOAD: before any header */
 #include "src/gpu/gl_context.h"
 
+#include <dlfcn.h>
+#include <link.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -96,6 +99,34 @@ static lm_result create_context(const glctx_desc *desc, glctx **out, lm_error *e
 #endif
     *out = ctx;
     return LM_OK;
+}
+
+/* A loaded library that is a GL driver: Mesa's DRI drivers (swrast_dri.so,
+ * iris_dri.so, ...) and its gallium library where the build has one. */
+static int is_gl_driver(const char *path)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    return strstr(base, "_dri.so") != NULL || strncmp(base, "libgallium", 10) == 0;
+}
+
+static int pin_driver(struct dl_phdr_info *info, size_t size, void *user)
+{
+    (void)size;
+    (void)user;
+    if (info->dlpi_name && info->dlpi_name[0] && is_gl_driver(info->dlpi_name)) {
+        /* NOLOAD: a handle to what is there, never a load; NODELETE: never unloaded.
+         * The handle is not closed: it is what holds the module. */
+        (void)dlopen(info->dlpi_name, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
+    }
+    return 0;
+}
+
+void glctx_keep_drivers_loaded(void)
+{
+    lm_fork_guard_enter(); /* the loader's lock, as around a context's start */
+    dl_iterate_phdr(pin_driver, NULL);
+    lm_fork_guard_leave();
 }
 
 /* The driver is loaded, started and (at the last context's end) unloaded inside

@@ -52,6 +52,15 @@ typedef struct glctx glctx;
 lm_result glctx_create(const glctx_desc *desc, glctx **out, lm_error *err);
 void glctx_destroy(glctx *ctx); /* NULL is a no-op */
 
+/* Keeps the GL drivers loaded now (Mesa's `*_dri.so` and `libgallium*`) loaded for
+ * the rest of the process (dlopen RTLD_NODELETE). For a front end whose own
+ * window system unloads the driver at its end (the viewer's GLFW/GLX: at
+ * glfwTerminate): Mesa keeps state reachable only from the driver's globals, and
+ * once those are unmapped LeakSanitizer reports it as leaked from an "unknown
+ * module" (docs/viewer.md). glctx's EGL and OSMesa contexts never unload it.
+ * Any thread; cheap. */
+void glctx_keep_drivers_loaded(void);
+
 /* Makes ctx current on the calling thread (cheap when it already is). */
 lm_result glctx_make_current(glctx *ctx, lm_error *err);
 /* Releases ctx from the calling thread, where it is current (else a no-op), so

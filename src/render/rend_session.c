@@ -172,7 +172,6 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t 
     return cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels = pixels,
                                                     .pixels_later = pixels == NULL, .max_tested = d->max_tested,
                                                     .first_budget = first_budget,
-                                                    .calibrate_first = d->calibrate_first,
                                                     .publish_debug = d->publish_debug, .cache = cd,
                                                     .jnd_floor = d->jnd_floor > 0 ? d->jnd_floor : 0},
                                &rs->wk, err);

@@ -135,7 +135,6 @@ typedef struct rend_session_desc {
                                       its first snapshot, by pixel counts guessed from the camera
                                       (camera_triangle_pixels), and it refines on by them until the ID
                                       pass: a first image with shadows (docs/renderer.md); 0 = none */
-    int calibrate_first;           /* cache_worker_desc.calibrate_first */
     int bounces;                   /* diffuse bounces (cache_desc.bounces): 1..CACHE_BOUNCES_MAX or
                                       CACHE_BOUNCES_AUTO; 0 = auto */
     float jnd_floor;               /* ΔE: after converging, the worker refines on to this JND

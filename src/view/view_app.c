@@ -128,9 +128,9 @@ static lm_result start_session(view_state *v, lm_error *err)
     d.camera = NULL;
     d.width = d.height = 0;
     d.order = REND_SESSION_WORKER_FIRST;
-    /* AUTO calibrates at the start here (docs/viewer.md: deferred, it made
-     * LeakSanitizer report Mesa memory from an unloaded module in the viewer). */
-    d.calibrate_first = 1;
+    /* AUTO's calibration comes after the first convergence, as in render and
+     * converge (the worker's rule): it came first here until the driver was kept
+     * loaded (glctx_keep_drivers_loaded in view_glfw.c; docs/viewer.md). */
     /* The first image with shadows (rend_session_desc.first_budget): the scene's
      * camera at the framebuffer's size guesses the pixel counts until the first
      * ID pass. */

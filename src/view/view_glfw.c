@@ -9,6 +9,8 @@
 #define GLFW_INCLUDE_NONE
 #include <GLFW/glfw3.h>
 
+#include "src/gpu/gl_context.h"
+
 struct view_window {
     GLFWwindow *window;
     GladGLContext gl;
@@ -132,6 +134,8 @@ lm_result view_window_create(const view_window_desc *desc, view_window **out, lm
     }
     glfwSetWindowUserPointer(win->window, win);
     glfwMakeContextCurrent(win->window);
+    /* The window's driver stays loaded to the end, as glctx's do (gl_context.h). */
+    glctx_keep_drivers_loaded();
     int version = gladLoadGLContext(&win->gl, load_proc);
     if (!version || GLAD_VERSION_MAJOR(version) * 10 + GLAD_VERSION_MINOR(version) < 45) {
         lm_fail(err, LM_ERR_UNSUPPORTED, "viewer: the window's context offers OpenGL %d.%d, lumesh needs 4.5 core",
