@@ -47,6 +47,8 @@ enum { VIEW_APP_DEFAULT_FPS = 60 };
 /* Where the time to the first image went, in seconds from the window opening
  * (each < 0 until reached): what a slow first image is looked for in. */
 typedef struct view_app_startup {
+    double window;         /* BEFORE the clock: from the scene loaded (view_app_desc.scene_loaded_at) to the
+                              window and its GL context open; < 0 = not known */
     double session;        /* the render session made: the worker started (the renderer comes at the first frame) */
     double display;        /* the tone mapping, HUD and resting-picture objects made */
     double residual;       /* the path-traced residual made (its Embree scene); = display without one */
@@ -83,6 +85,7 @@ typedef struct view_app_desc {
     const view_cmd *script;           /* NULL: interactive until Esc / Q / the close button */
     size_t script_count;
     double max_fps;                   /* 0 = VIEW_APP_DEFAULT_FPS; < 0 = unpaced */
+    double scene_loaded_at;           /* lm_now_seconds when the scene was loaded (startup.window); 0 = not known */
     int no_residual;                  /* non-zero: the resting picture is not corrected by path samples
                                          (view_residual.h) */
     void *user;

@@ -77,7 +77,7 @@ typedef struct view_state {
     const cache_snapshot *snap;     /* the last acquired, valid until the next acquire */
     uint64_t frames, id_passes, screenshots, reloads;
     double t_open, first_image, id_seconds;
-    view_app_startup startup;       /* seconds from t_open; < 0 until reached */
+    view_app_startup startup;       /* seconds from t_open (window: before it); < 0 until reached */
     rend_frame_times times;
     int drawn;                      /* a frame with the current sizes exists */
     view_accum *accum;              /* the resting picture (view_accum.h) */
