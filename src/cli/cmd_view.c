@@ -47,16 +47,16 @@ static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
            (unsigned long long)rep->id_passes, rep->renderer);
     if (!c->stats) return LM_OK;
     if (!rep->snap) return lm_fail(err, LM_ERR_RUNTIME, "%s: no snapshot was drawn, no statistics to write", c->stats);
-    static const char *const phase_names[] = {"window", "session", "display", "residual", "first_snapshot"};
-    const double phases[] = {rep->startup.window, rep->startup.session, rep->startup.display, rep->startup.residual,
-                             rep->startup.first_snapshot};
+    static const char *const phase_names[] = {"load", "window", "session", "display", "residual", "first_snapshot"};
+    const double phases[] = {rep->startup.load,    rep->startup.window,   rep->startup.session,
+                             rep->startup.display, rep->startup.residual, rep->startup.first_snapshot};
     cJSON *j = app_stats_json(&(app_stats_desc){.command = "view", .scene = rep->scene->source, .width = rep->width,
                                                .height = rep->height, .supersample = 1,
                                                .seconds = lm_now_seconds() - c->t_loaded,
                                                .first_image_seconds = rep->first_image_seconds, .snap = rep->snap,
                                                .id_seconds = rep->id_seconds, .frame = rep->frame,
                                                .frames = rep->frames, .phase_names = phase_names,
-                                               .phase_seconds = phases, .phase_count = 5});
+                                               .phase_seconds = phases, .phase_count = 6});
     if (!j) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the statistics");
     lm_result r = app_write_json(c->stats, j, err);
     cJSON_Delete(j);
@@ -138,7 +138,8 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
         view_cli c = {.path = npos ? pos[0] : NULL, .current = s, .stats = stats, .t_loaded = t_loaded};
         r = view_app_run(&(view_app_desc){.scene = s, .camera = ci, .width = (int)width, .height = (int)height,
                                           .session = sd, .script = script ? cmds : NULL, .script_count = ncmds,
-                                          .max_fps = max_fps > 0 ? max_fps : -1, .scene_loaded_at = t_scene, .user = &c,
+                                          .max_fps = max_fps > 0 ? max_fps : -1, .scene_loaded_at = t_scene,
+                                          .scene_load_seconds = t_scene - t_loaded, .user = &c,
                                           .screenshot = print_screenshot, .finished = finished, .reload = reload,
                                           .release = release, .no_residual = strcmp(residual, "off") == 0},
                          &err);

@@ -750,7 +750,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
         return lm_fail(err, LM_ERR_INVALID_ARG, "view_app_run: no scene or no such camera");
     view_state v = {.d = d, .s = d->scene, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
                     .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL,
-                    .startup = {-1, -1, -1, -1, -1}};
+                    .startup = {-1, -1, -1, -1, -1, -1}};
     lm_result r = reset_lights(&v, err);
     if (r != LM_OK) return r;
     r = view_window_create(&(view_window_desc){.title = "lumesh view", .width = d->width,
@@ -765,6 +765,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     v.gl = view_window_gl(v.win);
     v.t_open = v.last_input = lm_now_seconds();
     if (d->scene_loaded_at > 0) v.startup.window = v.t_open - d->scene_loaded_at;
+    if (d->scene_load_seconds > 0) v.startup.load = d->scene_load_seconds;
     v.camera_index = (uint32_t)d->camera;
     r = start_session(&v, err);
     v.startup.session = lm_now_seconds() - v.t_open;

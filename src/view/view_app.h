@@ -47,6 +47,8 @@ enum { VIEW_APP_DEFAULT_FPS = 60 };
 /* Where the time to the first image went, in seconds from the window opening
  * (each < 0 until reached): what a slow first image is looked for in. */
 typedef struct view_app_startup {
+    double load;           /* BEFORE the clock: the scene's reading, from the command's start to the scene
+                              loaded (view_app_desc.scene_load_seconds); < 0 = not known */
     double window;         /* BEFORE the clock: from the scene loaded (view_app_desc.scene_loaded_at) to the
                               window and its GL context open; < 0 = not known */
     double session;        /* the render session made: the worker started (the renderer comes at the first frame) */
@@ -86,6 +88,7 @@ typedef struct view_app_desc {
     size_t script_count;
     double max_fps;                   /* 0 = VIEW_APP_DEFAULT_FPS; < 0 = unpaced */
     double scene_loaded_at;           /* lm_now_seconds when the scene was loaded (startup.window); 0 = not known */
+    double scene_load_seconds;        /* how long reading it took (startup.load); 0 = not known */
     int no_residual;                  /* non-zero: the resting picture is not corrected by path samples
                                          (view_residual.h) */
     void *user;
