@@ -23,7 +23,8 @@ enum { TILE = 16, MAX_THREADS = 256, MAX_FULL_DEPTH = 256, RR_START_DEPTH = 3, R
  * written by exactly one worker (the one that took its tile), never read. */
 typedef struct ref_pixel {
     double sum[3], sum2[3]; /* sums of samples and of their squares, per channel */
-    double sum_y, sum_y2;   /* the same for luminance */
+    double sum_y2;          /* the sum of the luminances' squares (theirs is the luminance of sum:
+                               ref_luminance is linear), 64 bytes a pixel instead of 72 */
     uint32_t count;
 } ref_pixel;
 
@@ -322,7 +323,6 @@ static void render_pixel(ctx *c, int px, int py)
         pix->sum[k] += L[k];
         pix->sum2[k] += (double)L[k] * L[k];
     }
-    pix->sum_y += y;
     pix->sum_y2 += (double)y * y;
     pix->count++;
 }
@@ -507,8 +507,9 @@ void ref_get_stats(const ref_renderer *r, ref_stats *out)
         if (p->count < out->min_samples) out->min_samples = p->count;
         if (p->count > out->max_samples) out->max_samples = p->count;
         if (p->count < 2) continue;
-        double y = p->sum_y / p->count;
-        rel += stderr_of_mean(p->sum_y, p->sum_y2, p->count) / sqrt(y * y + 0.01);
+        /* ref_luminance's weights, in double: the variance is a difference of sums */
+        double sum_y = 0.2126f * p->sum[0] + 0.7152f * p->sum[1] + 0.0722f * p->sum[2], y = sum_y / p->count;
+        rel += stderr_of_mean(sum_y, p->sum_y2, p->count) / sqrt(y * y + 0.01);
         counted++;
     }
     out->mean_rel_stderr = counted ? rel / (double)counted : INFINITY;

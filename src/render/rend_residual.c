@@ -60,7 +60,10 @@ struct rend_residual {
     double seconds_before; /* the path tracer's seconds at the last restart */
     float *band;              /* the path tracer's read-back, one block's rows at a time (pt_picture) */
     float *cached_copy;       /* width·height·3: a copy of the last picture applied (the adaptive
-                                 passes' mask is made against it); the caller may free or reuse its own */
+                                 passes' mask is made against it); the caller may free or reuse its own.
+                                 Made with mask at the first apply: `render` runs the residual beside the
+                                 refining cache long before it applies anything (16 bytes a pixel less in
+                                 that peak; docs/memory.md) */
     int have_cached;          /* cached_copy holds one (none since create or the last restart) */
     uint8_t *mask;            /* width·height: the pixels of the blocks being corrected, and their neighbours */
     block_sums *sums;         /* one per block: the blend's and the mask's scratch */
@@ -84,16 +87,13 @@ lm_result rend_residual_create(const rend_residual_desc *desc, rend_residual **o
     if (desc->width <= 0 || desc->height <= 0)
         return lm_fail(err, LM_ERR_INVALID_ARG, "rend_residual_create: size %dx%d", desc->width, desc->height);
     rend_residual *rr = calloc(1, sizeof *rr);
-    size_t n = (size_t)desc->width * (size_t)desc->height;
     if (rr) {
         rend_residual_desc d = *desc;
         rend_residual_desc_defaults(&d);
         rr->band = malloc(band_floats(desc->width, d.block) * sizeof *rr->band);
-        rr->cached_copy = malloc(n * 3 * sizeof *rr->cached_copy);
-        rr->mask = malloc(n);
         rr->sums = malloc(block_count(desc->width, desc->height, d.block) * sizeof *rr->sums);
     }
-    if (!rr || !rr->band || !rr->cached_copy || !rr->mask || !rr->sums) {
+    if (!rr || !rr->band || !rr->sums) {
         rend_residual_destroy(rr);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the residual of a %dx%d picture", desc->width,
                        desc->height);
@@ -280,9 +280,9 @@ static void update_mask(rend_residual *rr)
 {
     int width = rr->desc.width, height = rr->desc.height, b = rr->desc.block;
     int bw = (width + b - 1) / b, bh = (height + b - 1) / b;
-    memset(rr->mask, 0, (size_t)width * (size_t)height);
     rr->mask_live = 0;
     if (!rr->have_cached) return;
+    memset(rr->mask, 0, (size_t)width * (size_t)height);
     const pt_picture pt = pt_of(rr);
     block_sums_all(width, height, b, rr->cached_copy, &pt, rr->sums);
     for (int j = 0; j < bh; ++j)
@@ -340,8 +340,12 @@ void rend_residual_apply(rend_residual *rr, const float *cached, float *out, ren
 {
     int w = rr->desc.width, h = rr->desc.height;
     size_t n = (size_t)w * (size_t)h;
-    memcpy(rr->cached_copy, cached, n * 3 * sizeof *cached);
-    rr->have_cached = 1;
+    if (!rr->cached_copy) rr->cached_copy = malloc(n * 3 * sizeof *rr->cached_copy);
+    if (!rr->mask) rr->mask = malloc(n);
+    if (rr->cached_copy && rr->mask) { /* without them the passes stay uniform (update_mask) */
+        memcpy(rr->cached_copy, cached, n * 3 * sizeof *cached);
+        rr->have_cached = 1;
+    }
     rend_residual_info local;
     if (!info) info = &local;
     memset(info, 0, sizeof *info);
