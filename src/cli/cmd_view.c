@@ -20,7 +20,7 @@ typedef struct view_cli {
     scene *current;          /* the scene the viewer shows; freed by cmd_view at the end */
     scene *pending;          /* the last reload, until the viewer takes it (or releases it) */
     const char *stats;
-    double t_loaded;
+    double t_load_start; /* lm_now_seconds before the scene was read: --stats' seconds count from it */
 } view_cli;
 
 static void print_screenshot(const char *path, const view_app_report *rep, void *user)
@@ -52,7 +52,7 @@ static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
                              rep->startup.display, rep->startup.residual, rep->startup.first_snapshot};
     cJSON *j = app_stats_json(&(app_stats_desc){.command = "view", .scene = rep->scene->source, .width = rep->width,
                                                .height = rep->height, .supersample = 1,
-                                               .seconds = lm_now_seconds() - c->t_loaded,
+                                               .seconds = lm_now_seconds() - c->t_load_start,
                                                .first_image_seconds = rep->first_image_seconds, .snap = rep->snap,
                                                .id_seconds = rep->id_seconds, .frame = rep->frame,
                                                .frames = rep->frames, .phase_names = phase_names,
@@ -129,17 +129,17 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     if (r == LM_OK && script && ncmds == 0) r = lm_fail(&err, LM_ERR_BAD_INPUT, "%s: the script has no commands", script);
     if (r != LM_OK) return app_report(r, &err);
     scene *s = NULL;
-    double t_loaded = lm_now_seconds();
+    double t_load_start = lm_now_seconds();
     r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &s, &err);
     double t_scene = lm_now_seconds();
     int ci = r == LM_OK ? scene_find_camera(s, camera) : 0;
     if (r == LM_OK && ci < 0) r = lm_fail(&err, LM_ERR_BAD_INPUT, "%s: no camera named '%s'", s->source, camera);
     if (r == LM_OK) {
-        view_cli c = {.path = npos ? pos[0] : NULL, .current = s, .stats = stats, .t_loaded = t_loaded};
+        view_cli c = {.path = npos ? pos[0] : NULL, .current = s, .stats = stats, .t_load_start = t_load_start};
         r = view_app_run(&(view_app_desc){.scene = s, .camera = ci, .width = (int)width, .height = (int)height,
                                           .session = sd, .script = script ? cmds : NULL, .script_count = ncmds,
                                           .max_fps = max_fps > 0 ? max_fps : -1, .scene_loaded_at = t_scene,
-                                          .scene_load_seconds = t_scene - t_loaded, .user = &c,
+                                          .scene_load_seconds = t_scene - t_load_start, .user = &c,
                                           .screenshot = print_screenshot, .finished = finished, .reload = reload,
                                           .release = release, .no_residual = strcmp(residual, "off") == 0},
                          &err);

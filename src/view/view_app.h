@@ -43,7 +43,6 @@ extern "C" {
 
 enum { VIEW_APP_DEFAULT_FPS = 60 };
 
-/* What the run measured, for the caller's report and --stats. */
 /* Where the time to the first image went, in seconds from the window opening
  * (each < 0 until reached): what a slow first image is looked for in. */
 typedef struct view_app_startup {
@@ -57,6 +56,7 @@ typedef struct view_app_startup {
     double first_snapshot; /* the worker's first snapshot acquired (after the first frame's renderer is made) */
 } view_app_startup;
 
+/* What the run measured, for the caller's report and --stats. */
 typedef struct view_app_report {
     const scene *scene;                /* the scene now (d->scene, or the last reload's) */
     const scene_camera *camera;        /* the camera now */
