@@ -196,13 +196,13 @@ static void direct_light(ctx *c, const ref_surface *x, lm_vec3 wo, int want_spec
 
 /* ---- model transport ------------------------------------------------------ */
 
-/* Radiance a diffuse bounce from x brings back: kd(x')·L_dd(x') (+ kd(x')·L_id(x')
- * while bounces remain). Estimates L_id(x) = E_i(x)/π with one cosine sample. */
-static void gather(ctx *c, const ref_surface *x, int bounces_left, float out[3])
+static void gather(ctx *c, const ref_surface *x, int bounces_left, float out[3]);
+
+/* What the surface hit from x along wi sends back to x: kd(x')·L_dd(x') (+
+ * kd(x')·L_id(x') while bounces remain), the source of x's gathers. */
+static void source_along(ctx *c, const ref_surface *x, lm_vec3 wi, int bounces_left, float out[3])
 {
     out[0] = out[1] = out[2] = 0.0f;
-    float u1 = lm_rng_float(&c->g), u2 = lm_rng_float(&c->g);
-    lm_vec3 wi = ref_sample_cosine(x->ns, u1, u2);
     if (v3_dot(wi, x->ng) <= 0.0f) return;
     rt_hit h;
     if (!trace(c, offset(c, x, wi), wi, &h)) return;
@@ -214,6 +214,30 @@ static void gather(ctx *c, const ref_surface *x, int bounces_left, float out[3])
     direct_light(c, &y, v3_scale(wi, -1.0f), 0, MIS_LOBE_ONLY, dd, unused);
     if (bounces_left > 1) gather(c, &y, bounces_left - 1, more);
     for (int k = 0; k < 3; ++k) out[k] = kd[k] * (dd[k] + more[k]);
+}
+
+/* Radiance a diffuse bounce from x brings back (source_along). Estimates
+ * L_id(x) = E_i(x)/π with one cosine sample. */
+static void gather(ctx *c, const ref_surface *x, int bounces_left, float out[3])
+{
+    float u1 = lm_rng_float(&c->g), u2 = lm_rng_float(&c->g);
+    source_along(c, x, ref_sample_cosine(x->ns, u1, u2), bounces_left, out);
+}
+
+/* The glossy reflection of the gathers' source at x seen from wo, per unit ks:
+ * one direction drawn by the lobe (pdf (n+1)/(2π)·cosⁿα), so the sample is
+ * (n+2)/(n+1)·cosθ·L (cache_glossy.c gathers the same integral from its source). */
+static void glossy_source(ctx *c, const ref_surface *x, lm_vec3 wo, int bounces, float out[3])
+{
+    float u1 = lm_rng_float(&c->g), u2 = lm_rng_float(&c->g);
+    const float n = x->m->n;
+    lm_vec3 wi = ref_sample_phong(n, wo, x->ns, u1, u2);
+    const float cosi = v3_dot(wi, x->ns);
+    out[0] = out[1] = out[2] = 0.0f;
+    if (!(cosi > 0.0f)) return; /* below the horizon: the lobe is clipped there */
+    source_along(c, x, wi, bounces, out);
+    const float w = (n + 2.0f) / (n + 1.0f) * cosi;
+    for (int k = 0; k < 3; ++k) out[k] *= w;
 }
 
 static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
@@ -235,7 +259,9 @@ static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
     float id[3] = {0, 0, 0};
     if (bounces > 0 && (x.m->kd[0] > 0.0f || x.m->kd[1] > 0.0f || x.m->kd[2] > 0.0f))
         gather(c, &x, bounces, id);
-    for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * (dd[k] + id[k]) + ds[k];
+    float is[3] = {0, 0, 0};
+    if (bounces > 0 && r->desc.glossy == REF_GLOSSY_INDIRECT && has_specular(x.m)) glossy_source(c, &x, wo, bounces, is);
+    for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * (dd[k] + id[k]) + ds[k] + x.m->ks[k] * is[k];
 }
 
 /* ---- full transport -------------------------------------------------------- */
@@ -402,6 +428,7 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
         return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: camera %d does not exist", desc->camera);
     if ((unsigned)desc->transport >= REF_TRANSPORT_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: unknown transport %d", (int)desc->transport);
+    if ((unsigned)desc->glossy >= REF_GLOSSY_COUNT) return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: unknown glossy mode");
     if (desc->bounces < REF_BOUNCES_NONE || desc->bounces > 64)
         return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: bounces must be 0..64");
     const scene_camera *cam = desc->view ? desc->view : &s->cameras[desc->camera];

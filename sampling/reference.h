@@ -11,6 +11,11 @@
  *   L_id  K diffuse bounces (default 1): (1/π)·∫ kd(x')·L_dd(x') cosθ dω, and for
  *         K = 2 the source is kd(x')·(L_dd(x') + L_id(x')). Emission and specular
  *         radiance of the surfaces a bounce hits are not sources (paper eq. 7).
+ *   L_is  (with ks·: added to L_ds) the glossy reflection of the same source: one
+ *         ray by the lobe, ks·∫ (n+2)/(2π)·cosⁿα·kd(x')·(L_dd(x') + L_id(x'))·cosθ dω,
+ *         L_id(x') of K − 1 bounces (the source of x's own gathers); not with
+ *         REF_GLOSSY_DIRECT or without bounces (docs/cache.md, "Glossy reflection
+ *         of the room").
  * REF_TRANSPORT_FULL is unbiased path tracing of all bounces with the same BRDF:
  * next-event estimation and BRDF sampling combined with MIS (power heuristic),
  * Russian roulette after three bounces.
@@ -48,6 +53,13 @@ typedef enum ref_transport {
 
 enum { REF_BOUNCES_NONE = -1 }; /* direct light only (model transport) */
 
+/* What glossy materials reflect in the model transport (ref_desc.glossy). */
+typedef enum ref_glossy {
+    REF_GLOSSY_INDIRECT = 0, /* default: the lights (L_ds) and the bounces' source (L_is) */
+    REF_GLOSSY_DIRECT,       /* the lights only: the paper's model (references made before it) */
+    REF_GLOSSY_COUNT
+} ref_glossy;
+
 typedef struct ref_desc {
     const scene *scene;       /* must outlive the renderer */
     int camera;               /* index into scene->cameras */
@@ -55,6 +67,7 @@ typedef struct ref_desc {
     int width, height;        /* pixels; 0 = the camera's */
     ref_transport transport;
     int bounces;              /* model transport: diffuse bounces; 0 = 1; REF_BOUNCES_NONE = 0 */
+    ref_glossy glossy;        /* model transport: what glossy materials reflect (the full one: all) */
     uint32_t seed;
     int threads;              /* 0 = every core */
     int background;           /* non-zero: passes run on threads of the lowest priority (Linux

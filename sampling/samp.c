@@ -368,6 +368,21 @@ lm_result samp_surface_hits_trace(samp_sampler *sp, const samp_point *pts, uint3
     return LM_OK;
 }
 
+/* The checks samp_lobe_visibility and samp_lobe_gather share; their side in *side. */
+static lm_result lobe_args_ok(const char *fn, const samp_point *pts, const float *wo,
+                              const float *exponent, uint32_t n, uint32_t rays, uint32_t *side, lm_error *err)
+{
+    *side = (uint32_t)floor(sqrt((double)rays));
+    if (rays < 1 || rays > 4096 || *side * *side != rays)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "%s: %u rays a point (a square, 1..4096)", fn, rays);
+    if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "%s: non-finite point or normal", fn);
+    for (uint32_t i = 0; i < n; ++i)
+        if (!(exponent[i] >= 0.0f) || !isfinite(exponent[i]) || !isfinite(wo[3 * i]) || !isfinite(wo[3 * i + 1]) ||
+            !isfinite(wo[3 * i + 2]))
+            return lm_fail(err, LM_ERR_INVALID_ARG, "%s: a bad exponent or view direction", fn);
+    return LM_OK;
+}
+
 lm_result samp_lobe_visibility(samp_sampler *sp, uint32_t light, const samp_point *pts, const float *wo,
                                const float *exponent, uint32_t n, uint32_t rays, float *V, lm_error *err)
 {
@@ -375,17 +390,36 @@ lm_result samp_lobe_visibility(samp_sampler *sp, uint32_t light, const samp_poin
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: missing arguments");
     if (light >= sp->s->area_light_count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: %u is not an area light", light);
-    uint32_t side = (uint32_t)floor(sqrt((double)rays));
-    if (rays < 1 || rays > 4096 || side * side != rays)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: %u rays a point (a square, 1..4096)", rays);
-    if (!points_valid(pts, n)) return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: non-finite point or normal");
-    for (uint32_t i = 0; i < n; ++i)
-        if (!(exponent[i] >= 0.0f) || !isfinite(exponent[i]) || !isfinite(wo[3 * i]) || !isfinite(wo[3 * i + 1]) ||
-            !isfinite(wo[3 * i + 2]))
-            return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_visibility: a bad exponent or view direction");
+    uint32_t side;
+    lm_result r = lobe_args_ok("samp_lobe_visibility", pts, wo, exponent, n, rays, &side, err);
+    if (r != LM_OK) return r;
     double t0 = lm_now_seconds();
     samp_lobe_run(sp->s, sp->rt, light, pts, wo, exponent, n, side, V);
     sp->stats.direct_seconds += lm_now_seconds() - t0;
+    return LM_OK;
+}
+
+lm_result samp_lobe_gather(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, const float *wo,
+                           const float *exponent, uint32_t n, uint32_t rays, uint32_t pass, float *L, float *std_err,
+                           lm_error *err)
+{
+    if (!sp || (n && (!pts || !wo || !exponent || !L)))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "samp_lobe_gather: missing arguments");
+    if (!mesh_ok(sp, mesh, err)) return LM_ERR_INVALID_ARG;
+    uint32_t side;
+    lm_result r = lobe_args_ok("samp_lobe_gather", pts, wo, exponent, n, rays, &side, err);
+    if (r != LM_OK || n == 0) return r;
+    double t0 = lm_now_seconds();
+    samp_radiance_index own = {0}; /* a mesh not prepared: indexed for this call (linear search without memory) */
+    const samp_radiance_index *ix = mesh->index;
+    if (!ix) {
+        samp_radiance_index_build(sp->s, mesh, &own);
+        ix = &own;
+    }
+    samp_lobe_gather_run(sp->s, sp->rt, mesh, ix, pts, wo, exponent, n, side, pass, L, std_err);
+    samp_radiance_index_free(&own);
+    sp->stats.indirect_seconds += lm_now_seconds() - t0;
+    sp->stats.glossy_samples += n;
     return LM_OK;
 }
 

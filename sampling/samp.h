@@ -292,6 +292,22 @@ lm_result samp_surface_hits_trace(samp_sampler *sp, const samp_point *pts, uint3
 lm_result samp_lobe_visibility(samp_sampler *sp, uint32_t light, const samp_point *pts, const float *wo,
                                const float *exponent, uint32_t n, uint32_t rays, float *V, lm_error *err);
 
+/* The radiance of `mesh` reflected by a modified Phong lobe of exponent[i] about
+ * the mirror of wo[i] (3 floats a point, towards the viewer, any length), per
+ * unit ks: L_is(x, ωo) = ∫ (n+2)/(2π) cosⁿα · L(y(ω)) · cosθ dω, the glossy
+ * indirect term (docs/cache.md, "Glossy reflection of the room"). rays (a square,
+ * 1..4096) directions a point drawn in proportion to cosⁿα, stratified, traced
+ * with Embree whichever back end serves the sampler; a direction below the
+ * point's horizon brings nothing (the lobe clipped there), as does a miss or the
+ * back of a surface (samp_radiance_mesh: the back sends nothing). L[3·i ..] gets
+ * the RGB mean, std_err[3·i ..] (NULL: not wanted) its standard error (the rays'
+ * sample deviation over √rays: the strata ignored, so it errs high).
+ * Deterministic per point and `pass` (a random stream). Not counted as indirect
+ * samples (samp_stats.glossy_samples). */
+lm_result samp_lobe_gather(samp_sampler *sp, const samp_radiance_mesh *mesh, const samp_point *pts, const float *wo,
+                           const float *exponent, uint32_t n, uint32_t rays, uint32_t pass, float *L, float *std_err,
+                           lm_error *err);
+
 /* Which back ends serve a sampler. Decide by the enums (backend, gl_platform);
  * the names are for display and the statistics JSON only. A zeroed samp_stats
  * (backend AUTO, names NULL) stands for "no sampler". */
@@ -304,6 +320,7 @@ typedef struct samp_stats {
     const char *indirect_backend_name;
     char choice[512];             /* why these back ends (AUTO: the calibration's numbers) */
     uint64_t direct_samples, indirect_samples;  /* points served */
+    uint64_t glossy_samples;                    /* samp_lobe_gather's points (in indirect_seconds' time) */
     double direct_seconds, indirect_seconds;    /* wall time inside the calls (indirect: samp_indirect_sources too) */
 } samp_stats;
 

@@ -11,6 +11,12 @@
  * when |value − expected| <= 3·SE + b·expected; the test also asks that almost
  * every pixel passes (3 SE is a 99.7% band) and that the image mean passes with
  * the standard error of the mean.
+ * With a Phong coat (ks κ, exponent n) every point is seen along its normal from
+ * the centre, so the model transport adds κ·(n+2)/(2π)·I/R² (the light in the
+ * lobe) and κ·L_src (the lobe reflecting the uniform source of the bounces,
+ * ρ·I/(πR²)·Σ_(k<K) ρ^k; the lobe about the normal integrates to 1), the second
+ * not with REF_GLOSSY_DIRECT. The tilt of a flat facet moves the lobe's value at
+ * the light by about 2n times the bias bound.
  * The reported standard error is checked for honesty against the spread of the
  * pixel means over independent seeds (full transport, where there is real noise).
  */
@@ -29,18 +35,21 @@ enum { W = 16, H = 16 };
 #define INTENSITY 3.0
 #define RADIUS 2.0
 
-static scene *load_sphere_scene(double *bias)
+#define KS 0.3
+#define PHONG_N 2.0
+
+static scene *load_sphere_scene(double *bias, double ks)
 {
     char obj[1024], json[1024], text[1024];
     snprintf(obj, sizeof obj, "%s/icosphere.obj", LUMESH_TMP_DIR);
     *bias = test_write_icosphere(5, RADIUS, obj);
     snprintf(text, sizeof text,
              "{\"meshes\": [{\"file\": \"icosphere.obj\", \"material\": \"grey\"}],"
-             " \"materials\": {\"grey\": {\"kd\": [%g, %g, %g]}},"
+             " \"materials\": {\"grey\": {\"kd\": [%g, %g, %g], \"ks\": [%g, %g, %g], \"n\": %g}},"
              " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [%g, %g, %g]}],"
              " \"cameras\": [{\"position\": [0, 0, 0], \"target\": [0.3, 0.2, 1], \"fov_y\": 90,"
              " \"width\": %d, \"height\": %d}]}",
-             RHO, RHO, RHO, INTENSITY, INTENSITY, INTENSITY, W, H);
+             RHO, RHO, RHO, ks, ks, ks, PHONG_N, INTENSITY, INTENSITY, INTENSITY, W, H);
     test_write_file("sphere.json", text, json, sizeof json);
     scene_load_desc d = {.path = json, .require_light = 1, .crease_angle_deg = 0.01f};
     scene *s = NULL;
@@ -54,9 +63,10 @@ typedef struct run {
     float rgb[W * H * 3], se[W * H * 3];
 } run;
 
-static void render(const scene *s, ref_transport tr, int bounces, uint32_t seed, int spp, run *out)
+static void render_glossy(const scene *s, ref_transport tr, int bounces, ref_glossy glossy, uint32_t seed, int spp,
+                          run *out)
 {
-    ref_desc d = {.scene = s, .transport = tr, .bounces = bounces, .seed = seed, .threads = 2};
+    ref_desc d = {.scene = s, .transport = tr, .bounces = bounces, .glossy = glossy, .seed = seed, .threads = 2};
     ref_renderer *r;
     lm_error err;
     lm_result res = ref_create(&d, &r, &err);
@@ -68,6 +78,11 @@ static void render(const scene *s, ref_transport tr, int bounces, uint32_t seed,
     ref_get_stats(r, &st);
     CHECK(st.bad_samples == 0 && st.min_samples == (uint32_t)spp && st.max_samples == (uint32_t)spp);
     ref_destroy(r);
+}
+
+static void render(const scene *s, ref_transport tr, int bounces, uint32_t seed, int spp, run *out)
+{
+    render_glossy(s, tr, bounces, REF_GLOSSY_INDIRECT, seed, spp, out);
 }
 
 static void check_against(const char *label, const run *res, double expected, double bias)
@@ -97,7 +112,7 @@ static void check_against(const char *label, const run *res, double expected, do
 int main(void)
 {
     double bias;
-    scene *s = load_sphere_scene(&bias);
+    scene *s = load_sphere_scene(&bias, 0.0);
     if (!s) return test_finish("reference_sphere_test");
     CHECK(s->tri_count == 20480);
     double e = RHO * INTENSITY / (RADIUS * RADIUS) / M_PI;
@@ -113,6 +128,24 @@ int main(void)
      * beyond 3 SE at 64 spp; the bounded-weight roulette of reference.c has none. */
     render(s, REF_TRANSPORT_FULL, 0, 1, 128, &c);
     check_against("full", &c, e / (1 - RHO), bias);
+
+    /* The Phong coat (see the top). */
+    {
+        double gb;
+        scene *gs = load_sphere_scene(&gb, KS);
+        if (gs) {
+            const double e0 = INTENSITY / (RADIUS * RADIUS), lobe = KS * (PHONG_N + 2.0) / (2.0 * M_PI) * e0;
+            const double src1 = RHO * e0 / M_PI, src2 = src1 * (1 + RHO), tilt = (1.0 + 2.0 * PHONG_N) * gb;
+            static run g1, g2, gd;
+            render_glossy(gs, REF_TRANSPORT_MODEL, 0, REF_GLOSSY_INDIRECT, 1, 128, &g1);
+            check_against("model, 1 bounce, Phong coat", &g1, e * (1 + RHO) + lobe + KS * src1, tilt);
+            render_glossy(gs, REF_TRANSPORT_MODEL, 2, REF_GLOSSY_INDIRECT, 1, 128, &g2);
+            check_against("model, 2 bounces, Phong coat", &g2, e * (1 + RHO + RHO * RHO) + lobe + KS * src2, tilt);
+            render_glossy(gs, REF_TRANSPORT_MODEL, 0, REF_GLOSSY_DIRECT, 1, 128, &gd);
+            check_against("model, 1 bounce, Phong coat, the lights only", &gd, e * (1 + RHO) + lobe, tilt);
+            scene_destroy(gs);
+        }
+    }
 
     /* Honest standard error: the spread of independent seeds' pixel means. */
     enum { SEEDS = 6 };

@@ -107,6 +107,7 @@ void cache_destroy(cache *c)
     cache_outlines_free(&c->outl);
     cache_source_free(&c->src);
     cache_borrow_free(&c->brw);
+    cache_glossy_free(&c->gls);
     cache_sched_free(&c->sched);
     free(c->active);
     free(c->reach_traced);
@@ -134,6 +135,8 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     uint32_t side = (uint32_t)floor(sqrt((double)rays));
     if (rays > 4096 || side * side != rays)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache: bounce_rays must be a square up to 4096, not %u", rays);
+    if ((unsigned)desc->glossy >= CACHE_GLOSSY_COUNT)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache: unknown glossy mode %d", (int)desc->glossy);
     if (!(desc->jnd >= 0.0f) || !(desc->min_leaf_pixels >= 0.0f) || (unsigned)desc->scheduler >= CACHE_SCHED_COUNT)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache: the JND and leaf size must be non-negative");
     if (!(desc->sample_pixels >= 0.0f && desc->sample_pixels <= 1.0f))
@@ -265,6 +268,9 @@ lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err)
     lm_result r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3,
                                                         .node_cap = cap, .roots_like = c->direct},
                                      &c->specular, err);
+    /* Every glossy part was gathered for the old eye (its vertex ids live on in the
+     * vertex table): stale, before the new roots get theirs. */
+    if (r == LM_OK) cache_glossy_outdate(c);
     if (r == LM_OK && c->initialised) r = sample_roots(c, CACHE_KIND_SPECULAR, NULL, 0, err);
     cache_sched_requeue(&c->sched, CACHE_KIND_SPECULAR);
     cache_sched_forget(&c->sched, CACHE_KIND_SPECULAR);
@@ -475,6 +481,8 @@ void cache_get_stats(cache *c, cache_stats *out)
     out->revised = c->vis.revised;
     out->regathered = c->src.regathered;
     out->toward_gathers = c->src.toward_gathers;
+    out->glossy_gathers = c->gls.samples;
+    out->glossy_refreshed = c->gls.refreshed;
     if (c->indirect1) {
         out->bounces = c->bnc.stats;
         mesh_qmesh_stats ms;

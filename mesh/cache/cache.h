@@ -86,6 +86,14 @@ typedef enum cache_scheduler {
     CACHE_SCHED_COUNT
 } cache_scheduler;
 
+/* What glossy materials reflect (cache_desc.glossy). */
+typedef enum cache_glossy {
+    CACHE_GLOSSY_INDIRECT = 0, /* default: the lights (eq. 5) and the indirect source through the lobe
+                                  (docs/cache.md, "Glossy reflection of the room") */
+    CACHE_GLOSSY_DIRECT,       /* the lights only: the paper's model, and references made before */
+    CACHE_GLOSSY_COUNT
+} cache_glossy;
+
 typedef struct cache_desc {
     const scene *scene;       /* must outlive the cache */
     samp_sampler *sampler;    /* samples G and E_i; owned by the caller, same thread */
@@ -93,6 +101,7 @@ typedef struct cache_desc {
     float exposure_offset;    /* stops added to the scene's exposure for the JND test; 0 = none */
     int bounces;              /* diffuse bounces shown: 1 (0: the default), 2..CACHE_BOUNCES_MAX, or
                                  CACHE_BOUNCES_AUTO (cache_bounces.c; docs/cache.md "Bounces") */
+    cache_glossy glossy;      /* what the specular mesh holds besides the lights' highlights */
     uint32_t bounce_rays;     /* bounces beyond the first: rays per coarse vertex of their transport,
                                  a square; 0 = CACHE_BOUNCE_RAYS_DEFAULT */
     float min_leaf_pixels;    /* size criterion: leaves above this many pixels split anyway; 0 = 16 */
@@ -345,6 +354,9 @@ typedef struct cache_stats {
     uint64_t toward_gathers;    /* indirect values gathered with half their rays toward the source (their
                                    pilot saw the light come through a gap: samp_point.toward_source,
                                    guided by the pilot: samp_guide; counted in indirect.samples too) */
+    uint64_t glossy_gathers;    /* specular values given the source's glossy reflection (CACHE_GLOSSY_RAYS
+                                   lobe rays each; cache_desc.glossy) */
+    uint64_t glossy_refreshed;  /* of them, taken again because the source was rebuilt or the eye moved */
     cache_bounce_stats bounces;
     uint32_t active_triangles;  /* scene triangles taken part (cache_init_seen); all of them after cache_init */
     uint64_t reach_rays;        /* rays traced to find what the seen triangles' gathers reach */

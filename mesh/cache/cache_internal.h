@@ -6,6 +6,8 @@
  *   cache_site.c      points, leaves and regions of the meshes; what the viewer
  *                     sees (cache_seen_radiance)
  *   cache_specular.c  the area lights' outlines and the specular values (eq. 5)
+ *   cache_glossy.c    the glossy part of the specular values: the source seen
+ *                     through the lobe, taken again when the source moves
  *   cache_light.c     visibility from the light meshes (§4.3.4), the direct values
  *                     (eq. 4), falsified light leaves
  *   cache_drift.c     the drift bound of indirect values over source rebuilds;
@@ -28,8 +30,8 @@
  * struct cache is a shared core (the scene, the sampler, the meshes; set by
  * cache.c) and one part per file that writes it: cache_light_state
  * (cache_light.c), cache_source_state (cache_source.c; its drift and outdated flags also
- * cache_drift.c), cache_outlines (cache_specular.c), cache_borrow_state
- * (cache_borrow.c), cache_sched (cache_refine.c). A part's fields are written by
+ * cache_drift.c), cache_outlines (cache_specular.c), cache_glossy_state
+ * (cache_glossy.c), cache_borrow_state (cache_borrow.c), cache_sched (cache_refine.c). A part's fields are written by
  * its owner only; other files may read them where said.
  *
  * Threads: a cache and everything in it belongs to the thread that refines it
@@ -124,6 +126,22 @@ typedef struct cache_outlines {
     int8_t *loop_sign;
     size_t bytes;
 } cache_outlines;
+
+/* The glossy reflection of the indirect source (written by cache_glossy.c). A
+ * specular value is its direct part (eq. 5, the lights) plus a glossy part: the
+ * source seen through the vertex's lobe (samp_lobe_gather), gathered from the
+ * source of its time. Each rebuild of the source (and each new viewpoint) makes
+ * every glossy part stale; a sweep over the vertex ids gathers them again, a
+ * bounded number a refine call, and their leaves are tested again. */
+typedef struct cache_glossy_state {
+    float *rgb;        /* per vertex id: the glossy part in its specular value (RGB, per unit ks) */
+    uint32_t *gen;     /* per vertex id: the source (generation) it was gathered from; 0 = none */
+    size_t cap;        /* ids allocated in both */
+    uint32_t gen_now;  /* the source's generation: its builds and the viewpoints so far (0: no source yet) */
+    uint32_t cursor;   /* no vertex id below it is stale (the sweep's next id) */
+    uint64_t samples;  /* lobe gathers (points) */
+    uint64_t refreshed;/* of them, values taken again for a newer source or viewpoint */
+} cache_glossy_state;
 
 /* Indirect light (written by cache_source.c). */
 typedef struct cache_source_state {
@@ -372,6 +390,7 @@ struct cache {
     cache_sched sched;
     cache_bounce_state bnc;
     cache_borrow_state brw;
+    cache_glossy_state gls;
 };
 
 /* Does scene triangle t take part (struct cache.active)? */
@@ -511,6 +530,29 @@ void cache_release_borrowed(cache *c);
 lm_result cache_borrowed_to_regions(cache *c, size_t most, lm_error *err);
 /* Borrowed roots not yet made regions, released or not. */
 size_t cache_borrowed_waiting(const cache *c);
+
+/* ---- cache_glossy.c: the glossy reflection of the source ------------------------------ */
+
+/* Rays of one glossy gather (a square). */
+enum { CACHE_GLOSSY_RAYS = 64 };
+/* Does the cache reflect the source in glossy materials (a specular mesh, and
+ * cache_desc.glossy CACHE_GLOSSY_INDIRECT)? */
+int cache_glossy_on(const cache *c);
+/* Adds to rgb[3i..] (the direct specular values of vertices vids[0..n)) their
+ * glossy part from the current source, and records it. Before the first source
+ * the part is 0 and the values stale. */
+lm_result cache_glossy_add(cache *c, const uint32_t *vids, uint32_t n, float *rgb, lm_error *err);
+/* A specular value set without its glossy part (the first image's borrowed
+ * values): 0 recorded, stale. */
+lm_result cache_glossy_forget(cache *c, uint32_t vid, lm_error *err);
+/* The source was rebuilt, or the viewpoint moved: every glossy part is stale. */
+void cache_glossy_outdate(cache *c);
+/* Gathers stale glossy parts again from the sweep's cursor, at most *allowance
+ * (spent), updates their specular values and has `changed` requeue their leaves. */
+lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance, lm_error *err);
+/* Vertex ids the sweep has still to look at (work left: no convergence before). */
+uint32_t cache_glossy_waiting(const cache *c);
+void cache_glossy_free(cache_glossy_state *st);
 
 /* ---- cache_drift.c: outdated indirect values ------------------------------------------- */
 

@@ -358,6 +358,14 @@ static lm_result light_values(cache *c, cache_kind kind, const cache_site *sites
             cache_specular_from_visibility(c, sites[i].vid, Vi, rgb + 3 * (size_t)i);
     }
     free(V);
+    if (r == LM_OK && kind == CACHE_KIND_SPECULAR && cache_glossy_on(c)) {
+        /* The source seen through the lobe (cache_glossy.c), added to the lights'. */
+        uint32_t *vids = malloc((n ? n : 1) * sizeof *vids);
+        if (!vids) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for glossy reflections");
+        for (uint32_t i = 0; i < n; ++i) vids[i] = sites[i].vid;
+        r = cache_glossy_add(c, vids, n, rgb, err);
+        free(vids);
+    }
     return r;
 }
 

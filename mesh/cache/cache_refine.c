@@ -796,7 +796,8 @@ static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *
  * (cache_light.c) and indirect values the source has moved (cache_source.c); their leaves are tested
  * again. */
 
-static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, lm_error *err)
+static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, uint64_t *glossy_allowance,
+                        lm_error *err)
 {
     lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
     /* Indirect values wait while the first image's borrowed light is recomputed:
@@ -804,6 +805,8 @@ static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, l
      * rebuilds, bounded value by value, took 8 s each and flagged most values). */
     if (c->vis.borrowed_released && cache_borrowed_waiting(c)) return r;
     if (r == LM_OK) r = cache_regather_outdated(c, requeue_changed, (void *)pixels, allowance, err);
+    /* Glossy parts a rebuilt source (or a new eye) left stale (cache_glossy.c). */
+    if (r == LM_OK) r = cache_glossy_refresh(c, requeue_changed, (void *)pixels, glossy_allowance, err);
     /* The first image's borrowed values, tested once their donors are up to date. */
     if (r == LM_OK && !c->src.outdated_n) r = cache_borrow_test(c, pixels, requeue_changed, (void *)pixels, allowance, err);
     return r;
@@ -939,6 +942,9 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * worker (the first image waits for the first). What is left waits for the
      * next call, which does nothing else until it is done. */
     uint64_t allowance = desc->regather ? desc->regather : (uint64_t)CACHE_REGATHER_PER_LEAF * budget;
+    /* Glossy parts taken again: a glossy gather is CACHE_GLOSSY_RAYS rays, an
+     * indirect one ~1,024. */
+    uint64_t glossy_allowance = 16 * allowance;
     /* The first image's borrowed direct and specular roots (cache_first.c),
      * sixteen a value gathered again (a light sample costs about a fifteenth of
      * a gather on the 116k box; at one a value, the box's leaf tests waited 30 s
@@ -948,7 +954,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     /* Values a rebuild left unbounded while unseen, seen now (a camera move). */
     if (r == LM_OK) r = cache_refresh_stale(c, desc->pixels, err);
     /* Changes made outside refinement (coarse cache, a camera move). */
-    if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
+    if (r == LM_OK) r = revise(c, desc->pixels, &allowance, &glossy_allowance, err);
     int settled = 0, finer = 0;
     /* No leaf is tested while values it would be judged by are still the first
      * image's (its borrowed direct and specular roots). Indirect values still
@@ -976,7 +982,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
             if (!settled) {
                 settled = 1;
                 r = cache_settle_source(c, err);
-                if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
+                if (r == LM_OK) r = revise(c, desc->pixels, &allowance, &glossy_allowance, err);
                 continue;
             }
             if (finer) break;
@@ -992,7 +998,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
         /* The round's light fetches may have found uniform light leaves that were
          * not, and its gathers a rebuilt source that moved older indirect values:
          * recompute those values (cache_light.c) and test their leaves again. */
-        if (r == LM_OK) r = revise(c, desc->pixels, &allowance, err);
+        if (r == LM_OK) r = revise(c, desc->pixels, &allowance, &glossy_allowance, err);
         uint32_t used = res.tested - before;
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
         total_left = used >= total_left ? 0 : total_left - used;
@@ -1000,7 +1006,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     }
     /* Values still waiting to be gathered again count as work left. */
     res.outdated = (uint32_t)(c->src.outdated_n + (c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0) +
-                              cache_borrow_pending(c));
+                              cache_borrow_pending(c) + cache_glossy_waiting(c));
     res.remaining = (uint32_t)(c->sched.waiting[0] + c->sched.waiting[1] + c->sched.waiting[2] + res.outdated);
     /* Stopped (cache_refine_desc.stop): no claim, the settling may not have run. */
     if (r == LM_OK && res.remaining == 0 && res.regathered_finer == 0 && !cache_stopping(c)) {

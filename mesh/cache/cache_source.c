@@ -352,6 +352,7 @@ static lm_result build_source(cache *c, int track, lm_error *err)
     r = samp_radiance_mesh_prepare(s, &c->src.rmesh, &c->src.rm_index, err);
     if (r != LM_OK) return r;
     c->src.rmesh.index = &c->src.rm_index;
+    cache_glossy_outdate(c); /* the glossy parts reflect the source: taken again (cache_glossy.c) */
     c->src.built_at = cache_direct_changes(c);
     c->src.built_nodes = mesh_qmesh_node_count(c->direct);
     /* The single-mesh ablation keeps what it gathered. Before the first image

@@ -131,8 +131,10 @@ typedef struct conv_ctx {
     int have_final;
     ref_transport transport;  /* the reference's (its lumesh:transport; model when it does not say) */
     int ref_bounces;          /* model transport: its bounce count (REF_BOUNCES_NONE: direct only) */
+    ref_glossy glossy;        /* model transport: what its glossy materials reflect (lumesh:glossy; a file
+                                 without it was made before the room was reflected: the lights only) */
     int bounces;              /* the previewer's (cache_desc.bounces) */
-    char transport_note[256]; /* where these came from */
+    char transport_note[384]; /* where these came from */
 } conv_ctx;
 
 /* "0.1,0.2,1" into increasing positive times ≤ limit (limit itself added last). */
@@ -269,7 +271,8 @@ static lm_result residual_make(conv_ctx *c, rend_residual **res, lm_error *err)
 {
     return rend_residual_create(&(rend_residual_desc){.scene = c->s, .camera = &c->s->cameras[c->cam], .width = c->w,
                                                       .height = c->h, .transport = c->transport,
-                                                      .bounces = c->ref_bounces, .seed = c->residual_seed,
+                                                      .bounces = c->ref_bounces, .glossy = c->glossy,
+                                                      .seed = c->residual_seed,
                                                       .background = 1},
                                 res, err);
 }
@@ -411,7 +414,8 @@ static lm_result run_path_tracer(conv_ctx *c, uint32_t seed, conv_run *run, lm_e
     lm_result r = rgb ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
     if (r == LM_OK)
         r = ref_create(&(ref_desc){.scene = c->s, .camera = c->cam, .width = c->w, .height = c->h,
-                                   .transport = c->transport, .bounces = c->ref_bounces, .seed = seed},
+                                   .transport = c->transport, .bounces = c->ref_bounces, .glossy = c->glossy,
+                                   .seed = seed},
                        &pt, err);
     double setup = lm_now_seconds() - t0;
     ref_stats st = {0};
@@ -567,6 +571,7 @@ static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_
         cJSON_AddStringToObject(j, "bounces", "auto");
     else
         cJSON_AddNumberToObject(j, "bounces", c->bounces);
+    cJSON_AddStringToObject(j, "glossy", c->glossy == REF_GLOSSY_DIRECT ? "direct" : "indirect");
     cJSON_AddStringToObject(j, "transport_note", c->transport_note);
     cJSON_AddNumberToObject(j, "width", c->w);
     cJSON_AddNumberToObject(j, "height", c->h);
@@ -686,6 +691,17 @@ static int reference_transport(conv_ctx *c, const char *ref_path, const char *gi
         fprintf(stderr, "lumesh: %s: lumesh:transport is '%s', not 'model' or 'full'\n", ref_path, tr);
         return APP_EXIT_BAD_INPUT;
     }
+    /* What glossy materials reflect: the full transport everything; the model
+     * transport the room too, unless the file is older than that (no
+     * lumesh:glossy) or says otherwise. The previewer models the same. */
+    const char *gl = img_attribute(&c->ref, "lumesh:glossy");
+    c->glossy = REF_GLOSSY_INDIRECT;
+    if (gl && strcmp(gl, "direct") != 0 && strcmp(gl, "indirect") != 0) {
+        fprintf(stderr, "lumesh: %s: lumesh:glossy is '%s', not 'direct' or 'indirect'\n", ref_path, gl);
+        return APP_EXIT_BAD_INPUT;
+    }
+    if (c->transport == REF_TRANSPORT_MODEL && (!gl || strcmp(gl, "direct") == 0)) c->glossy = REF_GLOSSY_DIRECT;
+    sd->glossy = c->glossy == REF_GLOSSY_DIRECT ? CACHE_GLOSSY_DIRECT : CACHE_GLOSSY_INDIRECT;
     int model_k = c->ref_bounces == REF_BOUNCES_NONE ? 0 : c->ref_bounces;
     if (!bounces_given)
         sd->bounces = c->transport == REF_TRANSPORT_FULL ? CACHE_BOUNCES_AUTO : model_k < 1 ? 1 : model_k;
@@ -701,9 +717,11 @@ static int reference_transport(conv_ctx *c, const char *ref_path, const char *gi
                  bounces_given ? " (--bounces)" : "");
     else
         snprintf(c->transport_note, sizeof c->transport_note,
-                 "reference: model transport, %d bounce%s%s; path tracer: the same; previewer: %s bounces%s", model_k,
-                 model_k == 1 ? "" : "s", tr ? "" : " (the file does not say: the default)", mine,
-                 bounces_given ? " (--bounces)" : "");
+                 "reference: model transport, %d bounce%s%s, glossy materials reflect %s%s; path tracer: the same; "
+                 "previewer: %s bounces%s",
+                 model_k, model_k == 1 ? "" : "s", tr ? "" : " (the file does not say: the default)",
+                 c->glossy == REF_GLOSSY_DIRECT ? "the lights only" : "the lights and the room",
+                 gl ? "" : " (the file does not say: made before the room was)", mine, bounces_given ? " (--bounces)" : "");
     return APP_EXIT_OK;
 }
 

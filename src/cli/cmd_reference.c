@@ -64,8 +64,14 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const c
         char bounces[16];
         snprintf(bounces, sizeof bounces, "%d",
                  rd->bounces == REF_BOUNCES_NONE ? 0 : rd->bounces == 0 ? 1 : rd->bounces);
+        /* lumesh:glossy: what glossy materials reflect (the model transport's
+         * ref_desc.glossy; the full transport reflects everything). A file
+         * without it was made before the model reflected the room. */
         const char *attrs[] = {"lumesh:transport", rd->transport == REF_TRANSPORT_FULL ? "full" : "model",
-                               "lumesh:bounces", rd->transport == REF_TRANSPORT_FULL ? "all" : bounces, NULL};
+                               "lumesh:bounces", rd->transport == REF_TRANSPORT_FULL ? "all" : bounces,
+                               "lumesh:glossy",
+                               rd->transport == REF_TRANSPORT_MODEL && rd->glossy == REF_GLOSSY_DIRECT ? "direct" : "indirect",
+                               NULL};
         img_write_desc d = {.path = path, .width = w, .height = h, .channels = 7, .pixels = px,
                             .channel_names = names, .attributes = attrs};
         res = img_write(&d, err);

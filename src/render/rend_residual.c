@@ -107,6 +107,7 @@ lm_result rend_residual_create(const rend_residual_desc *desc, rend_residual **o
                                          .height = desc->height,
                                          .transport = desc->transport,
                                          .bounces = desc->bounces,
+                                         .glossy = desc->glossy,
                                          .seed = desc->seed,
                                          .threads = desc->threads,
                                          .background = desc->background},

@@ -78,6 +78,7 @@ typedef struct rend_residual_desc {
     int width, height;         /* required: the picture's pixels */
     ref_transport transport;   /* the truth it converges to; 0 = the model transport */
     int bounces;               /* as ref_desc.bounces: the model's diffuse bounces (0 = 1) */
+    ref_glossy glossy;         /* as ref_desc.glossy: what the model's glossy materials reflect */
     uint32_t seed;
     int threads;               /* 0 = every core */
     int block;                 /* 0 = REND_RESIDUAL_BLOCK_DEFAULT */

@@ -163,6 +163,7 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t 
      * a strip of light narrower than a pixel is seen in its box filter. */
     cache_desc cd = {.single_mesh = d->single_mesh,
                      .bounces = d->bounces ? d->bounces : CACHE_BOUNCES_AUTO,
+                     .glossy = d->glossy,
                      .sample_pixels = d->sample_pixels > 0.0f ? d->sample_pixels
                                                               : rend_session_sample_pixels(d->supersample, 1)};
     if (d->camera) { /* the specular mesh starts at this camera's eye, not the scene's first */

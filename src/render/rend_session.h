@@ -137,6 +137,8 @@ typedef struct rend_session_desc {
                                       pass: a first image with shadows (docs/renderer.md); 0 = none */
     int bounces;                   /* diffuse bounces (cache_desc.bounces): 1..CACHE_BOUNCES_MAX or
                                       CACHE_BOUNCES_AUTO; 0 = auto */
+    cache_glossy glossy;           /* cache_desc.glossy: what glossy materials reflect; 0 = the lights
+                                      and the room (CACHE_GLOSSY_INDIRECT) */
     float jnd_floor;               /* ΔE: after converging, the worker refines on to this JND
                                       (cache_worker_desc.jnd_floor); 0 = REND_SESSION_JND_FLOOR_DEFAULT;
                                       < 0: it stops at the cache's JND */
