@@ -86,6 +86,10 @@ string(JSON first GET "${j}" first_image_seconds)
 check("NOT first STREQUAL \"null\"" "no first image was drawn")
 string(JSON light_samples GET "${j}" methods lumesh 3 samples light0)
 check("light_samples GREATER 0" "no light sample recorded")
+# A fresh reference says its glossy materials reflect the room (lumesh:glossy),
+# and converge models the same.
+string(JSON glossy GET "${j}" glossy)
+check("glossy STREQUAL \"indirect\"" "convergence.json: glossy is '${glossy}', not 'indirect'")
 string(JSON mesh0 GET "${j}" stats meshes 0 mesh)
 check("mesh0 STREQUAL \"light0\"" "statistics: first mesh is '${mesh0}'")
 file(READ ${out}/stats.json s)

@@ -483,6 +483,7 @@ void cache_get_stats(cache *c, cache_stats *out)
     out->toward_gathers = c->src.toward_gathers;
     out->glossy_gathers = c->gls.samples;
     out->glossy_refreshed = c->gls.refreshed;
+    out->glossy_rays = c->gls.rays;
     if (c->indirect1) {
         out->bounces = c->bnc.stats;
         mesh_qmesh_stats ms;

@@ -354,9 +354,11 @@ typedef struct cache_stats {
     uint64_t toward_gathers;    /* indirect values gathered with half their rays toward the source (their
                                    pilot saw the light come through a gap: samp_point.toward_source,
                                    guided by the pilot: samp_guide; counted in indirect.samples too) */
-    uint64_t glossy_gathers;    /* specular values given the source's glossy reflection (CACHE_GLOSSY_RAYS
+    uint64_t glossy_gathers;    /* specular values given the source's glossy reflection (64 or more
                                    lobe rays each; cache_desc.glossy) */
     uint64_t glossy_refreshed;  /* of them, taken again because the source was rebuilt or the eye moved */
+    uint64_t glossy_rays;       /* their rays: 64 each, ×4 up to three times where the noise
+                                   was seen */
     cache_bounce_stats bounces;
     uint32_t active_triangles;  /* scene triangles taken part (cache_init_seen); all of them after cache_init */
     uint64_t reach_rays;        /* rays traced to find what the seen triangles' gathers reach */

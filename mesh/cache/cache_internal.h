@@ -140,6 +140,7 @@ typedef struct cache_glossy_state {
     uint32_t gen_now;  /* the source's generation: its builds and the viewpoints so far (0: no source yet) */
     uint32_t cursor;   /* no vertex id below it is stale (the sweep's next id) */
     uint64_t samples;  /* lobe gathers (points) */
+    uint64_t rays;     /* their rays (more where their noise was seen) */
     uint64_t refreshed;/* of them, values taken again for a newer source or viewpoint */
 } cache_glossy_state;
 

@@ -142,6 +142,7 @@ cJSON *app_stats_json(const app_stats_desc *d)
     cJSON_AddNumberToObject(j, "toward_source_gathers", (double)st->toward_gathers);
     cJSON_AddNumberToObject(j, "glossy_gathers", (double)st->glossy_gathers);
     cJSON_AddNumberToObject(j, "glossy_refreshed", (double)st->glossy_refreshed);
+    cJSON_AddNumberToObject(j, "glossy_rays", (double)st->glossy_rays);
     cJSON_AddNumberToObject(j, "active_triangles", (double)st->active_triangles);
     cJSON_AddNumberToObject(j, "reach_rays", (double)st->reach_rays);
     cJSON *su = cJSON_AddObjectToObject(j, "startup");
