@@ -49,25 +49,20 @@ void cache_node_corner_bary(const mesh_qnode *n, int k, double *w1, double *w2)
     *w2 = b.w[2] * scale;
 }
 
-/* Is (w1, w2) inside the closed triangle (a, b, c) of barycentric space, either winding? */
+/* Is (w1, w2) inside the closed triangle (a, b, c) of barycentric space, either
+ * winding? The tolerance is relative to the triangle's size: a leaf at depth 21
+ * has edges of 2^-21 and cross products of 2^-42 (2.3e-13), below the absolute
+ * 1e-12 this used to allow, so that every child "contained" every point and the
+ * Veach door's refinement stopped on a light leaf that did not hold its site. */
 static int bary_in_triangle(const double a[2], const double b[2], const double c[2], double w1, double w2)
 {
-    const double eps = 1e-12;
+    const double area2 = fabs((b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]));
+    const double eps = 1e-9 * area2;
     double d0 = (b[0] - a[0]) * (w2 - a[1]) - (b[1] - a[1]) * (w1 - a[0]);
     double d1 = (c[0] - b[0]) * (w2 - b[1]) - (c[1] - b[1]) * (w1 - b[0]);
     double d2 = (a[0] - c[0]) * (w2 - c[1]) - (a[1] - c[1]) * (w1 - c[0]);
     int neg = d0 < -eps || d1 < -eps || d2 < -eps, pos = d0 > eps || d1 > eps || d2 > eps;
     return !(neg && pos);
-}
-
-/* Is (w1, w2) inside the node's triangle (barycentric space of its scene triangle)? */
-static int node_contains(const mesh_qnode *n, double w1, double w2)
-{
-    double a[2], b[2], c[2];
-    cache_node_corner_bary(n, 0, &a[0], &a[1]);
-    cache_node_corner_bary(n, 1, &b[0], &b[1]);
-    cache_node_corner_bary(n, 2, &c[0], &c[1]);
-    return bary_in_triangle(a, b, c, w1, w2);
 }
 
 int cache_region_contains(const cache_region *rg, double w1, double w2)
@@ -78,19 +73,22 @@ int cache_region_contains(const cache_region *rg, double w1, double w2)
 
 uint32_t cache_find_leaf(const mesh_qmesh *m, uint32_t tri, double w1, double w2)
 {
-    uint32_t node = mesh_qmesh_root(m, tri);
-    if (node == MESH_QMESH_NONE) return MESH_QMESH_NONE;
-    for (;;) {
-        const mesh_qnode *n = mesh_qmesh_node(m, node);
-        if (n->child == MESH_QMESH_NONE) return node;
-        uint32_t next = n->child + 3; /* the centre child when rounding leaves no other */
-        for (uint32_t k = 0; k < 4; ++k)
-            if (node_contains(mesh_qmesh_node(m, n->child + k), w1, w2)) {
-                next = n->child + k;
-                break;
-            }
-        node = next;
+    if (mesh_qmesh_root(m, tri) == MESH_QMESH_NONE) return MESH_QMESH_NONE;
+    /* The tree's own descent (mesh_qmesh_locate: barycentrics within each node,
+     * doubled at each level, exact on the dyadic lattice at any depth), on the
+     * point brought inside the triangle if rounding left it outside. */
+    if (!(w1 >= 0.0)) w1 = 0.0;
+    if (!(w2 >= 0.0)) w2 = 0.0;
+    if (w1 + w2 > 1.0) {
+        const double sum = w1 + w2;
+        w1 /= sum;
+        w2 /= sum;
     }
+    uint32_t leaf = MESH_QMESH_NONE;
+    double l[3];
+    lm_error ignore;
+    if (mesh_qmesh_locate(m, tri, w1, w2, &leaf, l, &ignore) != LM_OK) return MESH_QMESH_NONE;
+    return leaf;
 }
 
 lm_result cache_region_walk(const mesh_qmesh *m, const cache_region *rg, cache_node_fn visit, void *user, lm_error *err)
