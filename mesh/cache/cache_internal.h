@@ -131,11 +131,14 @@ typedef struct cache_outlines {
  * specular value is its direct part (eq. 5, the lights) plus a glossy part: the
  * source seen through the vertex's lobe (samp_lobe_gather), gathered from the
  * source of its time. Each rebuild of the source (and each new viewpoint) makes
- * every glossy part stale; a sweep over the vertex ids gathers them again, a
- * bounded number a refine call, and their leaves are tested again. */
+ * every glossy part stale, as does noise that is seen (taken again with 4× the
+ * rays); a sweep over the vertex ids gathers them again, a bounded number a
+ * refine call, and the leaves around those that moved visibly are tested again. */
 typedef struct cache_glossy_state {
     float *rgb;        /* per vertex id: the glossy part in its specular value (RGB, per unit ks) */
-    uint32_t *gen;     /* per vertex id: the source (generation) it was gathered from; 0 = none */
+    uint32_t *gen;     /* per vertex id: the source (generation) it was gathered from; 0 = none, or
+                          its noise was seen: to be taken again at `level` */
+    uint8_t *level;    /* per vertex id: rays of its next gather, CACHE_GLOSSY_RAYS·4^level */
     size_t cap;        /* ids allocated in both */
     uint32_t gen_now;  /* the source's generation: its builds and the viewpoints so far (0: no source yet) */
     uint32_t cursor;   /* no vertex id below it is stale (the sweep's next id) */
