@@ -29,11 +29,13 @@ static lm_result grow(cache_glossy_state *st, uint32_t limit, lm_error *err)
     size_t cap = lm_grow_capacity(st->cap, limit, 1024, SIZE_MAX / (3 * sizeof *st->rgb));
     if (!cap || !lm_realloc_array(&st->rgb, st->cap, cap, 3 * sizeof *st->rgb) ||
         !lm_realloc_array(&st->gen, st->cap, cap, sizeof *st->gen) ||
-        !lm_realloc_array(&st->level, st->cap, cap, sizeof *st->level))
+        !lm_realloc_array(&st->level, st->cap, cap, sizeof *st->level) ||
+        !lm_realloc_array(&st->drift, st->cap, cap, 3 * sizeof *st->drift))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the glossy reflections");
     memset(st->rgb + 3 * st->cap, 0, (cap - st->cap) * 3 * sizeof *st->rgb);
     memset(st->gen + st->cap, 0, (cap - st->cap) * sizeof *st->gen);
     memset(st->level + st->cap, 0, (cap - st->cap) * sizeof *st->level);
+    memset(st->drift + 3 * st->cap, 0, (cap - st->cap) * 3 * sizeof *st->drift);
     st->cap = cap;
     return LM_OK;
 }
@@ -135,11 +137,38 @@ static lm_result gather(cache *c, const uint32_t *vids, const uint8_t *level, ui
 /* The source exists (built at least once): something to gather from. */
 static int have_source(const cache *c) { return c->src.rmesh.first != NULL && c->gls.gen_now > 0; }
 
+int cache_glossy_fresh(const cache *c, uint32_t vid)
+{
+    const cache_glossy_state *st = &c->gls;
+    return cache_glossy_on(c) && vid < st->cap && st->gen[vid] != 0 && st->gen[vid] == st->gen_now &&
+           mesh_qmesh_vertex_use(c->specular, vid) && mesh_qmesh_get_value(c->specular, vid, NULL) == 1;
+}
+
+void cache_glossy_drift(cache *c, uint32_t vid, const float bound[3])
+{
+    cache_glossy_state *st = &c->gls;
+    float *dr = st->drift + 3 * (size_t)vid, v[3], d[3], up[3], down[3];
+    mesh_qmesh_get_value(c->specular, vid, v);
+    const float *l = st->rgb + 3 * (size_t)vid;
+    for (int k = 0; k < 3; ++k) {
+        dr[k] = fminf(dr[k] + bound[k], 3e38f);
+        d[k] = fmaxf(v[k] - l[k], 0.0f);
+        up[k] = l[k] + dr[k];
+        down[k] = fmaxf(l[k] - dr[k], 0.0f);
+    }
+    /* Could its drift be seen (the indirect values' rule: by more than the JND)? */
+    if (moved_by(c, vid, d, l, up) > c->desc.jnd || moved_by(c, vid, d, l, down) > c->desc.jnd) {
+        st->gen[vid] = 0; /* stale, at the level it has */
+        if (vid < st->cursor) st->cursor = vid;
+    }
+}
+
 /* Records vertex vid's glossy part L, gathered at `level` from the current
  * source; a noisy one is left stale one level up, for the sweep. */
 static void record(cache_glossy_state *st, uint32_t vid, const float L[3], int level, int noisy)
 {
     memcpy(st->rgb + 3 * (size_t)vid, L, 3 * sizeof *L);
+    memset(st->drift + 3 * (size_t)vid, 0, 3 * sizeof *st->drift);
     st->level[vid] = (uint8_t)level;
     st->gen[vid] = st->gen_now;
     if (noisy && level + 1 < GLOSSY_LEVELS) {
@@ -270,5 +299,6 @@ void cache_glossy_free(cache_glossy_state *st)
     free(st->rgb);
     free(st->gen);
     free(st->level);
+    free(st->drift);
     memset(st, 0, sizeof *st);
 }

@@ -139,6 +139,8 @@ typedef struct cache_glossy_state {
     uint32_t *gen;     /* per vertex id: the source (generation) it was gathered from; 0 = none, or
                           its noise was seen: to be taken again at `level` */
     uint8_t *level;    /* per vertex id: rays of its next gather, CACHE_GLOSSY_RAYS·4^level */
+    float *drift;      /* per vertex id: RGB bound of how far the source's rebuilds since its gather
+                          may have moved its glossy part (cache_drift.c's bound through the lobe) */
     size_t cap;        /* ids allocated in both */
     uint32_t gen_now;  /* the source's generation: its builds and the viewpoints so far (0: no source yet) */
     uint32_t cursor;   /* no vertex id below it is stale (the sweep's next id) */
@@ -549,8 +551,15 @@ lm_result cache_glossy_add(cache *c, const uint32_t *vids, uint32_t n, float *rg
 /* A specular value set without its glossy part (the first image's borrowed
  * values): 0 recorded, stale. */
 lm_result cache_glossy_forget(cache *c, uint32_t vid, lm_error *err);
-/* The source was rebuilt, or the viewpoint moved: every glossy part is stale. */
+/* The source was rebuilt untracked, or the viewpoint moved: every glossy part is stale. */
 void cache_glossy_outdate(cache *c);
+/* Is vertex vid's glossy part up to date with the current source (a value of
+ * the specular mesh)? */
+int cache_glossy_fresh(const cache *c, uint32_t vid);
+/* A tracked rebuild may have moved vertex vid's glossy part by up to bound
+ * (RGB): added to its drift, and the value made stale where that could be seen
+ * (cache_drift.c). Not thread-safe: one vertex after another. */
+void cache_glossy_drift(cache *c, uint32_t vid, const float bound[3]);
 /* Gathers stale glossy parts again from the sweep's cursor, at most *allowance
  * (spent), updates their specular values and has `changed` requeue their leaves. */
 lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance, lm_error *err);

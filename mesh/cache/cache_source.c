@@ -352,14 +352,15 @@ static lm_result build_source(cache *c, int track, lm_error *err)
     r = samp_radiance_mesh_prepare(s, &c->src.rmesh, &c->src.rm_index, err);
     if (r != LM_OK) return r;
     c->src.rmesh.index = &c->src.rm_index;
-    cache_glossy_outdate(c); /* the glossy parts reflect the source: taken again (cache_glossy.c) */
     c->src.built_at = cache_direct_changes(c);
     c->src.built_nodes = mesh_qmesh_node_count(c->direct);
     /* The single-mesh ablation keeps what it gathered. Before the first image
      * (cache_desc.coarse_gathers set) nothing is flagged: every value is gathered
      * again right after it. */
     if (track && !c->desc.single_mesh && c->initialised && c->src.rp_valid && !c->desc.coarse_gathers)
-        r = cache_mark_outdated(c, err);
+        r = cache_mark_outdated(c, err); /* and the glossy parts it may have moved visibly */
+    else
+        cache_glossy_outdate(c); /* untracked: every glossy part is taken again (cache_glossy.c) */
     return r == LM_OK ? keep_previous(c, err) : r;
 }
 
