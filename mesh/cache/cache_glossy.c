@@ -7,10 +7,15 @@
  * water surface then shows black wherever no light is mirrored in it, where the
  * full transport shows the room (docs/cache.md, "Glossy reflection of the room").
  *
- * A value is gathered with the source of its time; a rebuilt source, or a new
- * viewpoint, makes every glossy part stale (generation numbers), and
- * cache_glossy_refresh takes them again by a sweep over the vertex ids, a
+ * A value is gathered with the source of its time. A tracked rebuild of the
+ * source bounds how far it moved each glossy part (cache_drift.c, the lobe in
+ * the drift tree's kernel: cache_glossy_drift) and makes stale those whose drift
+ * could be seen; an untracked rebuild or a new viewpoint makes every one stale
+ * (generation numbers); a value whose noise is seen is stale one level of rays
+ * up. cache_glossy_refresh takes them again by a sweep over the vertex ids, a
  * bounded number a refine call, before the cache may claim convergence.
+ * Does NOT do: glossy surfaces as sources (caustics), reflections of a surface's
+ * back. Units: radiance per unit ks (W·m⁻²·sr⁻¹).
  * Calls cache_site.c and the sampler only. Worker thread, like the rest of the
  * cache. */
 #include "mesh/cache/cache_internal.h"
