@@ -858,6 +858,41 @@ static void test_specular_outline(void)
     scene_destroy(s);
 }
 
+/* A triangle of s picked uniformly and a point uniform in it (barycentrics u, v). */
+static void random_surface_point(lm_rng *g, const scene *s, uint32_t *tri, double *u, double *v)
+{
+    *tri = (uint32_t)(lm_rng_float(g) * s->tri_count) % s->tri_count;
+    *u = lm_rng_float(g);
+    *v = lm_rng_float(g);
+    if (*u + *v > 1.0) {
+        *u = 1.0 - *u;
+        *v = 1.0 - *v;
+    }
+}
+
+/* The closed sphere of the tests below: radius R, facing in, albedo rho, a Phong
+ * coat (ks, n; ks 0: none), a point light of intensity I at its centre and the
+ * camera there; *bias is the facets' relative bound (test_write_icosphere). */
+static scene *load_sphere(const char *name, double R, double rho, double ks, double n, double I, double *bias)
+{
+    char file[64], obj[1024], json[1024], text[1024];
+    snprintf(file, sizeof file, "%s.obj", name);
+    snprintf(obj, sizeof obj, "%s/%s", LUMESH_TMP_DIR, file);
+    *bias = test_write_icosphere(3, R, obj);
+    snprintf(text, sizeof text,
+             "{\"meshes\": [{\"file\": \"%s\", \"material\": \"coat\"}],"
+             " \"materials\": {\"coat\": {\"kd\": [%g, %g, %g], \"ks\": [%g, %g, %g], \"n\": %g}},"
+             " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [%g, %g, %g]}],"
+             " \"cameras\": [{\"position\": [0, 0, 0], \"target\": [1, 0, 0]}]}",
+             file, rho, rho, rho, ks, ks, ks, n, I, I, I);
+    snprintf(file, sizeof file, "%s.json", name);
+    test_write_file(file, text, json, sizeof json);
+    scene *s = NULL;
+    lm_error err;
+    CHECK(scene_load(&(scene_load_desc){.path = json, .crease_angle_deg = 0.01f}, &s, &err) == LM_OK);
+    return s;
+}
+
 /* Closed form for the indirect pipeline: a point light of intensity I at the
  * centre of a closed sphere of radius R and albedo ρ. At every point
  * L_dd = I/(πR²) per unit albedo and the one-bounce E_i = ρ·I/R², so the pixel is
@@ -869,19 +904,9 @@ static void test_specular_outline(void)
 static void test_sphere_indirect(int bounces)
 {
     const double R = 2.0, rho = 0.5, I = 3.0;
-    char obj[1024], json[1024], text[1024];
-    snprintf(obj, sizeof obj, "%s/cache_sphere.obj", LUMESH_TMP_DIR);
-    double bias = test_write_icosphere(3, R, obj);
-    snprintf(text, sizeof text,
-             "{\"meshes\": [{\"file\": \"cache_sphere.obj\", \"material\": \"grey\"}],"
-             " \"materials\": {\"grey\": {\"kd\": [%g, %g, %g]}},"
-             " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [%g, %g, %g]}],"
-             " \"cameras\": [{\"position\": [0, 0, 0], \"target\": [1, 0, 0]}]}",
-             rho, rho, rho, I, I, I);
-    test_write_file("cache_sphere.json", text, json, sizeof json);
-    scene *s = NULL;
+    double bias;
+    scene *s = load_sphere("cache_sphere", R, rho, 0.0, 1.0, I, &bias);
     lm_error err;
-    CHECK(scene_load(&(scene_load_desc){.path = json, .crease_angle_deg = 0.01f}, &s, &err) == LM_OK);
     if (!s) return;
     samp_sampler *sp = NULL;
     cache *c = NULL;
@@ -906,12 +931,9 @@ static void test_sphere_indirect(int bounces)
     double worst_ldd = 0.0, worst_ei = 0.0, mean_ei = 0.0;
     const int N = 2000;
     for (int i = 0; i < N && c; ++i) {
-        uint32_t tri = (uint32_t)(lm_rng_float(&g) * s->tri_count) % s->tri_count;
-        double u = lm_rng_float(&g), v = lm_rng_float(&g);
-        if (u + v > 1.0) {
-            u = 1.0 - u;
-            v = 1.0 - v;
-        }
+        uint32_t tri;
+        double u, v;
+        random_surface_point(&g, s, &tri, &u, &v);
         float ldd[3], ei[3];
         CHECK(cache_eval_direct(c, tri, u, v, ldd, &err) == LM_OK);
         CHECK(cache_eval_indirect(c, tri, u, v, ei, &err) == LM_OK);
@@ -995,12 +1017,9 @@ static double glossy_sphere_mean(const scene *s, int bounces, cache_glossy mode,
     double worst = 0.0, mean = 0.0;
     const int N = 2000;
     for (int i = 0; i < N && c; ++i) {
-        uint32_t tri = (uint32_t)(lm_rng_float(&g) * s->tri_count) % s->tri_count;
-        double u = lm_rng_float(&g), v = lm_rng_float(&g);
-        if (u + v > 1.0) {
-            u = 1.0 - u;
-            v = 1.0 - v;
-        }
+        uint32_t tri;
+        double u, v;
+        random_surface_point(&g, s, &tri, &u, &v);
         float ls[3];
         CHECK(cache_eval_specular(c, tri, u, v, ls, &err) == LM_OK);
         worst = fmax(worst, fabs(ls[0] - want) / want);
@@ -1027,19 +1046,8 @@ static double glossy_sphere_mean(const scene *s, int bounces, cache_glossy mode,
 static void test_sphere_glossy(int bounces)
 {
     const double R = 2.0, rho = 0.5, I = 3.0, ks = 0.3, n = 2.0;
-    char obj[1024], json[1024], text[1024];
-    snprintf(obj, sizeof obj, "%s/cache_gsphere.obj", LUMESH_TMP_DIR);
-    double bias = test_write_icosphere(3, R, obj);
-    snprintf(text, sizeof text,
-             "{\"meshes\": [{\"file\": \"cache_gsphere.obj\", \"material\": \"coat\"}],"
-             " \"materials\": {\"coat\": {\"kd\": [%g, %g, %g], \"ks\": [%g, %g, %g], \"n\": %g}},"
-             " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [%g, %g, %g]}],"
-             " \"cameras\": [{\"position\": [0, 0, 0], \"target\": [1, 0, 0]}]}",
-             rho, rho, rho, ks, ks, ks, n, I, I, I);
-    test_write_file("cache_gsphere.json", text, json, sizeof json);
-    scene *s = NULL;
-    lm_error err;
-    CHECK(scene_load(&(scene_load_desc){.path = json, .crease_angle_deg = 0.01f}, &s, &err) == LM_OK);
+    double bias;
+    scene *s = load_sphere("cache_gsphere", R, rho, ks, n, I, &bias);
     if (!s) return;
     double series = 0.0;
     for (int k = 0; k < bounces; ++k) series += pow(rho, k);

@@ -399,8 +399,23 @@ typedef struct bound_job {
     const float *d, *small;
     const changed_tri *ch;
     const uint32_t *cand;
-    uint8_t *flag;
+    uint8_t *flag;  /* indirect values (bound_one): may its drift be seen */
+    float *bound;   /* glossy parts (glossy_bound_one): 3 per candidate */
 } bound_job;
+
+/* Where vertex vid's gathers look from (a point on a surface's plane sees none
+ * of it), and its normal. */
+static void bound_origin(const cache *c, uint32_t vid, double x[3], double nx[3])
+{
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    samp_point sp = cache_vertex_point(c, vid);
+    float o[3];
+    samp_point_origin(c->s, &sp, samp_point_epsilon(c->sp, &sp), o);
+    for (int k = 0; k < 3; ++k) {
+        x[k] = o[k];
+        nx[k] = mv->normal[k];
+    }
+}
 
 static void bound_one(void *user, uint32_t j)
 {
@@ -411,11 +426,8 @@ static void bound_one(void *user, uint32_t j)
     float e[3];
     mesh_qmesh_get_value(c->indirect, vid, e);
     const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
-    /* From where the gather looks (a point on a surface's plane sees none of it). */
-    samp_point sp = cache_vertex_point(c, vid);
-    float o[3];
-    samp_point_origin(s, &sp, samp_point_epsilon(c->sp, &sp), o);
-    const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
+    double x[3], nx[3];
+    bound_origin(c, vid, x, nx);
     double add[3] = {M_PI * b->small[0], M_PI * b->small[1], M_PI * b->small[2]};
     drift_bound(b->tree, s, b->cur, b->d, b->ch, x, nx, NULL, add);
     float *dr = c->src.drift + 3 * (size_t)vid;
@@ -448,27 +460,16 @@ static void bound_one(void *user, uint32_t j)
  * the specular leaves' tests refined the light mesh, whose revised values
  * rebuilt the source, whose sweep tested the specular leaves again, and the
  * refinement never finished (docs/cache.md, "Glossy reflection of the room"). */
-typedef struct glossy_bound_job {
-    const cache *c;
-    const drift_tree *tree;
-    const samp_radiance_mesh *cur;
-    const float *d, *small;
-    const changed_tri *ch;
-    const uint32_t *cand;
-    float *bound; /* 3 per candidate */
-} glossy_bound_job;
 
 static void glossy_bound_one(void *user, uint32_t j)
 {
-    const glossy_bound_job *b = user;
+    const bound_job *b = user;
     const cache *c = b->c;
     const scene *s = c->s;
     const uint32_t vid = b->cand[j];
     const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
-    samp_point sp = cache_vertex_point(c, vid);
-    float o[3];
-    samp_point_origin(s, &sp, samp_point_epsilon(c->sp, &sp), o);
-    const double x[3] = {o[0], o[1], o[2]}, nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]};
+    double x[3], nx[3];
+    bound_origin(c, vid, x, nx);
     const double n = s->materials[s->tris[mv->tri].material].n;
     drift_lobe lb = {.wo = {c->eye[0] - x[0], c->eye[1] - x[1], c->eye[2] - x[2]}, .n = n,
                      .peak = (float)((n + 2.0) / (2.0 * M_PI))};
@@ -497,8 +498,8 @@ static lm_result glossy_drift(cache *c, const drift_tree *tree, const samp_radia
     float *bound = malloc(3 * (size_t)(nc ? nc : 1) * sizeof *bound);
     lm_result r = bound ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory bounding glossy reflections");
     if (r == LM_OK && nc) {
-        glossy_bound_job job = {.c = c, .tree = tree, .cur = cur, .d = d, .small = small, .ch = ch, .cand = cand,
-                                .bound = bound};
+        bound_job job = {.c = c, .tree = tree, .cur = cur, .d = d, .small = small, .ch = ch, .cand = cand,
+                         .bound = bound};
         lm_parallel_for(lm_thread_count(0), nc, glossy_bound_one, &job);
     }
     for (uint32_t j = 0; r == LM_OK && j < nc; ++j) cache_glossy_drift(c, cand[j], bound + 3 * (size_t)j);
