@@ -42,6 +42,9 @@ lumesh_cli_test(render_needs_output 1 ARGS render ERR "output image is required"
 lumesh_cli_test(render_bad_width 1 ARGS render -o x.png --width 0 --height 5 ERR "--width wants a whole number")
 lumesh_cli_test(render_seconds_and_samples 1 ARGS render -o x.png --seconds 1 --samples 5 ERR "not both")
 lumesh_cli_test(reference_bad_transport 1 ARGS reference -o x.exr --spp 4 --transport magic ERR "'model' or 'full'")
+lumesh_cli_test(reference_bad_glossy 1 ARGS reference -o x.exr --spp 4 --glossy shiny ERR "'indirect' or 'direct'")
+lumesh_cli_test(reference_full_glossy 1 ARGS reference -o x.exr --spp 4 --transport full --glossy direct
+  ERR "--glossy applies to --transport model")
 lumesh_cli_test(reference_spp_and_seconds 1 ARGS reference -o x.exr --spp 4 --seconds 2 ERR "exactly one of --spp or --seconds")
 lumesh_cli_test(compare_needs_two 1 ARGS compare a.exr ERR "two images")
 

@@ -7,6 +7,8 @@
 #         the previewer's last error is below its first, and that no temporary
 #         file is left.
 # determinism: render --samples N --deterministic twice gives identical images.
+# glossy: a reference made with --glossy direct (glossy materials reflect the
+#         lights only) has converge model the same: its JSON and note say so.
 cmake_minimum_required(VERSION 3.19)
 set(ref ${DIR}/ref.exr)
 set(out ${DIR}/run)
@@ -34,6 +36,26 @@ if(MODE STREQUAL "determinism")
   string(JSON maxe GET "${o}" max_abs_error)
   check("rmse EQUAL 0 AND maxe EQUAL 0" "two deterministic renders differ: rmse ${rmse}, max ${maxe}")
   message(STATUS "ok: two --samples 1500 --deterministic renders are identical")
+  return()
+endif()
+
+if(MODE STREQUAL "glossy")
+  execute_process(COMMAND ${LUMESH} reference ${SCENE_GLOSSY} -o ${DIR}/direct.exr --spp 4 --width 32 --height 24
+                          --glossy direct RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 120)
+  check("rc EQUAL 0" "reference --glossy direct failed: ${o}${e}")
+  execute_process(COMMAND ${LUMESH} converge ${SCENE_GLOSSY} --reference ${DIR}/direct.exr --seconds 0.5
+                          --snapshots 0.25 --out ${out} --sampler embree --residual off
+                          --stats ${out}/stats.json
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 180)
+  check("rc EQUAL 0" "converge failed (${rc}): ${o}${e}")
+  file(READ ${out}/convergence.json j)
+  string(JSON glossy GET "${j}" glossy)
+  string(JSON note GET "${j}" transport_note)
+  check("glossy STREQUAL \"direct\"" "convergence.json: glossy is '${glossy}', not 'direct'")
+  check("note MATCHES \"reflect the lights only\"" "transport note: ${note}")
+  string(JSON gathers GET "${j}" stats glossy_gathers)
+  check("gathers EQUAL 0" "the previewer gathered ${gathers} glossy reflections against a lights-only reference")
+  message(STATUS "ok: a --glossy direct reference has converge reflect the lights only")
   return()
 endif()
 

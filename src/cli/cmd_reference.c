@@ -85,7 +85,7 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const c
 
 int cmd_reference(const app_command *cmd, int argc, char **argv)
 {
-    const char *out = NULL, *transport = "model", *camera = NULL;
+    const char *out = NULL, *transport = "model", *camera = NULL, *glossy = "indirect";
     double seconds = 0;
     long spp = 0, bounces = 1, seed = 0, threads = 0, width = 0, height = 0;
     app_opt opts[] = {
@@ -99,9 +99,10 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
         {"--camera", NULL, APP_OPT_STRING, &camera},
         {"--width", NULL, APP_OPT_INT, &width, 1, 32768},
         {"--height", NULL, APP_OPT_INT, &height, 1, 32768},
+        {"--glossy", NULL, APP_OPT_STRING, &glossy},
     };
     const char *pos[1];
-    int npos, rc = app_parse_options(cmd, argc, argv, opts, 10, pos, 1, &npos);
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, 11, pos, 1, &npos);
     if (rc < 0) return APP_EXIT_OK;
     if (rc) return rc;
     if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.exr)");
@@ -119,6 +120,10 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
     if (tr == REF_TRANSPORT_FULL && opts[4].seen)
         return app_usage_error(cmd, "--bounces applies to --transport model (full follows every bounce)");
     if (opts[8].seen != opts[9].seen) return app_usage_error(cmd, "give both --width and --height");
+    if (strcmp(glossy, "indirect") != 0 && strcmp(glossy, "direct") != 0)
+        return app_usage_error(cmd, "--glossy is 'indirect' or 'direct', not '%s'", glossy);
+    if (tr == REF_TRANSPORT_FULL && opts[10].seen)
+        return app_usage_error(cmd, "--glossy applies to --transport model (full reflects everything)");
 
     scene_load_desc ld = {.path = npos ? pos[0] : NULL, .require_light = 1};
     scene *s;
@@ -133,6 +138,7 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
     }
     ref_desc rd = {.scene = s, .camera = cam, .width = (int)width, .height = (int)height,
                    .transport = tr, .bounces = bounces == 0 ? REF_BOUNCES_NONE : (int)bounces,
+                   .glossy = strcmp(glossy, "direct") == 0 ? REF_GLOSSY_DIRECT : REF_GLOSSY_INDIRECT,
                    .seed = (uint32_t)seed, .threads = (int)threads};
     ref_renderer *r;
     res = ref_create(&rd, &r, &err);

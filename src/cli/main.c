@@ -68,7 +68,8 @@ static const app_command commands[] = {
      cmd_render},
     {"reference", "ray-traced ground truth (Embree path tracer)",
      "usage: lumesh reference [SCENE] -o OUT.exr (--spp N | --seconds T)\n"
-     "                        [--transport model|full] [--bounces K] [--seed S] [--threads N]\n"
+     "                        [--transport model|full] [--bounces K] [--glossy indirect|direct]\n"
+     "                        [--seed S] [--threads N]\n"
      "                        [--camera NAME] [--width W --height H]\n"
      "\n"
      "Progressive, multi-threaded path tracing of SCENE (built-in Cornell box if left out).\n"
@@ -81,6 +82,10 @@ static const app_command commands[] = {
      "                      direct diffuse, exact direct Phong specular, K diffuse bounces\n"
      "  --transport full    unbiased path tracing of all bounces (MIS, Russian roulette)\n"
      "  --bounces K         diffuse bounces of the model transport (default 1; 0 = direct)\n"
+     "  --glossy indirect   glossy materials of the model transport reflect the lights and\n"
+     "                      the bounces' source, as the previewer's (default)\n"
+     "  --glossy direct     ...the lights only (the paper's model; `converge` then has the\n"
+     "                      previewer do the same)\n"
      "  --seed S            random seed (default 0)\n"
      "  --threads N         worker threads (default: every core)\n"
      "  --camera NAME       one of the scene's cameras (default: the first)\n"
