@@ -499,7 +499,8 @@ void cache_get_stats(cache *c, cache_stats *out)
     mesh_vtable_stats vs;
     mesh_vtable_get_stats(c->vt, &vs);
     out->bytes += vs.bytes + cache_light_state_bytes(&c->vis, c->light_count) + c->outl.bytes +
-                  cache_source_bytes(&c->src) + cache_sched_bytes(&c->sched) + cache_borrow_bytes(&c->brw);
+                  cache_source_bytes(&c->src) + cache_sched_bytes(&c->sched) + cache_borrow_bytes(&c->brw) +
+                  cache_glossy_bytes(&c->gls);
     out->borrow = c->brw.stats;
 }
 

@@ -299,6 +299,11 @@ lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, u
     return r;
 }
 
+size_t cache_glossy_bytes(const cache_glossy_state *st)
+{
+    return st->cap * (6 * sizeof(float) + sizeof(uint32_t) + sizeof(uint8_t));
+}
+
 void cache_glossy_free(cache_glossy_state *st)
 {
     free(st->rgb);

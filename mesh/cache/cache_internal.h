@@ -566,6 +566,8 @@ lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, u
 /* Vertex ids the sweep has still to look at (work left: no convergence before). */
 uint32_t cache_glossy_waiting(const cache *c);
 void cache_glossy_free(cache_glossy_state *st);
+/* Bytes held (per vertex id 29: RGB part, drift, generation, level). */
+size_t cache_glossy_bytes(const cache_glossy_state *st);
 
 /* ---- cache_drift.c: outdated indirect values ------------------------------------------- */
 
