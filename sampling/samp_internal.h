@@ -103,8 +103,8 @@ void samp_lobe_run(const scene *s, const rt_scene *rt, uint32_t light, const sam
                    const float *exponent, uint32_t n, uint32_t side, float *V);
 /* samp_lobe_gather's work (samp_lobe.c), side² rays a point. */
 void samp_lobe_gather_run(const scene *s, const rt_scene *rt, const samp_radiance_mesh *mesh,
-                          const samp_radiance_index *ix, const samp_point *pts, const float *wo, const float *exponent, uint32_t n, uint32_t side, uint32_t pass, float *L,
-                          float *std_err);
+                          const samp_radiance_index *ix, const samp_point *pts, const float *wo, const float *exponent,
+                          uint32_t n, uint32_t side, uint32_t pass, float *L, float *std_err);
 #ifdef __cplusplus
 }
 #endif

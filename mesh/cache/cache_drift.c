@@ -455,11 +455,11 @@ static void bound_one(void *user, uint32_t j)
 /* The glossy parts (cache_glossy.c) are bounded by the same tree with the lobe
  * in the kernel: a far node's bound times the lobe's largest value over its
  * bounding sphere (a sharp lobe aimed elsewhere adds nothing), a near changed
- * triangle's exact lobe integral (samp_polygon_phong). A rebuilt source then no
- * longer takes every glossy part again: on the Veach door
- * the specular leaves' tests refined the light mesh, whose revised values
- * rebuilt the source, whose sweep tested the specular leaves again, and the
- * refinement never finished (docs/cache.md, "Glossy reflection of the room"). */
+ * triangle's exact lobe integral (samp_polygon_phong). Stale at every rebuild
+ * instead, the Veach door's glossy parts were taken again 183,000 times in 60 s
+ * (10,600 values): the specular leaves' tests refined the light mesh, whose
+ * revised values rebuilt the source, whose sweep tested the specular leaves
+ * again (docs/cache.md, "Glossy reflection of the room"). */
 
 static void glossy_bound_one(void *user, uint32_t j)
 {
