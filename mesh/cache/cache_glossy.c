@@ -85,6 +85,13 @@ static float moved_by(const cache *c, uint32_t vid, const float d[3], const floa
     return tm_delta_e(la, lb);
 }
 
+/* Vertex vid's glossy part is to be gathered again: the sweep comes back to it. */
+static void mark_stale(cache_glossy_state *st, uint32_t vid)
+{
+    st->gen[vid] = 0;
+    if (vid < st->cursor) st->cursor = vid;
+}
+
 /* The glossy parts of vertices vids[0..n) from the current source, into L[3i..],
  * each with CACHE_GLOSSY_RAYS·4^level[i] rays (level NULL: 0); direct[3i..] (NULL:
  * 0) is the rest of each specular value. noisy[i] (may be NULL) says whether the
@@ -163,8 +170,7 @@ void cache_glossy_drift(cache *c, uint32_t vid, const float bound[3])
     }
     /* Could its drift be seen (the indirect values' rule: by more than the JND)? */
     if (moved_by(c, vid, d, l, up) > c->desc.jnd || moved_by(c, vid, d, l, down) > c->desc.jnd) {
-        st->gen[vid] = 0; /* stale, at the level it has */
-        if (vid < st->cursor) st->cursor = vid;
+        mark_stale(st, vid); /* at the level it has */
     }
 }
 
@@ -178,8 +184,7 @@ static void record(cache_glossy_state *st, uint32_t vid, const float L[3], int l
     st->gen[vid] = st->gen_now;
     if (noisy && level + 1 < GLOSSY_LEVELS) {
         st->level[vid] = (uint8_t)(level + 1);
-        st->gen[vid] = 0;
-        if (vid < st->cursor) st->cursor = vid;
+        mark_stale(st, vid);
     }
 }
 
@@ -215,8 +220,7 @@ lm_result cache_glossy_forget(cache *c, uint32_t vid, lm_error *err)
     lm_result r = grow(st, vid + 1, err);
     if (r != LM_OK) return r;
     memset(st->rgb + 3 * (size_t)vid, 0, 3 * sizeof *st->rgb);
-    st->gen[vid] = 0;
-    if (vid < st->cursor) st->cursor = vid;
+    mark_stale(st, vid);
     return LM_OK;
 }
 
