@@ -52,8 +52,7 @@ void ref_lights_free(ref_lights *L)
     memset(L, 0, sizeof *L);
 }
 
-/* First index whose cdf exceeds u. */
-static uint32_t pick(const float *cdf, uint32_t n, float u)
+uint32_t ref_pick_cdf(const float *cdf, uint32_t n, float u)
 {
     uint32_t lo = 0, hi = n - 1;
     while (lo < hi) {
@@ -70,9 +69,9 @@ int ref_sample_area_light(const ref_lights *L, lm_rng *g, lm_vec3 p, ref_light_s
 {
     const scene *s = L->s;
     float u0 = lm_rng_float(g), u1 = lm_rng_float(g), u2 = lm_rng_float(g), u3 = lm_rng_float(g);
-    uint32_t li = pick(L->light_cdf, s->area_light_count, u0);
+    uint32_t li = ref_pick_cdf(L->light_cdf, s->area_light_count, u0);
     const scene_area_light *A = &s->area_lights[li];
-    uint32_t k = pick(L->tri_cdf + A->first, A->count, u1);
+    uint32_t k = ref_pick_cdf(L->tri_cdf + A->first, A->count, u1);
     uint32_t tri = s->light_tris[A->first + k];
     const uint32_t *v = s->tris[tri].v;
     /* Uniform point on the triangle. */

@@ -45,6 +45,9 @@ typedef struct ref_light_sample {
     const float *le;  /* radiance of the light */
 } ref_light_sample;
 
+/* The first index whose cumulative value exceeds u (cdf of n entries, the last 1). */
+uint32_t ref_pick_cdf(const float *cdf, uint32_t n, float u);
+
 /* Samples one area light by power and a point on it by area. Returns 0 when the
  * point's front does not face p (no contribution). */
 int ref_sample_area_light(const ref_lights *L, lm_rng *g, lm_vec3 p, ref_light_sample *out);

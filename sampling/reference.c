@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "sampling/ref_shading.h"
+#include "sampling/ref_vpl.h"
 #include "sampling/rt_scene.h"
 #include "src/scene/camera.h"
 
@@ -50,6 +51,12 @@ struct ref_renderer {
     unsigned resume_tile;   /* tiles of an unfinished pass done (all below it): the next call goes on there */
     atomic_ullong pass_rays;
     atomic_ullong bad_samples;
+
+    /* REF_ESTIMATOR_VPL: the pass's VPLs, made when a pass starts (resume_tile 0), read-only while it runs */
+    ref_vpl_set vpl;
+    int vpl_ready;          /* the set belongs to the pass under way */
+    uint64_t passes;        /* complete passes since the last restart: the VPL sets' stream */
+    float vpl_d_min;        /* the clamp, scene units */
 };
 
 /* ---- tracing helpers ------------------------------------------------------ */
@@ -264,6 +271,47 @@ static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
     for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * (dd[k] + id[k]) + ds[k] + x.m->ks[k] * is[k];
 }
 
+/* ---- instant radiosity (ref_vpl.h) ------------------------------------------ */
+
+/* The direct light as the model transport's (light sampling, the lobe by MIS),
+ * which is also the full transport's direct part; the indirect from the pass's VPLs. */
+static void radiance_vpl(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
+{
+    const ref_renderer *r = c->r;
+    L[0] = L[1] = L[2] = 0.0f;
+    rt_hit h;
+    if (!trace(c, org, dir, &h)) return;
+    lm_vec3 wo = v3_scale(dir, -1.0f);
+    ref_surface x;
+    ref_surface_from_hit(r->s, &h, wo, &x);
+    if (x.front) {
+        const float *le = r->s->tris[h.tri].light >= 0 ? area_le(r, h.tri) : x.m->le;
+        for (int k = 0; k < 3; ++k) L[k] += le[k];
+    }
+    float dd[3], ds[3], ind[3];
+    direct_light(c, &x, wo, 1, MIS_LOBE_ONLY, dd, ds);
+    ref_vpl_gather(&r->vpl, &x, wo, &c->g, ind, &c->rays);
+    for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * dd[k] + ds[k] + ind[k];
+}
+
+/* The VPLs of the pass about to start. */
+static lm_result make_vpls(ref_renderer *r, lm_error *err)
+{
+    const ref_desc *d = &r->desc;
+    int bounces = d->bounces == REF_BOUNCES_NONE ? 0 : d->bounces == 0 ? 1 : d->bounces;
+    ref_vpl_params p = {.s = r->s, .rt = r->rt, .lights = &r->lights, .light_value = r->light_value,
+                        .full = d->transport == REF_TRANSPORT_FULL, .bounces = bounces,
+                        .glossy_indirect = d->glossy == REF_GLOSSY_INDIRECT, .seed = d->seed,
+                        .generation = r->generation,
+                        .paths = d->vpl_paths > 0 ? d->vpl_paths : REF_VPL_PATHS_DEFAULT,
+                        .per_sample = d->vpl_per_sample > 0 ? d->vpl_per_sample : REF_VPL_PER_SAMPLE_DEFAULT,
+                        .d_min = r->vpl_d_min};
+    uint64_t rays = 0;
+    lm_result res = ref_vpl_generate(&r->vpl, &p, r->passes, &rays, err);
+    r->rays += rays;
+    return res;
+}
+
 /* ---- full transport -------------------------------------------------------- */
 
 static void radiance_full(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
@@ -335,7 +383,9 @@ static void render_pixel(ctx *c, int px, int py)
     float jx = lm_rng_float(&c->g), jy = lm_rng_float(&c->g);
     lm_vec3 dir = camera_ray_dir(&r->cam, (float)px + jx, (float)py + jy);
     float L[3];
-    if (r->desc.transport == REF_TRANSPORT_FULL)
+    if (r->desc.estimator == REF_ESTIMATOR_VPL)
+        radiance_vpl(c, r->cam.position, dir, L);
+    else if (r->desc.transport == REF_TRANSPORT_FULL)
         radiance_full(c, r->cam.position, dir, L);
     else
         radiance_model(c, r->cam.position, dir, L);
@@ -391,6 +441,11 @@ static void *background_worker(void *arg)
 int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline)
 {
     double t0 = lm_now_seconds();
+    if (r->desc.estimator == REF_ESTIMATOR_VPL && !r->vpl_ready) { /* a pass starts: its VPLs */
+        lm_error err;
+        if (make_vpls(r, &err) != LM_OK) r->vpl.count = 0; /* out of memory: this pass without indirect light */
+        r->vpl_ready = 1;
+    }
     r->cancel = cancel;
     r->deadline = deadline;
     atomic_store(&r->next_tile, r->resume_tile);
@@ -414,6 +469,10 @@ int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadl
     unsigned tiles = (unsigned)(((r->width + TILE - 1) / TILE) * ((r->height + TILE - 1) / TILE));
     unsigned done = atomic_load(&r->next_tile);
     r->resume_tile = done >= tiles ? 0u : done;
+    if (done >= tiles) {
+        r->passes++;
+        r->vpl_ready = 0;
+    }
     return done >= tiles;
 }
 
@@ -431,6 +490,12 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
     if ((unsigned)desc->glossy >= REF_GLOSSY_COUNT) return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: unknown glossy mode");
     if (desc->bounces < REF_BOUNCES_NONE || desc->bounces > 64)
         return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: bounces must be 0..64");
+    if ((unsigned)desc->estimator >= REF_ESTIMATOR_COUNT)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: unknown estimator %d", (int)desc->estimator);
+    if (desc->vpl_paths < 0 || desc->vpl_per_sample < 0 ||
+        !(desc->vpl_clamp >= 0.0f || desc->vpl_clamp == REF_VPL_NO_CLAMP) || !(desc->vpl_clamp < 1.0f))
+        return lm_fail(err, LM_ERR_INVALID_ARG,
+                       "ref_create: VPL paths and VPLs a sample are not negative, the clamp is in [0, 1) or none");
     const scene_camera *cam = desc->view ? desc->view : &s->cameras[desc->camera];
     ref_renderer *r = calloc(1, sizeof *r);
     if (!r) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
@@ -465,6 +530,10 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
         return res;
     }
     r->cam = camera_basis_make(cam, r->width, r->height);
+    if (desc->vpl_clamp != REF_VPL_NO_CLAMP) {
+        lm_vec3 diag = v3_sub(v3_load(s->bounds_max), v3_load(s->bounds_min));
+        r->vpl_d_min = (desc->vpl_clamp > 0.0f ? desc->vpl_clamp : REF_VPL_CLAMP_DEFAULT) * v3_length(diag);
+    }
     *out = r;
     return LM_OK;
 }
@@ -474,6 +543,8 @@ void ref_restart(ref_renderer *r, const scene_camera *view)
     memset(r->pixels, 0, (size_t)r->width * (size_t)r->height * sizeof *r->pixels);
     r->generation++;
     r->resume_tile = 0;
+    r->passes = 0;
+    r->vpl_ready = 0;
     if (view) r->cam = camera_basis_make(view, r->width, r->height);
 }
 
@@ -508,6 +579,7 @@ void ref_destroy(ref_renderer *r)
     if (!r) return;
     free(r->mask);
     free(r->light_value);
+    ref_vpl_free(&r->vpl);
     rt_scene_destroy(r->rt);
     ref_lights_free(&r->lights);
     free(r->pixels);
@@ -543,6 +615,9 @@ void ref_get_stats(const ref_renderer *r, ref_stats *out)
     out->rays = r->rays;
     out->seconds = r->seconds;
     out->bad_samples = atomic_load(&((ref_renderer *)r)->bad_samples);
+    out->vpls = r->vpl.made;
+    if (r->desc.estimator == REF_ESTIMATOR_VPL) out->vpl_passes = r->passes + (uint64_t)r->vpl_ready;
+    out->vpl_seconds = r->vpl.seconds;
 }
 
 void ref_get_image(const ref_renderer *r, float *rgb, float *stderr_rgb, float *samples)

@@ -19,6 +19,8 @@
  * REF_TRANSPORT_FULL is unbiased path tracing of all bounces with the same BRDF:
  * next-event estimation and BRDF sampling combined with MIS (power heuristic),
  * Russian roulette after three bounces.
+ * REF_ESTIMATOR_VPL estimates either transport by instant radiosity instead
+ * (ref_vpl.h): a peer of the previewer in `converge --methods`, not a reference.
  *
  * Surfaces reflect on both sides (the shading frame turns to face the incoming
  * ray); lights emit from their front only (docs/scene-model.md).
@@ -60,6 +62,19 @@ typedef enum ref_glossy {
     REF_GLOSSY_COUNT
 } ref_glossy;
 
+/* How the renderer estimates the transport (ref_desc.estimator). */
+typedef enum ref_estimator {
+    REF_ESTIMATOR_PATHS = 0, /* default: path tracing (above) */
+    REF_ESTIMATOR_VPL,       /* instant radiosity: the direct light as above, the indirect from virtual
+                                point lights traced from the lights each pass (ref_vpl.h), biased by
+                                its clamp unless vpl_clamp is REF_VPL_NO_CLAMP */
+    REF_ESTIMATOR_COUNT
+} ref_estimator;
+
+enum { REF_VPL_PATHS_DEFAULT = 1024, REF_VPL_PER_SAMPLE_DEFAULT = 16 };
+#define REF_VPL_CLAMP_DEFAULT 0.01f /* of the scene's bounding-box diagonal */
+#define REF_VPL_NO_CLAMP (-1.0f)
+
 typedef struct ref_desc {
     const scene *scene;       /* must outlive the renderer */
     int camera;               /* index into scene->cameras */
@@ -70,6 +85,12 @@ typedef struct ref_desc {
     ref_glossy glossy;        /* model transport: what glossy materials reflect (the full one: all) */
     uint32_t seed;
     int threads;              /* 0 = every core */
+    ref_estimator estimator;
+    int vpl_paths;            /* VPL: light paths traced at each pass's start; 0 = REF_VPL_PATHS_DEFAULT */
+    int vpl_per_sample;       /* VPL: VPLs a pixel sample joins by a shadow ray; 0 = REF_VPL_PER_SAMPLE_DEFAULT */
+    float vpl_clamp;          /* VPL: distances below this fraction of the scene's bounding-box diagonal
+                                 count as this (the geometry term's clamp); 0 = REF_VPL_CLAMP_DEFAULT,
+                                 REF_VPL_NO_CLAMP: none (unbiased, spiky) */
     int background;           /* non-zero: passes run on threads of the lowest priority (Linux
                                  SCHED_IDLE), which take only the cycles other threads leave
                                  (the cache's worker, a viewer's drawing); the caller waits */
@@ -115,6 +136,9 @@ typedef struct ref_stats {
     double seconds;                    /* wall time spent in passes */
     double mean_rel_stderr;            /* mean over pixels of SE(Y)/sqrt(Y²+0.01), Y luminance */
     uint64_t bad_samples;              /* non-finite samples, dropped (should stay 0) */
+    uint64_t vpls;                     /* VPL: virtual point lights made so far (all passes) */
+    uint64_t vpl_passes;               /* VPL: sets made (one a pass) */
+    double vpl_seconds;                /* VPL: wall time making them (part of seconds) */
 } ref_stats;
 
 void ref_get_stats(const ref_renderer *r, ref_stats *out);

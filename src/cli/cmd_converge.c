@@ -19,9 +19,11 @@
  * the worker leaves (rend_residual_desc.background; docs/cache.md, "The residual
  * beside the refining cache"), and corrects every snapshot.
  *
- * With --vs-path-tracer the reference renderer's progressive path tracer (same
- * transport, every core) then runs for the same times, counted the same way
- * (from its creation, BVH build included), its clock paused while it is measured.
+ * --methods adds peers, the reference renderer's estimators of the same
+ * transport: its progressive path tracer and instant radiosity (ref_vpl.h). Each
+ * then runs alone for the same times with every core, counted the same way (from
+ * its creation, BVH build included), its clock paused while it is measured.
+ * --vs-path-tracer is short for --methods cache,path-tracer.
  *
  * Output, all through temporary files renamed into place, so an interruption
  * (Ctrl-C: stops at once and still writes what was measured) leaves no partial
@@ -49,7 +51,7 @@
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 
-enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64 };
+enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64, MAX_METHODS = 4 };
 
 /* Written by the SIGINT handler, read by the measuring loops and the path tracer. */
 static volatile sig_atomic_t interrupted = 0;
@@ -78,7 +80,8 @@ typedef struct conv_row {
     row_state state;
     uint64_t tested;          /* lumesh: leaves tested */
     uint64_t samples[MAX_MESHES]; /* lumesh: light meshes, then direct, indirect, specular */
-    uint32_t spp_min, spp_max;/* path samples a pixel: the path tracer's, or lumesh's residual's */
+    uint32_t spp_min, spp_max;/* samples a pixel: a peer's (path tracer, VPL), or lumesh's residual's */
+    uint64_t vpls;            /* VPL: virtual point lights made so far */
     uint64_t rays;            /* the same paths' rays */
     double residual_weight;   /* lumesh: mean James–Stein weight of the residual's blocks (rend_residual_info) */
     double residual_corrected;/* lumesh: share of the blocks the residual corrects */
@@ -92,7 +95,9 @@ typedef struct conv_row {
 } conv_row;
 
 typedef struct conv_run {
-    const char *method;       /* "lumesh", "lumesh-single-mesh", "path-tracer" */
+    const char *method;       /* "lumesh", "lumesh-single-mesh", "vpl", "path-tracer" */
+    int peer;                 /* a method of the reference renderer (ref_estimator): no cache columns */
+    ref_estimator estimator;  /* a peer's */
     conv_row rows[MAX_SNAPSHOTS];
     int count;
 } conv_run;
@@ -135,6 +140,8 @@ typedef struct conv_ctx {
                                  without it was made before the room was reflected: the lights only) */
     int bounces;              /* the previewer's (cache_desc.bounces) */
     char transport_note[384]; /* where these came from */
+    int vpl_paths, vpl_per_sample; /* --vpl-paths, --vpl-per-sample (0: ref_desc's defaults) */
+    float vpl_clamp;          /* --vpl-clamp (0: the default; REF_VPL_NO_CLAMP: none) */
 } conv_ctx;
 
 /* "0.1,0.2,1" into increasing positive times ≤ limit (limit itself added last). */
@@ -405,8 +412,10 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
     return r;
 }
 
-/* The path tracer for the same times, its clock paused while measured. */
-static lm_result run_path_tracer(conv_ctx *c, uint32_t seed, conv_run *run, lm_error *err)
+/* A peer (the path tracer, instant radiosity: the reference renderer's
+ * estimators of the same transport) for the same times, every core, its clock
+ * paused while measured. */
+static lm_result run_peer(conv_ctx *c, uint32_t seed, conv_run *run, lm_error *err)
 {
     double t0 = lm_now_seconds();
     ref_renderer *pt = NULL;
@@ -415,7 +424,8 @@ static lm_result run_path_tracer(conv_ctx *c, uint32_t seed, conv_run *run, lm_e
     if (r == LM_OK)
         r = ref_create(&(ref_desc){.scene = c->s, .camera = c->cam, .width = c->w, .height = c->h,
                                    .transport = c->transport, .bounces = c->ref_bounces, .glossy = c->glossy,
-                                   .seed = seed},
+                                   .seed = seed, .estimator = run->estimator, .vpl_paths = c->vpl_paths,
+                                   .vpl_per_sample = c->vpl_per_sample, .vpl_clamp = c->vpl_clamp},
                        &pt, err);
     double setup = lm_now_seconds() - t0;
     ref_stats st = {0};
@@ -436,6 +446,7 @@ static lm_result run_path_tracer(conv_ctx *c, uint32_t seed, conv_run *run, lm_e
         row->spp_min = st.min_samples;
         row->spp_max = st.max_samples;
         row->rays = st.rays;
+        row->vpls = st.vpls;
         ref_get_image(pt, rgb, NULL, NULL);
         r = measure(c, run->method, rgb, row, err);
         if (r == LM_OK) {
@@ -462,7 +473,9 @@ static const char *mesh_column(const conv_ctx *c, uint32_t k, char *buf, size_t 
 
 static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm_error *err)
 {
-    size_t cap = 4096 + (size_t)(runs[0].count + (nrun > 1 ? runs[1].count : 0)) * (600 + 24 * MAX_MESHES), len = 0;
+    size_t rows = 0;
+    for (int k = 0; k < nrun; ++k) rows += (size_t)runs[k].count;
+    size_t cap = 4096 + rows * (640 + 24 * MAX_MESHES), len = 0;
     char *t = malloc(cap), name[32];
     if (!t) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory writing convergence.csv");
 #define OUT(...) len += (size_t)snprintf(t + len, cap - len, __VA_ARGS__)
@@ -470,11 +483,11 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
     for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
     OUT(",spp_min,spp_max,rays,rmse,relmse,relmse_reference_noise,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
         "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,"
-        "residual_weight,residual_corrected,residual_estimated_relmse,image\n");
+        "residual_weight,residual_corrected,residual_estimated_relmse,vpls,image\n");
     for (int k = 0; k < nrun; ++k)
         for (int i = 0; i < runs[k].count; ++i) {
             const conv_row *w = &runs[k].rows[i];
-            int pt = strcmp(runs[k].method, "path-tracer") == 0;
+            int pt = runs[k].peer;
             OUT("%s,%.3f,%.4f,%s,", runs[k].method, w->target, w->seconds, pt ? "" : state_names[w->state]);
             if (!pt) OUT("%llu", (unsigned long long)w->tested);
             for (uint32_t m = 0; m < c->light_count + 3; ++m)
@@ -494,6 +507,8 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
             else OUT(",,,");
             if (!pt && w->spp_max) OUT(",%.4f,%.4f,%.4g", w->residual_weight, w->residual_corrected, w->residual_est);
             else OUT(",,,");
+            if (runs[k].estimator == REF_ESTIMATOR_VPL) OUT(",%llu", (unsigned long long)w->vpls);
+            else OUT(",");
             OUT(",%s\n", w->image);
         }
 #undef OUT
@@ -508,7 +523,7 @@ static double rounded(double v, double unit) { return isfinite(v) ? round(v / un
 
 static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w)
 {
-    int pt = strcmp(run->method, "path-tracer") == 0;
+    int pt = run->peer;
     cJSON *o = cJSON_CreateObject(), *m;
     char name[32];
     if (!o) return NULL;
@@ -518,6 +533,7 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
         cJSON_AddNumberToObject(o, "spp_min", w->spp_min);
         cJSON_AddNumberToObject(o, "spp_max", w->spp_max);
         cJSON_AddNumberToObject(o, "rays", (double)w->rays);
+        if (run->estimator == REF_ESTIMATOR_VPL) cJSON_AddNumberToObject(o, "vpls", (double)w->vpls);
     } else {
         cJSON_AddStringToObject(o, "state", state_names[w->state]);
         cJSON_AddNumberToObject(o, "leaves_tested", (double)w->tested);
@@ -610,11 +626,11 @@ static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_
 
 static lm_result write_plot(const conv_ctx *c, const conv_run *runs, int nrun, lm_error *err)
 {
-    static const uint8_t colours[2][3] = {{214, 39, 40}, {31, 119, 180}};
-    double *buf = malloc((size_t)MAX_SNAPSHOTS * 3 * 2 * sizeof *buf);
+    static const uint8_t colours[MAX_METHODS][3] = {{214, 39, 40}, {31, 119, 180}, {44, 160, 44}, {148, 103, 189}};
+    double *buf = malloc((size_t)MAX_SNAPSHOTS * 3 * MAX_METHODS * sizeof *buf);
     if (!buf) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory plotting");
-    plot_series rel[2], de[2];
-    char labels[2][64];
+    plot_series rel[MAX_METHODS], de[MAX_METHODS];
+    char labels[MAX_METHODS][64];
     for (int k = 0; k < nrun; ++k) {
         double *x = buf + (size_t)k * 3 * MAX_SNAPSHOTS, *y1 = x + MAX_SNAPSHOTS, *y2 = y1 + MAX_SNAPSHOTS;
         for (int i = 0; i < runs[k].count; ++i) {
@@ -622,8 +638,11 @@ static lm_result write_plot(const conv_ctx *c, const conv_run *runs, int nrun, l
             y1[i] = runs[k].rows[i].m.relmse;
             y2[i] = runs[k].rows[i].m.delta_e_mean;
         }
-        int pt = strcmp(runs[k].method, "path-tracer") == 0;
-        snprintf(labels[k], sizeof labels[k], "%s", pt ? "path tracer (Embree, same transport)" : runs[k].method);
+        int pt = runs[k].peer && runs[k].estimator == REF_ESTIMATOR_PATHS;
+        snprintf(labels[k], sizeof labels[k], "%s",
+                 pt                ? "path tracer (Embree, same transport)"
+                 : runs[k].peer    ? "VPLs (instant radiosity, same transport)"
+                                   : runs[k].method);
         rel[k] = (plot_series){.label = labels[k], .x = x, .y = y1, .count = runs[k].count, .dashed = pt};
         de[k] = rel[k];
         de[k].y = y2;
@@ -725,10 +744,49 @@ static int reference_transport(conv_ctx *c, const char *ref_path, const char *gi
     return APP_EXIT_OK;
 }
 
+/* --methods: "cache,vpl,path-tracer" into runs, the cache first (it is timed
+ * with the machine to itself, as are the others after it), each at most once.
+ * Returns the number of runs, or 0 after a usage error (*rc set). */
+static int parse_methods(const app_command *cmd, const char *list, int single, conv_run *runs, int *rc)
+{
+    static const struct {
+        const char *name, *column;
+        int peer;
+        ref_estimator estimator;
+    } known[] = {{"cache", "lumesh", 0, REF_ESTIMATOR_PATHS},
+                 {"vpl", "vpl", 1, REF_ESTIMATOR_VPL},
+                 {"path-tracer", "path-tracer", 1, REF_ESTIMATOR_PATHS}};
+    enum { KNOWN = sizeof known / sizeof known[0] };
+    int want[KNOWN] = {0}, n = 0;
+    for (const char *p = list; *p;) {
+        size_t len = strcspn(p, ",");
+        int k = 0;
+        while (k < KNOWN && !(strlen(known[k].name) == len && strncmp(p, known[k].name, len) == 0)) ++k;
+        if (k == KNOWN || want[k]) {
+            *rc = app_usage_error(cmd, "--methods takes each of cache, vpl, path-tracer at most once, separated by "
+                                       "commas ('%.*s' %s)", (int)len, p, k == KNOWN ? "is not one" : "is repeated");
+            return 0;
+        }
+        want[k] = 1;
+        p += len + (p[len] == ',');
+    }
+    for (int k = 0; k < KNOWN; ++k)
+        if (want[k]) {
+            runs[n].method = k == 0 && single ? "lumesh-single-mesh" : known[k].column;
+            runs[n].peer = known[k].peer;
+            runs[n].estimator = known[k].estimator;
+            n++;
+        }
+    if (n == 0) *rc = app_usage_error(cmd, "--methods names no method");
+    return n;
+}
+
 int cmd_converge(const app_command *cmd, int argc, char **argv)
 {
     const char *ref_path = NULL, *dir = NULL, *sampler = NULL, *gl_name = NULL, *list = NULL, *camera = NULL,
-               *stats_path = NULL, *bounces = NULL, *transport = NULL, *residual = "on";
+               *stats_path = NULL, *bounces = NULL, *transport = NULL, *residual = "on", *methods = NULL,
+               *vpl_clamp = NULL;
+    long vpl_paths = 0, vpl_per_sample = 0;
     double seconds = 0;
     long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
@@ -750,6 +808,10 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         {"--bounces", NULL, APP_OPT_STRING, &bounces},
         {"--transport", NULL, APP_OPT_STRING, &transport},
         {"--residual", NULL, APP_OPT_STRING, &residual},
+        {"--methods", NULL, APP_OPT_STRING, &methods},
+        {"--vpl-paths", NULL, APP_OPT_INT, &vpl_paths, 1, 1 << 22},
+        {"--vpl-per-sample", NULL, APP_OPT_INT, &vpl_per_sample, 1, 1 << 16},
+        {"--vpl-clamp", NULL, APP_OPT_STRING, &vpl_clamp},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -762,9 +824,21 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
                             .sample_pixels = rend_session_sample_pixels((int)supersample, (int)accumulate)};
     if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;
     static conv_ctx c; /* large (rows, statistics): not on the stack */
-    static conv_run runs[2];
+    static conv_run runs[MAX_METHODS];
     memset(&c, 0, sizeof c);
     memset(runs, 0, sizeof runs);
+    if (methods && vs_pt) return app_usage_error(cmd, "--vs-path-tracer is short for --methods cache,path-tracer: give one");
+    const int nmethods = parse_methods(cmd, methods ? methods : vs_pt ? "cache,path-tracer" : "cache", single, runs, &rc);
+    if (nmethods == 0) return rc;
+    c.vpl_paths = (int)vpl_paths;
+    c.vpl_per_sample = (int)vpl_per_sample;
+    if (vpl_clamp) {
+        char *end = NULL;
+        double v = strcmp(vpl_clamp, "none") == 0 ? REF_VPL_NO_CLAMP : strtod(vpl_clamp, &end);
+        if ((end && (end == vpl_clamp || *end)) || !(v == REF_VPL_NO_CLAMP || (v > 0.0 && v < 1.0)))
+            return app_usage_error(cmd, "--vpl-clamp takes a fraction of the scene's size in (0, 1), or none");
+        c.vpl_clamp = (float)v;
+    }
     c.cmd = cmd;
     c.dir = dir;
     c.seconds = seconds;
@@ -828,18 +902,15 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     sigemptyset(&sa.sa_mask);
     sigaction(SIGINT, &sa, &old);
     int nrun = 0;
-    if (r == LM_OK) {
-        runs[nrun].method = single ? "lumesh-single-mesh" : "lumesh";
-        r = run_lumesh(&c, &sd, t0, &runs[nrun], &err);
+    if (r == LM_OK && !runs[0].peer) {
+        r = run_lumesh(&c, &sd, t0, &runs[0], &err);
         nrun++;
     } else {
         rend_session_early_gl_end(early); /* no session took it */
     }
-    if (r == LM_OK && vs_pt && !interrupted) {
-        runs[nrun].method = "path-tracer";
-        r = run_path_tracer(&c, (uint32_t)seed, &runs[nrun], &err);
-        nrun++;
-    }
+    for (; r == LM_OK && nrun < nmethods && !interrupted; ++nrun) r = run_peer(&c, (uint32_t)seed, &runs[nrun], &err);
+    int measured = 0;
+    for (int k = 0; k < nrun; ++k) measured += runs[k].count;
     /* Whatever was measured is written, also after Ctrl-C. */
     cJSON *stats = NULL;
     if (c.have_final)
@@ -849,19 +920,21 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
                                                  .first_image_seconds = c.first_image, .snap = &c.final,
                                                  .id_seconds = c.id_seconds, .frame = &c.frame_times,
                                                  .frames = c.frames});
-    if (r == LM_OK && runs[0].count) r = write_csv(&c, runs, nrun, &err);
-    if (r == LM_OK && runs[0].count) r = write_json(&c, ref_path, runs, nrun, stats, &err);
-    if (r == LM_OK && runs[0].count) r = write_plot(&c, runs, nrun, &err);
+    if (r == LM_OK && measured) r = write_csv(&c, runs, nrun, &err);
+    if (r == LM_OK && measured) r = write_json(&c, ref_path, runs, nrun, stats, &err);
+    if (r == LM_OK && measured) r = write_plot(&c, runs, nrun, &err);
     if (r == LM_OK && stats_path && stats) r = app_write_json(stats_path, stats, &err);
     cJSON_Delete(stats);
     sigaction(SIGINT, &old, NULL);
     if (r == LM_OK) {
         printf("%s\n", c.transport_note);
-        printf("%s: first image %.3f s; ", c.s->source, c.first_image);
-        if (c.converged_at >= 0)
-            printf("converged at %.2f s\n", c.converged_at);
-        else
-            printf("not converged in %.2f s\n", seconds);
+        if (!runs[0].peer) {
+            printf("%s: first image %.3f s; ", c.s->source, c.first_image);
+            if (c.converged_at >= 0)
+                printf("converged at %.2f s\n", c.converged_at);
+            else
+                printf("not converged in %.2f s\n", seconds);
+        }
         for (int k = 0; k < nrun; ++k) {
             for (int i = 0; i < runs[k].count; ++i) {
                 const conv_row *w = &runs[k].rows[i];
