@@ -119,7 +119,7 @@ static lm_result trace_path(ref_vpl_set *set, uint32_t nlights, lm_rng *g, uint6
         const scene_material *m = y.m;
         const int diffuse = any_positive(m->kd), glossy = P->full && any_positive(m->ks);
         if (!diffuse && !glossy) break; /* black here: the light is absorbed */
-        ref_vpl v = {.p = y.p, .ng = y.ng, .ns = y.ns, .w_in = w_in, .tri = y.tri, .m = m};
+        ref_vpl v = {.p = y.p, .ng = y.ng, .ns = y.ns, .w_in = w_in, .tri = y.tri, .depth = (uint32_t)depth, .m = m};
         memcpy(v.flux, beta, sizeof v.flux);
         lm_result r = push(set, &v, err);
         if (r != LM_OK) return r;
@@ -178,13 +178,14 @@ lm_result ref_vpl_generate(ref_vpl_set *set, const ref_vpl_params *params, uint6
     return r;
 }
 
-void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, lm_rng *g, float out[3],
-                    uint64_t *rays)
+void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, int lobe, int max_depth, lm_rng *g,
+                    float out[3], uint64_t *rays)
 {
     const ref_vpl_params *P = &set->params;
     const scene_material *mx = x->m;
     out[0] = out[1] = out[2] = 0.0f;
-    const int lobe_x = (P->full || P->glossy_indirect) && any_positive(mx->ks);
+    const int lobe_x = lobe && any_positive(mx->ks);
+    const uint32_t deepest = max_depth > 0 ? (uint32_t)max_depth : UINT32_MAX;
     if (set->count == 0 || P->paths <= 0 || (!any_positive(mx->kd) && !lobe_x)) return;
     const uint32_t V = set->count, M = P->per_sample > 0 && (uint32_t)P->per_sample < V ? (uint32_t)P->per_sample : V;
     /* One VPL from each of M equal strata of the set, at an independent place in
@@ -198,6 +199,7 @@ void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, lm
     for (uint32_t j = 0; j < M; ++j) {
         uint32_t i = (uint32_t)(((double)j + (double)lm_rng_float(g)) * stride);
         const ref_vpl *v = &set->vpls[i < V ? i : V - 1];
+        if (v->depth > deepest) continue;
         lm_vec3 d = v3_sub(v->p, x->p);
         float d2 = v3_dot(d, d);
         if (!(d2 > 0.0f)) continue;

@@ -21,7 +21,8 @@
  *   model transport (K bounces): VPLs at light-path depths 1..K, the path goes on
  *     by diffuse reflection only (β·kd), f_y = kd/π (the source of the cache's
  *     gathers, kd·(L_dd + L_id), reference.h), f_x = kd/π plus ks times the Phong
- *     lobe when glossy materials reflect the room (L_is);
+ *     lobe when glossy materials reflect the room (L_is; a sharp lobe instead by
+ *     one ray drawn from it, REF_VPL_LOBE_SAMPLED_N);
  *   full transport: VPLs at every depth, the path goes on by sampling the whole
  *     BRDF with the path tracer's bounded roulette, f_y and f_x the whole modified
  *     Phong BRDF.
@@ -32,7 +33,7 @@
  * (the classic bright splotches where 1/d² is large); energy is lost within d_min
  * of a VPL, mostly in corners. A glossy receiver or VPL makes spiky estimates
  * (a lobe of exponent n concentrates a VPL's light), clamped by the same d_min
- * only: a camera path is not continued through glossy surfaces.
+ * only. Camera paths go on through sharp lobes for one surface only.
  *
  * Each pixel sample joins M of the pass's V VPLs (M = per_sample): one from each
  * of M equal strata of the set, so every VPL is expected M/V times and weighs V/M
@@ -42,7 +43,7 @@
  * Threads: ref_vpl_generate on one thread (between passes); ref_vpl_gather from
  * any number of threads at once (the set is read-only then).
  * Does NOT do: imperfect shadow maps (GL), resampling by importance (BDIR),
- * bias compensation, camera paths through glossy surfaces.
+ * bias compensation, camera paths through more than one glossy surface.
  * Units: positions in scene units; flux in W (area lights: radiance·area·π).
  */
 #ifndef LUMESH_REF_VPL_H
@@ -60,6 +61,7 @@ typedef struct ref_vpl {
     lm_vec3 w_in;       /* unit direction back along the light path (full transport's glossy VPLs) */
     float flux[3];      /* power that arrived, W (the path's estimate, before the 1/N of the pass) */
     uint32_t tri;
+    uint32_t depth;     /* its light path's bounce: 1 at the first surface the light reaches */
     const scene_material *m;
 } ref_vpl;
 
@@ -94,10 +96,18 @@ typedef struct ref_vpl_set {
  * are added to *rays. */
 lm_result ref_vpl_generate(ref_vpl_set *set, const ref_vpl_params *params, uint64_t pass, uint64_t *rays,
                            lm_error *err);
-/* The indirect radiance the set's VPLs send to x towards wo (out: RGB, W·m⁻²·sr⁻¹),
- * from per_sample of them; shadow rays are added to *rays. */
-void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, lm_rng *g, float out[3],
-                    uint64_t *rays);
+/* The radiance the set's VPLs send to x and x reflects towards wo (out: RGB,
+ * W·m⁻²·sr⁻¹), from per_sample of them: by x's kd/π, and by its Phong lobe too
+ * when `lobe` is non-zero; only VPLs of depths up to max_depth (0: all). Shadow
+ * rays are added to *rays. */
+void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, int lobe, int max_depth, lm_rng *g,
+                    float out[3], uint64_t *rays);
+
+/* Glossy receivers whose Phong exponent is at least this reflect the VPLs' light
+ * through a ray drawn by their lobe and the VPLs gathered where it lands (the
+ * camera path goes on one surface), not through their lobe evaluated at each
+ * VPL: VPLs sample a sharp lobe badly (a few VPLs in it give bright speckles). */
+#define REF_VPL_LOBE_SAMPLED_N 8.0f
 void ref_vpl_free(ref_vpl_set *set);
 
 #endif

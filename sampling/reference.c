@@ -273,6 +273,46 @@ static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
 
 /* ---- instant radiosity (ref_vpl.h) ------------------------------------------ */
 
+static int model_bounces(const ref_desc *d)
+{
+    return d->bounces == REF_BOUNCES_NONE ? 0 : d->bounces == 0 ? 1 : d->bounces;
+}
+
+/* A sharp lobe's reflection of the VPLs' light at x (per unit ks), by one ray
+ * drawn from the lobe (pdf (n+1)/(2π)·cosⁿα, so the weight is (n+2)/(n+1)·cosθ,
+ * as glossy_source): what the surface y it reaches sends back, less the lights
+ * (x's direct light has them, lobe samples included). Model transport: y's
+ * source kd·(L_dd + L_id), L_id from VPLs of depths up to K − 1 (x's own
+ * gathers' source); full: y's direct light with its specular part, and every
+ * VPL by y's whole BRDF. */
+static void vpl_glossy(ctx *c, const ref_surface *x, lm_vec3 wo, float out[3])
+{
+    const ref_renderer *r = c->r;
+    const int full = r->desc.transport == REF_TRANSPORT_FULL, bounces = model_bounces(&r->desc);
+    out[0] = out[1] = out[2] = 0.0f;
+    float u1 = lm_rng_float(&c->g), u2 = lm_rng_float(&c->g);
+    const float n = x->m->n;
+    lm_vec3 wi = ref_sample_phong(n, wo, x->ns, u1, u2);
+    const float cosi = v3_dot(wi, x->ns);
+    rt_hit h;
+    if (!(cosi > 0.0f) || v3_dot(wi, x->ng) <= 0.0f || !trace(c, offset(c, x, wi), wi, &h)) return;
+    lm_vec3 back = v3_scale(wi, -1.0f);
+    ref_surface y;
+    ref_surface_from_hit(r->s, &h, back, &y);
+    float dd[3], ds[3], ind[3] = {0, 0, 0};
+    if (full) {
+        direct_light(c, &y, back, 1, MIS_LOBE_ONLY, dd, ds);
+        ref_vpl_gather(&r->vpl, &y, back, 1, 0, &c->g, ind, &c->rays);
+    } else {
+        if (!(y.m->kd[0] > 0.0f || y.m->kd[1] > 0.0f || y.m->kd[2] > 0.0f)) return;
+        direct_light(c, &y, back, 0, MIS_LOBE_ONLY, dd, ds);
+        ds[0] = ds[1] = ds[2] = 0.0f;
+        if (bounces > 1) ref_vpl_gather(&r->vpl, &y, back, 0, bounces - 1, &c->g, ind, &c->rays);
+    }
+    const float w = (n + 2.0f) / (n + 1.0f) * cosi;
+    for (int k = 0; k < 3; ++k) out[k] = w * (y.m->kd[k] * dd[k] + ds[k] + ind[k]);
+}
+
 /* The direct light as the model transport's (light sampling, the lobe by MIS),
  * which is also the full transport's direct part; the indirect from the pass's VPLs. */
 static void radiance_vpl(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
@@ -288,17 +328,22 @@ static void radiance_vpl(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
         const float *le = r->s->tris[h.tri].light >= 0 ? area_le(r, h.tri) : x.m->le;
         for (int k = 0; k < 3; ++k) L[k] += le[k];
     }
-    float dd[3], ds[3], ind[3];
+    float dd[3], ds[3], ind[3], is[3] = {0, 0, 0};
     direct_light(c, &x, wo, 1, MIS_LOBE_ONLY, dd, ds);
-    ref_vpl_gather(&r->vpl, &x, wo, &c->g, ind, &c->rays);
-    for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * dd[k] + ds[k] + ind[k];
+    const int full = r->desc.transport == REF_TRANSPORT_FULL;
+    const int glossy = has_specular(x.m) &&
+                       (full || (r->desc.glossy == REF_GLOSSY_INDIRECT && model_bounces(&r->desc) > 0));
+    const int by_ray = glossy && x.m->n >= REF_VPL_LOBE_SAMPLED_N;
+    ref_vpl_gather(&r->vpl, &x, wo, glossy && !by_ray, 0, &c->g, ind, &c->rays);
+    if (by_ray) vpl_glossy(c, &x, wo, is);
+    for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * dd[k] + ds[k] + ind[k] + x.m->ks[k] * is[k];
 }
 
 /* The VPLs of the pass about to start. */
 static lm_result make_vpls(ref_renderer *r, lm_error *err)
 {
     const ref_desc *d = &r->desc;
-    int bounces = d->bounces == REF_BOUNCES_NONE ? 0 : d->bounces == 0 ? 1 : d->bounces;
+    int bounces = model_bounces(d);
     ref_vpl_params p = {.s = r->s, .rt = r->rt, .lights = &r->lights, .light_value = r->light_value,
                         .full = d->transport == REF_TRANSPORT_FULL, .bounces = bounces,
                         .glossy_indirect = d->glossy == REF_GLOSSY_INDIRECT, .seed = d->seed,

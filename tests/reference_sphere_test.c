@@ -38,7 +38,7 @@ enum { W = 16, H = 16 };
 #define KS 0.3
 #define PHONG_N 2.0
 
-static scene *load_sphere_scene(double *bias, double ks)
+static scene *load_sphere_scene(double *bias, double ks, double phong_n)
 {
     char obj[1024], json[1024], text[1024];
     snprintf(obj, sizeof obj, "%s/icosphere.obj", LUMESH_TMP_DIR);
@@ -49,7 +49,7 @@ static scene *load_sphere_scene(double *bias, double ks)
              " \"lights\": [{\"type\": \"point\", \"position\": [0, 0, 0], \"intensity\": [%g, %g, %g]}],"
              " \"cameras\": [{\"position\": [0, 0, 0], \"target\": [0.3, 0.2, 1], \"fov_y\": 90,"
              " \"width\": %d, \"height\": %d}]}",
-             RHO, RHO, RHO, ks, ks, ks, PHONG_N, INTENSITY, INTENSITY, INTENSITY, W, H);
+             RHO, RHO, RHO, ks, ks, ks, phong_n, INTENSITY, INTENSITY, INTENSITY, W, H);
     test_write_file("sphere.json", text, json, sizeof json);
     scene_load_desc d = {.path = json, .require_light = 1, .crease_angle_deg = 0.01f};
     scene *s = NULL;
@@ -128,6 +128,7 @@ static void check_against(const char *label, const run *res, double expected, do
  * sums of the series, and the full transport its sum. */
 static void check_vpl(const scene *s, const scene *coated, double e, double bias, double coat_bias)
 {
+    enum { SHARP_N = 20 }; /* above REF_VPL_LOBE_SAMPLED_N: the lobe reflects the VPLs by a ray */
     estimator = REF_ESTIMATOR_VPL;
     mean_within = 0.01;
     static run a, b, c, g;
@@ -142,6 +143,26 @@ static void check_vpl(const scene *s, const scene *coated, double e, double bias
         const double src2 = RHO * e0 / M_PI * (1 + RHO), tilt = (1.0 + 2.0 * PHONG_N) * coat_bias;
         render_glossy(coated, REF_TRANSPORT_MODEL, 2, REF_GLOSSY_INDIRECT, 3, 64, &g);
         check_against("VPL, model, 2 bounces, Phong coat", &g, e * (1 + RHO + RHO * RHO) + lobe + KS * src2, tilt);
+        double sb;
+        scene *sharp = load_sphere_scene(&sb, KS, SHARP_N);
+        if (sharp) {
+            static run h;
+            const double sharp_lobe = KS * (SHARP_N + 2.0) / (2.0 * M_PI) * e0;
+            render_glossy(sharp, REF_TRANSPORT_MODEL, 2, REF_GLOSSY_INDIRECT, 3, 64, &h);
+            check_against("VPL, model, 2 bounces, sharp coat", &h, e * (1 + RHO + RHO * RHO) + sharp_lobe + KS * src2,
+                          (1.0 + 2.0 * SHARP_N) * sb);
+            /* The lobe's reflection of the room alone: the same seed with the lights
+             * only draws the same direct light, so the difference is KS·L_is. */
+            static run hd;
+            render_glossy(sharp, REF_TRANSPORT_MODEL, 2, REF_GLOSSY_DIRECT, 3, 64, &hd);
+            double diff = 0.0;
+            for (int i = 0; i < W * H * 3; ++i) diff += (double)h.rgb[i] - hd.rgb[i];
+            diff /= W * H * 3;
+            printf("  VPL, sharp coat's reflection of the room: %.6f, expected %.6f (%+.2f%%)\n", diff, KS * src2,
+                   100.0 * (diff / (KS * src2) - 1.0));
+            CHECK_MSG(fabs(diff - KS * src2) <= 0.01 * KS * src2, "sharp coat's L_is %.6f vs %.6f", diff, KS * src2);
+            scene_destroy(sharp);
+        }
     }
     estimator = REF_ESTIMATOR_PATHS;
     mean_within = 0.0;
@@ -150,7 +171,7 @@ static void check_vpl(const scene *s, const scene *coated, double e, double bias
 int main(void)
 {
     double bias;
-    scene *s = load_sphere_scene(&bias, 0.0);
+    scene *s = load_sphere_scene(&bias, 0.0, PHONG_N);
     if (!s) return test_finish("reference_sphere_test");
     CHECK(s->tri_count == 20480);
     double e = RHO * INTENSITY / (RADIUS * RADIUS) / M_PI;
@@ -170,7 +191,7 @@ int main(void)
     /* The Phong coat (see the top). */
     {
         double gb;
-        scene *gs = load_sphere_scene(&gb, KS);
+        scene *gs = load_sphere_scene(&gb, KS, PHONG_N);
         if (gs) {
             const double e0 = INTENSITY / (RADIUS * RADIUS), lobe = KS * (PHONG_N + 2.0) / (2.0 * M_PI) * e0;
             const double src1 = RHO * e0 / M_PI, src2 = src1 * (1 + RHO), tilt = (1.0 + 2.0 * PHONG_N) * gb;
