@@ -72,7 +72,7 @@ typedef enum ref_estimator {
 } ref_estimator;
 
 enum { REF_VPL_PATHS_DEFAULT = 1024, REF_VPL_PER_SAMPLE_DEFAULT = 16 };
-#define REF_VPL_CLAMP_DEFAULT 0.01f /* of the scene's bounding-box diagonal */
+#define REF_VPL_CLAMP_DEFAULT 0.03f /* of the scene's bounding-box diagonal */
 #define REF_VPL_NO_CLAMP (-1.0f)
 
 typedef struct ref_desc {

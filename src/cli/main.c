@@ -153,7 +153,7 @@ static const app_command commands[] = {
      "  --vpl-paths N       vpl: light paths traced a pass (default 1024)\n"
      "  --vpl-per-sample M  vpl: VPLs a pixel sample joins by a shadow ray (default 16)\n"
      "  --vpl-clamp F|none  vpl: distances to a VPL below F times the scene's diagonal count\n"
-     "                      as that (default 0.01: bias near VPLs, no splotches; none: unbiased)\n"
+     "                      as that (default 0.03: bias near VPLs, no splotches; none: unbiased)\n"
      "  --single-mesh       ablation: one combined radiance mesh instead of the multi-mesh cache\n"
      "  --camera NAME       one of the scene's cameras (default: the first)\n"
      "  --stats FILE        write the final per-mesh statistics as JSON (docs/stats.md)\n"
