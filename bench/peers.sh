@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # bench/peers.sh — the cache against its peers inside lumesh (issue 17): for each
-# scene, `lumesh converge --methods cache,vpl,path-tracer` against one reference,
+# scene, `lumesh converge --methods cache,vpl,bdir,path-tracer` against one reference,
 # each method alone on the machine for the same times (from the scene loaded),
 # and one table: relMSE and mean dE of each method at 1, 10 and 60 s (or the
 # times asked), and the VPLs instant radiosity made. docs/peers.md has the
@@ -43,13 +43,13 @@ for name in "${names[@]}"; do
   fi
   out=$data/$name-peers
   "$lumesh" converge "$scene" --reference "$ref" --seconds "$seconds" --out "$out" --snapshots "$snaps" \
-    --methods cache,vpl,path-tracer > "$out.log"
+    --methods cache,vpl,bdir,path-tracer > "$out.log"
   python3 - "$name" "$out/convergence.json" <<'PY'
 import json, sys
 name, path = sys.argv[1], sys.argv[2]
 j = json.load(open(path))
 m = j["methods"]
-order = [k for k in ("lumesh", "vpl", "path-tracer") if k in m]
+order = [k for k in ("lumesh", "vpl", "bdir", "path-tracer") if k in m]
 print("\n%s, %dx%d, %g s a method (reference %s; %s)" % (name, j["width"], j["height"], j["seconds"], j["reference"],
                                                         j["transport_note"]))
 print("| time | " + " | ".join("%s relMSE / mean dE" % k for k in order) + " | VPLs made |")

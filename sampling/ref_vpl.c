@@ -8,7 +8,8 @@
 
 enum { MAX_PATH_DEPTH = 256, RR_START_DEPTH = 3, RR_DEEP_DEPTH = 32 };
 #define RR_SMALL_THROUGHPUT 0.05f
-#define VPL_SEED_SALT 0x7c1e5a3bu /* the light paths' streams apart from the pixels' */
+#define VPL_SEED_SALT 0x7c1e5a3bu  /* the light paths' streams apart from the pixels' */
+#define BDIR_SEED_SALT 0x2b3d9e61u /* the resampling's apart from both */
 
 static int any_positive(const float *c) { return c[0] > 0.0f || c[1] > 0.0f || c[2] > 0.0f; }
 static float max3(const float *c) { return fmaxf(c[0], fmaxf(c[1], c[2])); }
@@ -178,6 +179,38 @@ lm_result ref_vpl_generate(ref_vpl_set *set, const ref_vpl_params *params, uint6
     return r;
 }
 
+/* The radiance VPL v sends to x and x reflects towards wo (c: RGB), with the
+ * clamp; 0 when there is none (facing away, black, or hidden: the shadow ray,
+ * counted in *rays, is traced only for a non-zero value). */
+static int contribution(const ref_vpl_params *P, const ref_vpl *v, const ref_surface *x, lm_vec3 wo, int lobe_x,
+                        float d_min2, float eps_x, float c[3], uint64_t *rays)
+{
+    const scene_material *mx = x->m;
+    lm_vec3 d = v3_sub(v->p, x->p);
+    float d2 = v3_dot(d, d);
+    if (!(d2 > 0.0f)) return 0;
+    lm_vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
+    float cos_x = v3_dot(x->ns, w), cos_y = -v3_dot(v->ns, w);
+    if (cos_x <= 0.0f || cos_y <= 0.0f || v3_dot(x->ng, w) <= 0.0f || v3_dot(v->ng, w) >= 0.0f) return 0;
+    const float geometry = cos_x * cos_y / fmaxf(d2, d_min2);
+    const float lx = lobe_x ? ref_phong_lobe(mx->n, w, wo, x->ns) : 0.0f;
+    const int lobe_y = P->full && any_positive(v->m->ks);
+    const float ly = lobe_y ? ref_phong_lobe(v->m->n, v->w_in, v3_scale(w, -1.0f), v->ns) : 0.0f;
+    for (int k = 0; k < 3; ++k) {
+        float fx = mx->kd[k] / (float)M_PI + (lobe_x ? mx->ks[k] * lx : 0.0f);
+        float fy = v->m->kd[k] / (float)M_PI + (lobe_y ? v->m->ks[k] * ly : 0.0f);
+        c[k] = fx * fy * v->flux[k] * geometry;
+    }
+    if (!any_positive(c)) return 0;
+    float a[3], na[3], b[3], nb[3];
+    v3_store(a, x->p);
+    v3_store(na, x->ng);
+    v3_store(b, v->p);
+    v3_store(nb, v->ng);
+    ++*rays;
+    return !rt_segment_occluded(P->rt, a, na, b, nb, fmaxf(eps_x, rt_scene_tri_epsilon(P->rt, v->tri)));
+}
+
 void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, int lobe, int max_depth, lm_rng *g,
                     float out[3], uint64_t *rays)
 {
@@ -196,36 +229,81 @@ void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, in
     const double stride = (double)V / (double)M;
     const float weight = (float)V / (float)M / (float)P->paths, d_min2 = P->d_min * P->d_min;
     const float eps_x = rt_scene_tri_epsilon(P->rt, x->tri);
+    (void)mx;
     for (uint32_t j = 0; j < M; ++j) {
         uint32_t i = (uint32_t)(((double)j + (double)lm_rng_float(g)) * stride);
         const ref_vpl *v = &set->vpls[i < V ? i : V - 1];
         if (v->depth > deepest) continue;
-        lm_vec3 d = v3_sub(v->p, x->p);
-        float d2 = v3_dot(d, d);
-        if (!(d2 > 0.0f)) continue;
-        lm_vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
-        float cos_x = v3_dot(x->ns, w), cos_y = -v3_dot(v->ns, w);
-        if (cos_x <= 0.0f || cos_y <= 0.0f || v3_dot(x->ng, w) <= 0.0f || v3_dot(v->ng, w) >= 0.0f) continue;
-        const float geometry = cos_x * cos_y / fmaxf(d2, d_min2);
-        const float lx = lobe_x ? ref_phong_lobe(mx->n, w, wo, x->ns) : 0.0f;
-        const int lobe_y = P->full && any_positive(v->m->ks);
-        const float ly = lobe_y ? ref_phong_lobe(v->m->n, v->w_in, v3_scale(w, -1.0f), v->ns) : 0.0f;
         float c[3];
-        for (int k = 0; k < 3; ++k) {
-            float fx = mx->kd[k] / (float)M_PI + (lobe_x ? mx->ks[k] * lx : 0.0f);
-            float fy = v->m->kd[k] / (float)M_PI + (lobe_y ? v->m->ks[k] * ly : 0.0f);
-            c[k] = fx * fy * v->flux[k] * geometry;
-        }
-        if (!any_positive(c)) continue;
-        float a[3], na[3], b[3], nb[3];
-        v3_store(a, x->p);
-        v3_store(na, x->ng);
-        v3_store(b, v->p);
-        v3_store(nb, v->ng);
-        ++*rays;
-        if (rt_segment_occluded(P->rt, a, na, b, nb, fmaxf(eps_x, rt_scene_tri_epsilon(P->rt, v->tri)))) continue;
+        if (!contribution(P, v, x, wo, lobe_x, d_min2, eps_x, c, rays)) continue;
         for (int k = 0; k < 3; ++k) out[k] += weight * c[k];
     }
+}
+
+lm_result ref_vpl_resample(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t eye_count, uint32_t keep,
+                           uint64_t pass, uint64_t *rays, lm_error *err)
+{
+    double t0 = lm_now_seconds();
+    const ref_vpl_params *P = &set->params;
+    const uint32_t V = set->count;
+    if (V == 0 || eye_count == 0 || keep == 0 || P->paths <= 0) return LM_OK;
+    double *p = malloc(V * sizeof *p);
+    uint32_t *times = calloc(V, sizeof *times);
+    if (!p || !times) {
+        free(p);
+        free(times);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory resampling %u VPLs", V);
+    }
+    lm_rng g;
+    lm_rng_seed(&g, (uint64_t)P->seed ^ BDIR_SEED_SALT, pass, P->generation);
+    /* Each candidate's importance: the luminance it sends to REF_BDIR_TESTS points
+     * the camera sees, drawn at random, shadow rays included. */
+    const float d_min2 = P->d_min * P->d_min;
+    double total = 0.0;
+    for (uint32_t i = 0; i < V; ++i) {
+        double sum = 0.0;
+        for (int k = 0; k < REF_BDIR_TESTS; ++k) {
+            uint32_t j = (uint32_t)(lm_rng_float(&g) * (float)eye_count);
+            const ref_vpl_eye *e = &eyes[j < eye_count ? j : eye_count - 1];
+            float c[3];
+            if (contribution(P, &set->vpls[i], &e->x, e->wo, e->lobe, d_min2, rt_scene_tri_epsilon(P->rt, e->x.tri), c,
+                             rays))
+                sum += ref_luminance(c);
+        }
+        p[i] = sum;
+        total += sum;
+    }
+    /* By importance, mixed with uniform odds (REF_BDIR_DEFENSIVE): a VPL the tests
+     * missed may still light a pixel, and only a candidate with odds above zero
+     * keeps the estimate unbiased. */
+    for (uint32_t i = 0; i < V; ++i)
+        p[i] = total > 0.0 ? (1.0 - REF_BDIR_DEFENSIVE) * p[i] / total + REF_BDIR_DEFENSIVE / V : 1.0 / V;
+    /* Systematic resampling: `keep` evenly spaced draws through the cumulative
+     * odds, so candidate i is drawn keep·p_i times in expectation. */
+    const double u0 = lm_rng_float(&g);
+    double acc = 0.0;
+    uint32_t i = 0;
+    for (uint32_t k = 0; k < keep; ++k) {
+        double target = ((double)k + u0) / keep;
+        while (i + 1 < V && acc + p[i] <= target) acc += p[i++];
+        times[i]++;
+    }
+    /* Each drawn candidate once, its flux times (draws)/(keep·p_i·N): the mean of
+     * the draws' c_i/p_i over keep, for the 1/N of the N light paths. */
+    uint32_t n = 0;
+    for (uint32_t c = 0; c < V; ++c) {
+        if (!times[c]) continue;
+        ref_vpl v = set->vpls[c];
+        const double w = (double)times[c] / ((double)keep * p[c] * (double)P->paths);
+        for (int k = 0; k < 3; ++k) v.flux[k] = (float)(v.flux[k] * w);
+        set->vpls[n++] = v;
+    }
+    set->count = n;
+    set->params.paths = 1; /* the 1/N is in the fluxes now */
+    free(p);
+    free(times);
+    set->seconds += lm_now_seconds() - t0;
+    return LM_OK;
 }
 
 void ref_vpl_free(ref_vpl_set *set)

@@ -108,6 +108,28 @@ void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, in
  * camera path goes on one surface), not through their lobe evaluated at each
  * VPL: VPLs sample a sharp lobe badly (a few VPLs in it give bright speckles). */
 #define REF_VPL_LOBE_SAMPLED_N 8.0f
+/* Bidirectional instant radiosity's resampling (Segovia et al. 2006, section 4):
+ * a point the camera sees, and whether its lobe is evaluated at each VPL (as
+ * ref_vpl_gather's `lobe`). */
+typedef struct ref_vpl_eye {
+    ref_surface x;
+    lm_vec3 wo;
+    int lobe;
+} ref_vpl_eye;
+
+enum { REF_BDIR_TESTS = 8,       /* eye points a candidate is tested against */
+       REF_BDIR_EYES = 256 };    /* eye points a pass */
+#define REF_BDIR_DEFENSIVE 0.25  /* the share of uniform odds in the resampling */
+
+/* Keeps `keep` of the set's VPLs, drawn by their estimated contribution to the
+ * eye points (the luminance each sends to REF_BDIR_TESTS of them, shadow rays
+ * included) mixed with uniform odds, and weighs each by the inverse of its odds:
+ * for any odds above zero the estimate stays unbiased (the clamp aside), and the
+ * VPLs go where the camera looks (a room lit through a door gap: the few that
+ * come through). Candidates drawn more than once are kept once, their flux
+ * multiplied. Call it after ref_vpl_generate; rays are added to *rays. */
+lm_result ref_vpl_resample(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t eye_count, uint32_t keep,
+                           uint64_t pass, uint64_t *rays, lm_error *err);
 void ref_vpl_free(ref_vpl_set *set);
 
 #endif

@@ -313,6 +313,17 @@ static void vpl_glossy(ctx *c, const ref_surface *x, lm_vec3 wo, float out[3])
     for (int k = 0; k < 3; ++k) out[k] = w * (y.m->kd[k] * dd[k] + ds[k] + ind[k]);
 }
 
+/* How a material's glossy part reflects the VPLs' light: through its lobe
+ * evaluated at each VPL (returns 1), or by a ray drawn from a sharp lobe
+ * (*by_ray), or not at all (the model transport's lights-only gloss, no bounces). */
+static int vpl_lobe(const ref_renderer *r, const scene_material *m, int *by_ray)
+{
+    const int glossy = has_specular(m) && (r->desc.transport == REF_TRANSPORT_FULL ||
+                                           (r->desc.glossy == REF_GLOSSY_INDIRECT && model_bounces(&r->desc) > 0));
+    *by_ray = glossy && m->n >= REF_VPL_LOBE_SAMPLED_N;
+    return glossy && !*by_ray;
+}
+
 /* The direct light as the model transport's (light sampling, the lobe by MIS),
  * which is also the full transport's direct part; the indirect from the pass's VPLs. */
 static void radiance_vpl(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
@@ -330,29 +341,63 @@ static void radiance_vpl(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
     }
     float dd[3], ds[3], ind[3], is[3] = {0, 0, 0};
     direct_light(c, &x, wo, 1, MIS_LOBE_ONLY, dd, ds);
-    const int full = r->desc.transport == REF_TRANSPORT_FULL;
-    const int glossy = has_specular(x.m) &&
-                       (full || (r->desc.glossy == REF_GLOSSY_INDIRECT && model_bounces(&r->desc) > 0));
-    const int by_ray = glossy && x.m->n >= REF_VPL_LOBE_SAMPLED_N;
-    ref_vpl_gather(&r->vpl, &x, wo, glossy && !by_ray, 0, &c->g, ind, &c->rays);
+    int by_ray;
+    const int lobe = vpl_lobe(r, x.m, &by_ray);
+    ref_vpl_gather(&r->vpl, &x, wo, lobe, 0, &c->g, ind, &c->rays);
     if (by_ray) vpl_glossy(c, &x, wo, is);
     for (int k = 0; k < 3; ++k) L[k] += x.m->kd[k] * dd[k] + ds[k] + ind[k] + x.m->ks[k] * is[k];
 }
 
-/* The VPLs of the pass about to start. */
+/* BDIR's eye points for this pass: REF_BDIR_EYES pixels at random, where their
+ * first ray lands (fewer where rays leave the scene). */
+static lm_result bdir_eyes(ref_renderer *r, ref_vpl_eye **out, uint32_t *count, lm_error *err)
+{
+    ref_vpl_eye *e = malloc(REF_BDIR_EYES * sizeof *e);
+    if (!e) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for BDIR's eye points");
+    ctx c = {.r = r};
+    lm_rng_seed(&c.g, (uint64_t)r->desc.seed ^ 0x3e7e5u, r->passes, r->generation);
+    uint32_t n = 0;
+    for (int k = 0; k < REF_BDIR_EYES; ++k) {
+        float px = lm_rng_float(&c.g) * (float)r->width, py = lm_rng_float(&c.g) * (float)r->height;
+        lm_vec3 dir = camera_ray_dir(&r->cam, px, py);
+        rt_hit h;
+        if (!trace(&c, r->cam.position, dir, &h)) continue;
+        e[n].wo = v3_scale(dir, -1.0f);
+        ref_surface_from_hit(r->s, &h, e[n].wo, &e[n].x);
+        int by_ray;
+        e[n].lobe = vpl_lobe(r, e[n].x.m, &by_ray);
+        n++;
+    }
+    r->rays += c.rays;
+    *out = e;
+    *count = n;
+    return LM_OK;
+}
+
+/* The VPLs of the pass about to start (BDIR: candidates, then resampled by
+ * what the camera sees). */
 static lm_result make_vpls(ref_renderer *r, lm_error *err)
 {
     const ref_desc *d = &r->desc;
     int bounces = model_bounces(d);
+    const int keep = d->vpl_paths > 0 ? d->vpl_paths : REF_VPL_PATHS_DEFAULT;
+    const int bdir = d->estimator == REF_ESTIMATOR_BDIR;
     ref_vpl_params p = {.s = r->s, .rt = r->rt, .lights = &r->lights, .light_value = r->light_value,
                         .full = d->transport == REF_TRANSPORT_FULL, .bounces = bounces,
                         .glossy_indirect = d->glossy == REF_GLOSSY_INDIRECT, .seed = d->seed,
                         .generation = r->generation,
-                        .paths = d->vpl_paths > 0 ? d->vpl_paths : REF_VPL_PATHS_DEFAULT,
+                        .paths = bdir ? keep * REF_BDIR_CANDIDATES : keep,
                         .per_sample = d->vpl_per_sample > 0 ? d->vpl_per_sample : REF_VPL_PER_SAMPLE_DEFAULT,
                         .d_min = r->vpl_d_min};
     uint64_t rays = 0;
     lm_result res = ref_vpl_generate(&r->vpl, &p, r->passes, &rays, err);
+    if (res == LM_OK && bdir) {
+        ref_vpl_eye *eyes = NULL;
+        uint32_t n = 0;
+        res = bdir_eyes(r, &eyes, &n, err);
+        if (res == LM_OK) res = ref_vpl_resample(&r->vpl, eyes, n, (uint32_t)keep, r->passes, &rays, err);
+        free(eyes);
+    }
     r->rays += rays;
     return res;
 }
@@ -428,7 +473,7 @@ static void render_pixel(ctx *c, int px, int py)
     float jx = lm_rng_float(&c->g), jy = lm_rng_float(&c->g);
     lm_vec3 dir = camera_ray_dir(&r->cam, (float)px + jx, (float)py + jy);
     float L[3];
-    if (r->desc.estimator == REF_ESTIMATOR_VPL)
+    if (r->desc.estimator != REF_ESTIMATOR_PATHS)
         radiance_vpl(c, r->cam.position, dir, L);
     else if (r->desc.transport == REF_TRANSPORT_FULL)
         radiance_full(c, r->cam.position, dir, L);
@@ -486,7 +531,7 @@ static void *background_worker(void *arg)
 int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadline)
 {
     double t0 = lm_now_seconds();
-    if (r->desc.estimator == REF_ESTIMATOR_VPL && !r->vpl_ready) { /* a pass starts: its VPLs */
+    if (r->desc.estimator != REF_ESTIMATOR_PATHS && !r->vpl_ready) { /* a pass starts: its VPLs */
         lm_error err;
         if (make_vpls(r, &err) != LM_OK) r->vpl.count = 0; /* out of memory: this pass without indirect light */
         r->vpl_ready = 1;
@@ -661,7 +706,7 @@ void ref_get_stats(const ref_renderer *r, ref_stats *out)
     out->seconds = r->seconds;
     out->bad_samples = atomic_load(&((ref_renderer *)r)->bad_samples);
     out->vpls = r->vpl.made;
-    if (r->desc.estimator == REF_ESTIMATOR_VPL) out->vpl_passes = r->passes + (uint64_t)r->vpl_ready;
+    if (r->desc.estimator != REF_ESTIMATOR_PATHS) out->vpl_passes = r->passes + (uint64_t)r->vpl_ready;
     out->vpl_seconds = r->vpl.seconds;
 }
 

@@ -68,10 +68,14 @@ typedef enum ref_estimator {
     REF_ESTIMATOR_VPL,       /* instant radiosity: the direct light as above, the indirect from virtual
                                 point lights traced from the lights each pass (ref_vpl.h), biased by
                                 its clamp unless vpl_clamp is REF_VPL_NO_CLAMP */
+    REF_ESTIMATOR_BDIR,      /* bidirectional instant radiosity (Segovia et al. 2006): REF_BDIR_CANDIDATES
+                                times vpl_paths light paths each pass, vpl_paths VPLs of them kept, drawn
+                                by their contribution to points the camera sees (ref_vpl_resample) */
     REF_ESTIMATOR_COUNT
 } ref_estimator;
 
-enum { REF_VPL_PATHS_DEFAULT = 1024, REF_VPL_PER_SAMPLE_DEFAULT = 16 };
+enum { REF_VPL_PATHS_DEFAULT = 1024, REF_VPL_PER_SAMPLE_DEFAULT = 16,
+       REF_BDIR_CANDIDATES = 8 /* BDIR: light paths traced for each VPL kept */ };
 #define REF_VPL_CLAMP_DEFAULT 0.03f /* of the scene's bounding-box diagonal */
 #define REF_VPL_NO_CLAMP (-1.0f)
 
@@ -86,7 +90,8 @@ typedef struct ref_desc {
     uint32_t seed;
     int threads;              /* 0 = every core */
     ref_estimator estimator;
-    int vpl_paths;            /* VPL: light paths traced at each pass's start; 0 = REF_VPL_PATHS_DEFAULT */
+    int vpl_paths;            /* VPL: light paths traced at each pass's start (BDIR: VPLs kept of
+                                 REF_BDIR_CANDIDATES times as many); 0 = REF_VPL_PATHS_DEFAULT */
     int vpl_per_sample;       /* VPL: VPLs a pixel sample joins by a shadow ray; 0 = REF_VPL_PER_SAMPLE_DEFAULT */
     float vpl_clamp;          /* VPL: distances below this fraction of the scene's bounding-box diagonal
                                  count as this (the geometry term's clamp); 0 = REF_VPL_CLAMP_DEFAULT,

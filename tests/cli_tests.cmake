@@ -160,6 +160,14 @@ lumesh_cli_test(converge_bad_snapshots 1 ARGS converge --reference r.exr --secon
   ERR "--snapshots takes increasing positive seconds")
 lumesh_cli_test(converge_missing_reference 2 ARGS converge --reference ${CMAKE_CURRENT_BINARY_DIR}/no-such.exr --seconds 1
   --out ${CMAKE_CURRENT_BINARY_DIR}/conv-never ONE_ERR_LINE ERR "no-such\\.exr")
+lumesh_cli_test(converge_bad_method 1 ARGS converge --reference r.exr --seconds 1 --out d --methods cache,photons
+  ERR "--methods takes each of cache, vpl, bdir, path-tracer at most once, separated by commas \\('photons' is not one\\)")
+lumesh_cli_test(converge_repeated_method 1 ARGS converge --reference r.exr --seconds 1 --out d --methods vpl,vpl
+  ERR "'vpl' is repeated")
+lumesh_cli_test(converge_methods_and_vs 1 ARGS converge --reference r.exr --seconds 1 --out d --methods vpl
+  --vs-path-tracer ERR "--vs-path-tracer is short for --methods cache,path-tracer: give one")
+lumesh_cli_test(converge_bad_vpl_clamp 1 ARGS converge --reference r.exr --seconds 1 --out d --methods vpl
+  --vpl-clamp 2 ERR "--vpl-clamp takes a fraction of the scene's size in \\(0, 1\\), or none")
 lumesh_cli_test(render_deterministic_needs_samples 1 ARGS render -o x.exr --deterministic ERR "--deterministic needs --samples")
 lumesh_cli_test(render_bad_components 1 ARGS render -o x.exr --components direct,glow
   ERR "--components takes a comma-separated list of direct, indirect, specular and emission, not 'direct,glow'")

@@ -9,6 +9,10 @@
 # determinism: render --samples N --deterministic twice gives identical images.
 # glossy: a reference made with --glossy direct (glossy materials reflect the
 #         lights only) has converge model the same: its JSON and note say so.
+# peers:  --methods vpl,path-tracer (no cache): rows for both, the VPLs made
+#         growing, instant radiosity's relMSE falling, and its picture's mean
+#         within 2% of the reference's (the VPLs' flux and the clamp's bias: a
+#         wrong normalisation is off by far more).
 cmake_minimum_required(VERSION 3.19)
 set(ref ${DIR}/ref.exr)
 set(out ${DIR}/run)
@@ -21,6 +25,15 @@ macro(check cond msg)
   if(NOT check_ok)
     message(FATAL_ERROR "${msg}")
   endif()
+endmacro()
+
+# hundredths("12.345" out): out = 1234 (a non-negative decimal number, truncated).
+macro(hundredths value out)
+  string(REGEX MATCH "^([0-9]+)(\\.([0-9]*))?$" _m "${value}")
+  check("NOT \"${_m}\" STREQUAL \"\"" "not a plain decimal number: '${value}'")
+  set(_frac "${CMAKE_MATCH_3}00")
+  string(SUBSTRING "${_frac}" 0 2 _frac)
+  math(EXPR ${out} "${CMAKE_MATCH_1} * 100 + 1${_frac} - 100")
 endmacro()
 
 if(MODE STREQUAL "determinism")
@@ -59,6 +72,45 @@ if(MODE STREQUAL "glossy")
   return()
 endif()
 
+if(MODE STREQUAL "peers")
+  execute_process(COMMAND ${LUMESH} reference -o ${ref} --spp 256 --width 48 --height 48
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 120)
+  check("rc EQUAL 0" "reference failed: ${o}${e}")
+  execute_process(COMMAND ${LUMESH} converge --reference ${ref} --seconds 2 --snapshots 0.2,1 --out ${out}
+                          --methods vpl,path-tracer
+                  RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 180)
+  check("rc EQUAL 0" "converge failed (${rc}): ${o}${e}")
+  file(STRINGS ${out}/convergence.csv lines)
+  list(LENGTH lines n)
+  check("n EQUAL 7" "convergence.csv has ${n} lines, expected 7 (3 snapshots of 2 methods):\n${o}")
+  list(GET lines 0 header)
+  check("header MATCHES \",vpls,image$\"" "no vpls column: ${header}")
+  file(READ ${out}/convergence.json j)
+  string(JSON nv LENGTH "${j}" methods vpl)
+  string(JSON np LENGTH "${j}" methods path-tracer)
+  check("nv EQUAL 3 AND np EQUAL 3" "convergence.json: ${nv} VPL and ${np} path tracer snapshots")
+  string(JSON has_lumesh ERROR_VARIABLE none GET "${j}" methods lumesh)
+  check("NOT none STREQUAL \"NOTFOUND\"" "the cache ran though --methods did not name it")
+  string(JSON v_first GET "${j}" methods vpl 0 vpls)
+  string(JSON v_last GET "${j}" methods vpl 2 vpls)
+  check("v_first GREATER 0 AND v_last GREATER v_first" "VPLs made: ${v_first} -> ${v_last}")
+  string(JSON e_first GET "${j}" methods vpl 0 error relmse)
+  string(JSON e_last GET "${j}" methods vpl 2 error relmse)
+  check("e_last LESS e_first" "instant radiosity's relMSE did not fall: ${e_first} -> ${e_last}")
+  # Against the path tracer at the same time and transport: a VPL estimate far
+  # off (a wrong flux, a lost bounce) has a mean dE many times the path
+  # tracer's; the two are within 1.5x of each other here. Compared in hundredths
+  # (math() has integers only).
+  string(JSON v_de GET "${j}" methods vpl 2 error delta_e_mean)
+  string(JSON p_de GET "${j}" methods path-tracer 2 error delta_e_mean)
+  hundredths(${v_de} v100)
+  hundredths(${p_de} p100)
+  math(EXPR bound "3 * ${p100} + 100")
+  check("v100 LESS bound" "instant radiosity's mean dE ${v_de} is far above the path tracer's ${p_de}")
+  message(STATUS "ok: VPLs ${v_first} -> ${v_last}, relMSE ${e_first} -> ${e_last}, mean dE ${v_de} (path tracer ${p_de})")
+  return()
+endif()
+
 execute_process(COMMAND ${LUMESH} reference -o ${ref} --spp 64 --width 48 --height 48
                 RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 120)
 check("rc EQUAL 0" "reference failed: ${o}${e}")
@@ -76,7 +128,7 @@ check("n EQUAL 9" "convergence.csv has ${n} lines, expected 9:\n${o}")
 list(GET lines 0 header)
 string(REGEX MATCHALL "," hc "${header}")
 list(LENGTH hc ncomma)
-check("header MATCHES \"^method,target_seconds,seconds,state,leaves_tested,samples_light0,samples_direct,samples_indirect,samples_specular,spp_min,spp_max,rays,rmse,relmse,relmse_reference_noise,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,residual_weight,residual_corrected,residual_estimated_relmse,image$\"" "unexpected header: ${header}")
+check("header MATCHES \"^method,target_seconds,seconds,state,leaves_tested,samples_light0,samples_direct,samples_indirect,samples_specular,spp_min,spp_max,rays,rmse,relmse,relmse_reference_noise,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,residual_weight,residual_corrected,residual_estimated_relmse,vpls,image$\"" "unexpected header: ${header}")
 set(lumesh_rows 0)
 set(pt_rows 0)
 foreach(line IN LISTS lines)

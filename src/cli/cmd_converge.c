@@ -95,7 +95,7 @@ typedef struct conv_row {
 } conv_row;
 
 typedef struct conv_run {
-    const char *method;       /* "lumesh", "lumesh-single-mesh", "vpl", "path-tracer" */
+    const char *method;       /* "lumesh", "lumesh-single-mesh", "vpl", "bdir", "path-tracer" */
     int peer;                 /* a method of the reference renderer (ref_estimator): no cache columns */
     ref_estimator estimator;  /* a peer's */
     conv_row rows[MAX_SNAPSHOTS];
@@ -507,7 +507,7 @@ static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm
             else OUT(",,,");
             if (!pt && w->spp_max) OUT(",%.4f,%.4f,%.4g", w->residual_weight, w->residual_corrected, w->residual_est);
             else OUT(",,,");
-            if (runs[k].estimator == REF_ESTIMATOR_VPL) OUT(",%llu", (unsigned long long)w->vpls);
+            if (runs[k].peer && runs[k].estimator != REF_ESTIMATOR_PATHS) OUT(",%llu", (unsigned long long)w->vpls);
             else OUT(",");
             OUT(",%s\n", w->image);
         }
@@ -533,7 +533,7 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
         cJSON_AddNumberToObject(o, "spp_min", w->spp_min);
         cJSON_AddNumberToObject(o, "spp_max", w->spp_max);
         cJSON_AddNumberToObject(o, "rays", (double)w->rays);
-        if (run->estimator == REF_ESTIMATOR_VPL) cJSON_AddNumberToObject(o, "vpls", (double)w->vpls);
+        if (run->estimator != REF_ESTIMATOR_PATHS) cJSON_AddNumberToObject(o, "vpls", (double)w->vpls);
     } else {
         cJSON_AddStringToObject(o, "state", state_names[w->state]);
         cJSON_AddNumberToObject(o, "leaves_tested", (double)w->tested);
@@ -641,7 +641,8 @@ static lm_result write_plot(const conv_ctx *c, const conv_run *runs, int nrun, l
         int pt = runs[k].peer && runs[k].estimator == REF_ESTIMATOR_PATHS;
         snprintf(labels[k], sizeof labels[k], "%s",
                  pt                ? "path tracer (Embree, same transport)"
-                 : runs[k].peer    ? "VPLs (instant radiosity, same transport)"
+                 : runs[k].peer && runs[k].estimator == REF_ESTIMATOR_VPL ? "VPLs (instant radiosity, same transport)"
+                 : runs[k].peer    ? "BDIR (VPLs resampled, same transport)"
                                    : runs[k].method);
         rel[k] = (plot_series){.label = labels[k], .x = x, .y = y1, .count = runs[k].count, .dashed = pt};
         de[k] = rel[k];
@@ -744,7 +745,7 @@ static int reference_transport(conv_ctx *c, const char *ref_path, const char *gi
     return APP_EXIT_OK;
 }
 
-/* --methods: "cache,vpl,path-tracer" into runs, the cache first (it is timed
+/* --methods: "cache,vpl,bdir,path-tracer" into runs, the cache first (it is timed
  * with the machine to itself, as are the others after it), each at most once.
  * Returns the number of runs, or 0 after a usage error (*rc set). */
 static int parse_methods(const app_command *cmd, const char *list, int single, conv_run *runs, int *rc)
@@ -755,6 +756,7 @@ static int parse_methods(const app_command *cmd, const char *list, int single, c
         ref_estimator estimator;
     } known[] = {{"cache", "lumesh", 0, REF_ESTIMATOR_PATHS},
                  {"vpl", "vpl", 1, REF_ESTIMATOR_VPL},
+                 {"bdir", "bdir", 1, REF_ESTIMATOR_BDIR},
                  {"path-tracer", "path-tracer", 1, REF_ESTIMATOR_PATHS}};
     enum { KNOWN = sizeof known / sizeof known[0] };
     int want[KNOWN] = {0}, n = 0;
@@ -763,7 +765,7 @@ static int parse_methods(const app_command *cmd, const char *list, int single, c
         int k = 0;
         while (k < KNOWN && !(strlen(known[k].name) == len && strncmp(p, known[k].name, len) == 0)) ++k;
         if (k == KNOWN || want[k]) {
-            *rc = app_usage_error(cmd, "--methods takes each of cache, vpl, path-tracer at most once, separated by "
+            *rc = app_usage_error(cmd, "--methods takes each of cache, vpl, bdir, path-tracer at most once, separated by "
                                        "commas ('%.*s' %s)", (int)len, p, k == KNOWN ? "is not one" : "is repeated");
             return 0;
         }
