@@ -52,7 +52,7 @@ m = j["methods"]
 order = [k for k in ("lumesh", "vpl", "bdir", "path-tracer") if k in m]
 print("\n%s, %dx%d, %g s a method (reference %s; %s)" % (name, j["width"], j["height"], j["seconds"], j["reference"],
                                                         j["transport_note"]))
-print("| time | " + " | ".join("%s relMSE / mean dE" % k for k in order) + " | VPLs made |")
+print("| time | " + " | ".join("%s relMSE / mean dE" % k for k in order) + " | VPLs made (vpl / bdir's candidates) |")
 print("|---|" + "---|" * len(order) + "---|")
 rows = {k: {r["target_seconds"]: r for r in m[k]} for k in order}
 for t in sorted(rows[order[0]]):
@@ -60,8 +60,8 @@ for t in sorted(rows[order[0]]):
     for k in order:
         r = rows[k].get(t)
         cells.append("%.3g / %.2f" % (r["error"]["relmse"], r["error"]["delta_e_mean"]) if r else "-")
-    v = rows.get("vpl", {}).get(t)
-    print("| %g s | %s | %s |" % (t, " | ".join(cells), v["vpls"] if v else "-"))
+    made = ["%d" % rows[k][t]["vpls"] if k in rows and t in rows[k] else "-" for k in ("vpl", "bdir")]
+    print("| %g s | %s | %s |" % (t, " | ".join(cells), " / ".join(made)))
 noise = m[order[0]][0]["error"].get("relmse_reference_noise", 0.0)
 print("the reference's own noise: relMSE %.3g of every relMSE above" % noise)
 PY

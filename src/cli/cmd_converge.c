@@ -81,7 +81,8 @@ typedef struct conv_row {
     uint64_t tested;          /* lumesh: leaves tested */
     uint64_t samples[MAX_MESHES]; /* lumesh: light meshes, then direct, indirect, specular */
     uint32_t spp_min, spp_max;/* samples a pixel: a peer's (path tracer, VPL), or lumesh's residual's */
-    uint64_t vpls;            /* VPL: virtual point lights made so far */
+    uint64_t vpls;            /* VPL, BDIR: virtual point lights made so far (BDIR: candidates) */
+    double vpl_seconds;       /* VPL, BDIR: of `seconds`, the time spent making them (and resampling) */
     uint64_t rays;            /* the same paths' rays */
     double residual_weight;   /* lumesh: mean James–Stein weight of the residual's blocks (rend_residual_info) */
     double residual_corrected;/* lumesh: share of the blocks the residual corrects */
@@ -447,6 +448,7 @@ static lm_result run_peer(conv_ctx *c, uint32_t seed, conv_run *run, lm_error *e
         row->spp_max = st.max_samples;
         row->rays = st.rays;
         row->vpls = st.vpls;
+        row->vpl_seconds = st.vpl_seconds;
         ref_get_image(pt, rgb, NULL, NULL);
         r = measure(c, run->method, rgb, row, err);
         if (r == LM_OK) {
@@ -533,7 +535,10 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
         cJSON_AddNumberToObject(o, "spp_min", w->spp_min);
         cJSON_AddNumberToObject(o, "spp_max", w->spp_max);
         cJSON_AddNumberToObject(o, "rays", (double)w->rays);
-        if (run->estimator != REF_ESTIMATOR_PATHS) cJSON_AddNumberToObject(o, "vpls", (double)w->vpls);
+        if (run->estimator != REF_ESTIMATOR_PATHS) {
+            cJSON_AddNumberToObject(o, "vpls", (double)w->vpls);
+            cJSON_AddNumberToObject(o, "vpl_seconds", rounded(w->vpl_seconds, 1e-4));
+        }
     } else {
         cJSON_AddStringToObject(o, "state", state_names[w->state]);
         cJSON_AddNumberToObject(o, "leaves_tested", (double)w->tested);
