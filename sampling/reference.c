@@ -56,6 +56,7 @@ struct ref_renderer {
     ref_vpl_set vpl;
     int vpl_ready;          /* the set belongs to the pass under way */
     uint64_t passes;        /* complete passes since the last restart: the VPL sets' stream */
+    uint32_t light_edits;   /* ref_set_light calls that changed a value: the kept VPLs' stream (vpl_keep) */
     float vpl_d_min;        /* the clamp, scene units */
 };
 
@@ -385,7 +386,7 @@ static lm_result make_vpls(ref_renderer *r, lm_error *err)
     ref_vpl_params p = {.s = r->s, .rt = r->rt, .lights = &r->lights, .light_value = r->light_value,
                         .full = d->transport == REF_TRANSPORT_FULL, .bounces = bounces,
                         .glossy_indirect = d->glossy == REF_GLOSSY_INDIRECT, .seed = d->seed,
-                        .generation = r->generation,
+                        .generation = d->vpl_keep ? r->light_edits : r->generation,
                         .paths = bdir ? keep * REF_BDIR_CANDIDATES : keep,
                         .per_sample = d->vpl_per_sample > 0 ? d->vpl_per_sample : REF_VPL_PER_SAMPLE_DEFAULT,
                         .d_min = r->vpl_d_min};
@@ -647,6 +648,7 @@ lm_result ref_set_light(ref_renderer *r, uint32_t light, const float value[3], l
     for (int k = 0; k < 3; ++k)
         if (!isfinite(value[k]) || value[k] < 0.0f)
             return lm_fail(err, LM_ERR_INVALID_ARG, "light %u: a value must be finite and not negative", light);
+    if (memcmp(r->light_value + 3 * (size_t)light, value, 3 * sizeof *value) != 0) r->light_edits++;
     memcpy(r->light_value + 3 * (size_t)light, value, 3 * sizeof *value);
     return LM_OK;
 }

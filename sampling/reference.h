@@ -93,6 +93,10 @@ typedef struct ref_desc {
     int vpl_paths;            /* VPL: light paths traced at each pass's start (BDIR: VPLs kept of
                                  REF_BDIR_CANDIDATES times as many); 0 = REF_VPL_PATHS_DEFAULT */
     int vpl_per_sample;       /* VPL: VPLs a pixel sample joins by a shadow ray; 0 = REF_VPL_PER_SAMPLE_DEFAULT */
+    int vpl_keep;             /* VPL, BDIR: non-zero: a restart keeps the VPLs (pass k after it traces the
+                                 same light paths as pass k before; only a light edit changes them):
+                                 a moving view does not flicker (the instant radiosity thesis's
+                                 temporal reuse); 0: a restart is an independent estimate */
     float vpl_clamp;          /* VPL: distances below this fraction of the scene's bounding-box diagonal
                                  count as this (the geometry term's clamp); 0 = REF_VPL_CLAMP_DEFAULT,
                                  REF_VPL_NO_CLAMP: none (unbiased, spiky) */

@@ -15,6 +15,9 @@
 # rest.exr) is the mean of all 16 jittered draws; on one not converged, a plain
 # draw (0) (both at 160x120). Ten seconds later the converged mean is corrected by path
 # samples (the residual: at least 32 a pixel).
+# The peers (key i, --indirect; docs/peers.md): the still view rendered by VPLs,
+# then again after an orbit (their picture of the new view), then by BDIR, each
+# shown from a complete pass (peer spp 1 or more); a third i shows the cache again.
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -80,6 +83,19 @@ wait 2
 screenshot ${DIR}/rest.exr
 wait 10
 screenshot ${DIR}/residual.exr
+key i
+wait 3
+screenshot ${DIR}/peer.exr
+orbit 10 0
+frames 1
+wait 3
+screenshot ${DIR}/peer-moved.png
+key i
+wait 3
+screenshot ${DIR}/bdir.png
+key i
+frames 2
+screenshot ${DIR}/back.png
 quit
 ")
 execute_process(
@@ -245,3 +261,25 @@ if(CMAKE_MATCH_1 EQUAL 0 AND NOT CMAKE_MATCH_3 EQUAL 0)
   message(FATAL_ERROR "a snapshot still refining was corrected (${CMAKE_MATCH_3} path samples a pixel)")
 endif()
 message("residual.exr: converged ${CMAKE_MATCH_1}, ${CMAKE_MATCH_3} path samples a pixel")
+
+# The peers shown at rest (key i): VPLs, VPLs after an orbit, BDIR, then the cache again.
+foreach(pair "peer.exr;vpl" "peer-moved.png;vpl" "bdir.png;bdir")
+  list(GET pair 0 f)
+  list(GET pair 1 m)
+  string(REPLACE "." "\\." fre "${f}")
+  if(NOT out MATCHES "screenshot [^\n]*/${fre}: [^\n]*indirect ${m}, peer spp ([0-9]+)")
+    message(FATAL_ERROR "no screenshot line for ${f} with indirect ${m}")
+  endif()
+  if(CMAKE_MATCH_1 LESS 1)
+    message(FATAL_ERROR "${f}: the ${m} picture is not shown (peer spp ${CMAKE_MATCH_1})")
+  endif()
+  message("${f}: ${m}, ${CMAKE_MATCH_1} samples a pixel")
+endforeach()
+if(NOT out MATCHES "screenshot [^\n]*/back[.]png: [^\n]*indirect cache, peer spp 0")
+  message(FATAL_ERROR "a third i did not show the cache's picture again")
+endif()
+execute_process(COMMAND ${CHECK} ${DIR}/peer.exr ${DIR}/peer-moved.png RESULT_VARIABLE crc OUTPUT_VARIABLE cout
+                ERROR_VARIABLE cerr)
+if(NOT crc EQUAL 0)
+  message(FATAL_ERROR "the VPL pictures are missing, uniform or the same before and after the orbit: ${cout}${cerr}")
+endif()

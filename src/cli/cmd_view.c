@@ -30,12 +30,12 @@ static void print_screenshot(const char *path, const view_app_report *rep, void 
     unsigned long long light_samples = 0;
     for (uint32_t l = 0; snap && l < snap->stats.light_count; ++l) light_samples += snap->stats.lights[l].samples;
     printf("screenshot %s: %dx%d, frame %llu, %.2f s, direct samples %llu, light samples %llu, indirect samples %llu, "
-           "generation %llu, bounces %d, converged %d, rest draws %u, residual spp %u\n",
+           "generation %llu, bounces %d, converged %d, rest draws %u, residual spp %u, indirect %s, peer spp %u\n",
            path, rep->width, rep->height, (unsigned long long)rep->frames, rep->seconds,
            snap ? (unsigned long long)snap->stats.direct.samples : 0ull, light_samples,
            snap ? (unsigned long long)snap->stats.indirect.samples : 0ull,
            snap ? (unsigned long long)snap->generation : 0ull, snap ? snap->stats.bounces.bounces : 0,
-           snap ? snap->converged : 0, rep->rest_draws, rep->residual_spp);
+           snap ? snap->converged : 0, rep->rest_draws, rep->residual_spp, rep->indirect, rep->peer_spp);
     fflush(stdout);
 }
 
@@ -94,7 +94,7 @@ static void release(void *user, const scene *old)
 int cmd_view(const app_command *cmd, int argc, char **argv)
 {
     const char *sampler = NULL, *gl_name = NULL, *bounces = NULL, *script = NULL, *stats = NULL, *camera = NULL,
-               *residual = "on";
+               *residual = "on", *indirect = "cache";
     long width = 0, height = 0;
     double max_fps = VIEW_APP_DEFAULT_FPS;
     enum { OPT_WIDTH = 6, OPT_HEIGHT = 7 }; /* their places below */
@@ -109,6 +109,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
         [OPT_HEIGHT] = {"--height", NULL, APP_OPT_INT, &height, 1, 16384},
         {"--max-fps", NULL, APP_OPT_DOUBLE, &max_fps, 0, 1000},
         {"--residual", NULL, APP_OPT_STRING, &residual},
+        {"--indirect", NULL, APP_OPT_STRING, &indirect},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -117,6 +118,11 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     if (opts[OPT_WIDTH].seen != opts[OPT_HEIGHT].seen) return app_usage_error(cmd, "give both --width and --height");
     if (strcmp(residual, "on") != 0 && strcmp(residual, "off") != 0)
         return app_usage_error(cmd, "--residual takes on or off");
+    const ref_estimator peer = strcmp(indirect, "vpl") == 0    ? REF_ESTIMATOR_VPL
+                               : strcmp(indirect, "bdir") == 0 ? REF_ESTIMATOR_BDIR
+                                                               : REF_ESTIMATOR_PATHS;
+    if (peer == REF_ESTIMATOR_PATHS && strcmp(indirect, "cache") != 0)
+        return app_usage_error(cmd, "--indirect takes cache, vpl or bdir, not '%s'", indirect);
     /* As render: the 2% tolerance (rend_session_desc_defaults), the sampler chosen by
      * --sampler (auto by default). */
     rend_session_desc sd = {0};
@@ -141,7 +147,8 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
                                           .max_fps = max_fps > 0 ? max_fps : -1, .scene_loaded_at = t_scene,
                                           .scene_load_seconds = t_scene - t_load_start, .user = &c,
                                           .screenshot = print_screenshot, .finished = finished, .reload = reload,
-                                          .release = release, .no_residual = strcmp(residual, "off") == 0},
+                                          .release = release, .no_residual = strcmp(residual, "off") == 0,
+                                          .indirect = peer},
                          &err);
         s = c.current; /* the scene shown last (the first one or a reload's); the others are freed */
         scene_destroy(c.pending); /* a reload the run ended before taking (an error) */

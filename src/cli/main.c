@@ -176,7 +176,7 @@ static const app_command commands[] = {
     {"view", "interactive window that sharpens while the camera is idle",
      "usage: lumesh view [SCENE] [--camera NAME] [--width W --height H] [--script FILE]\n"
      "                   [--stats STATS.json] [--max-fps F] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
-     "                   [--bounces K|auto] [--residual on|off]\n"
+     "                   [--bounces K|auto] [--residual on|off] [--indirect cache|vpl|bdir]\n"
      "\n"
      "Opens a window on SCENE (default 1280x720); lighting refines in the background\n"
      "and the image sharpens while you look. Once refinement has nothing left to do\n"
@@ -190,6 +190,7 @@ static const app_command commands[] = {
      "  1/2/3/4: show/hide direct diffuse, direct specular, indirect, emission\n"
      "  O: overlay the next mesh (direct, indirect, specular, each light, off)   V: wireframe/samples\n"
      "  B: bounces (auto, 1, 2, 3, 4, 8; no new light samples)\n"
+     "  I: the picture at rest from the cache, VPLs or BDIR (--indirect; docs/peers.md)\n"
      "  R: reload the scene from its file   H: help in the HUD\n"
      "  Esc/Q: quit\n"
      "\n"
@@ -200,10 +201,14 @@ static const app_command commands[] = {
      "                      light INDEX SCALE, light-color INDEX R G B, resize W H,\n"
      "                      minimise, restore,\n"
      "                      next-snapshot SECONDS,\n"
-     "                      key escape|q|p|plus|minus|f12|f|c|l|bracketright|bracketleft|1|2|3|4|h|o|v|r|k|b,\n"
+     "                      key escape|q|p|plus|minus|f12|f|c|l|bracketright|bracketleft|1|2|3|4|h|o|v|r|k|b|i,\n"
      "                      quit; prints a line per screenshot\n"
      "  --stats FILE        write the last snapshot's statistics as JSON at exit (docs/stats.md)\n"
      "  --max-fps F         frame rate cap (default 60; 0: unpaced)\n"
+     "  --indirect M        what shows a still view: cache (default), vpl (instant radiosity)\n"
+     "                      or bdir (its bidirectional resampling), rendered beside the cache\n"
+     "                      and shown from their first complete pass; the cache's picture\n"
+     "                      while moving (I cycles them)\n"
      "\n"
      SAMPLER_HELP,
      cmd_view},

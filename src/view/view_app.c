@@ -52,8 +52,10 @@ void view_app_report_of(const view_state *v, view_app_report *r)
                            .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
                            .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win),
                            .rest_draws = view_app_showing_mean(v) ? v->accum_n : 0,
-                           .residual_spp = view_app_showing_residual(v) ? v->residual_info.min_samples : 0,
-                           .residual_corrected = view_app_showing_residual(v) ? v->residual_info.corrected : 0.0};
+                           .residual_spp = view_app_showing_residual(v) && !v->peer_on ? v->residual_info.min_samples : 0,
+                           .residual_corrected = view_app_showing_residual(v) && !v->peer_on ? v->residual_info.corrected : 0.0,
+                           .indirect = v->indirect == REF_ESTIMATOR_VPL ? "vpl" : v->indirect == REF_ESTIMATOR_BDIR ? "bdir" : "cache",
+                           .peer_spp = view_app_showing_residual(v) && v->peer_on ? v->residual_info.min_samples : 0};
 }
 
 /* K's colours: multipliers of the scene's, about equal in luminance. */
@@ -183,6 +185,8 @@ static lm_result reset_lights(view_state *v, lm_error *err)
     return LM_OK;
 }
 
+static void residual_stop(view_state *v);
+
 /* Stops and joins the residual's thread: nothing refers to v->s from it after this. */
 static void drop_residual(view_state *v)
 {
@@ -299,6 +303,12 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
     case VIEW_ACTION_TOGGLE_INDIRECT: v->components ^= REND_FRAME_COMPONENT_INDIRECT; break;
     case VIEW_ACTION_TOGGLE_EMISSION: v->components ^= REND_FRAME_COMPONENT_EMISSION; break;
     case VIEW_ACTION_HELP: v->help = !v->help; break;
+    case VIEW_ACTION_INDIRECT:
+        v->indirect = v->indirect == REF_ESTIMATOR_PATHS  ? REF_ESTIMATOR_VPL
+                      : v->indirect == REF_ESTIMATOR_VPL ? REF_ESTIMATOR_BDIR
+                                                          : REF_ESTIMATOR_PATHS;
+        residual_stop(v);
+        break;
     case VIEW_ACTION_RELOAD: return reload_scene(v, err);
     case VIEW_ACTION_BOUNCES: {
         /* Like a light edit: every indirect value gathered again, no light sample. */
@@ -466,6 +476,80 @@ static void residual_stop(view_state *v)
     if (v->residual_on) view_residual_stop(v->residual);
     v->residual_on = 0;
     v->residual_shown = 0;
+    v->peer_on = 0;
+}
+
+/* residual_rgb and residual_up hold n floats each. */
+static lm_result residual_buffers(view_state *v, size_t n, lm_error *err)
+{
+    if (n <= v->residual_cap) return LM_OK;
+    float *p = realloc(v->residual_rgb, n * sizeof *p), *q = p ? realloc(v->residual_up, n * sizeof *q) : NULL;
+    if (p) v->residual_rgb = p;
+    if (q) v->residual_up = q;
+    if (!p || !q) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the viewer's residual");
+    v->residual_cap = n;
+    return LM_OK;
+}
+
+/* A picture the residual's thread handed back (a correction, or a peer's
+ * picture) into residual_tex, shown from now on. */
+static void upload_residual(view_state *v, const scene_camera *cam)
+{
+    if (!view_residual_take(v->residual, v->residual_rgb, &v->residual_seq, &v->residual_info)) {
+        if (v->residual_shown) v->shown = v->residual_tex;
+        return;
+    }
+    /* Kept top row first (screenshots); uploaded bottom-up, GL's row order. */
+    const GladGLContext *gl = v->gl;
+    size_t row = (size_t)cam->width * 3;
+    for (int y = 0; y < cam->height; ++y)
+        memcpy(v->residual_up + (size_t)(cam->height - 1 - y) * row, v->residual_rgb + (size_t)y * row,
+               row * sizeof *v->residual_up);
+    if (!v->residual_tex) gl->GenTextures(1, &v->residual_tex);
+    gl->BindTexture(GL_TEXTURE_2D, v->residual_tex);
+    gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
+    gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
+    gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
+    gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
+    gl->PixelStorei(GL_UNPACK_ALIGNMENT, 4);
+    gl->TexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, cam->width, cam->height, 0, GL_RGB, GL_FLOAT, v->residual_up);
+    gl->BindTexture(GL_TEXTURE_2D, 0);
+    v->residual_shown = 1;
+    v->shown = v->residual_tex;
+}
+
+/* --indirect vpl|bdir (I): while the camera rests with every term shown, the
+ * peer renders the view on the residual's thread (view_residual.h) and its
+ * picture is shown from its first complete pass; before it, and while the
+ * camera moves, the cache's. A move restarts it with its VPLs kept (the thesis's
+ * temporal reuse); a light edit or a new bounce count traces new ones. */
+static lm_result show_peer(view_state *v, const rend_frame *f, const scene_camera *cam, lm_error *err)
+{
+    if (f != v->frame || v->components != REND_FRAME_COMPONENTS_ALL) {
+        residual_stop(v);
+        return LM_OK;
+    }
+    lm_result r = v->residual ? LM_OK : make_residual(v, err);
+    if (r == LM_OK) r = residual_buffers(v, (size_t)cam->width * (size_t)cam->height * 3, err);
+    if (r != LM_OK) return r;
+    view_accum_key k = accum_key_now(v, cam);
+    k.generation = 0; /* the peer does not follow the cache's snapshots */
+    const int bounces = v->snap && v->snap->stats.bounces.bounces > 0 ? v->snap->stats.bounces.bounces : 1;
+    if (!v->peer_on || !accum_same_view(&v->residual_key, &k) || v->peer_bounces != bounces ||
+        v->peer_kind != v->indirect) {
+        for (uint32_t l = 0; l < v->light_count; ++l)
+            light_value(v->s, l, v->light_scale[l], v->light_tint + 3 * (size_t)l, v->residual_lights + 3 * (size_t)l);
+        view_residual_view rv = {.cam = *cam, .bounces = bounces, .light_values = v->residual_lights, .peer = v->indirect};
+        r = view_residual_start(v->residual, &rv, NULL, err);
+        if (r != LM_OK) return r;
+        v->residual_on = v->peer_on = 1;
+        v->residual_key = k;
+        v->residual_shown = 0;
+        v->peer_bounces = bounces;
+        v->peer_kind = v->indirect;
+    }
+    upload_residual(v, cam);
+    return LM_OK;
 }
 
 /* The complete resting picture, corrected by path samples while the worker has
@@ -479,15 +563,9 @@ static lm_result show_residual(view_state *v, const scene_camera *cam, lm_error 
         residual_stop(v);
         return LM_OK;
     }
-    size_t n = (size_t)cam->width * (size_t)cam->height * 3;
-    if (n > v->residual_cap) {
-        float *p = realloc(v->residual_rgb, n * sizeof *p), *q = p ? realloc(v->residual_up, n * sizeof *q) : NULL;
-        if (p) v->residual_rgb = p;
-        if (q) v->residual_up = q;
-        if (!p || !q) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the viewer's residual");
-        v->residual_cap = n;
-    }
-    lm_result r = LM_OK;
+    lm_result r = residual_buffers(v, (size_t)cam->width * (size_t)cam->height * 3, err);
+    if (r != LM_OK) return r;
+    if (v->peer_on) residual_stop(v); /* the thread rendered a peer: a correction starts afresh */
     if (!v->residual_on || !accum_same_view(&v->residual_key, &v->accum_key) ||
         v->residual_key.generation != v->accum_key.generation) {
         r = view_accum_read(v->accum, v->residual_rgb, err);
@@ -500,25 +578,7 @@ static lm_result show_residual(view_state *v, const scene_camera *cam, lm_error 
         v->residual_key = v->accum_key;
         v->residual_shown = 0;
     }
-    if (view_residual_take(v->residual, v->residual_rgb, &v->residual_seq, &v->residual_info)) {
-        /* Kept top row first (screenshots); uploaded bottom-up, GL's row order. */
-        const GladGLContext *gl = v->gl;
-        size_t row = (size_t)cam->width * 3;
-        for (int y = 0; y < cam->height; ++y)
-            memcpy(v->residual_up + (size_t)(cam->height - 1 - y) * row, v->residual_rgb + (size_t)y * row,
-                   row * sizeof *v->residual_up);
-        if (!v->residual_tex) gl->GenTextures(1, &v->residual_tex);
-        gl->BindTexture(GL_TEXTURE_2D, v->residual_tex);
-        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MIN_FILTER, GL_LINEAR);
-        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_MAG_FILTER, GL_LINEAR);
-        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_S, GL_CLAMP_TO_EDGE);
-        gl->TexParameteri(GL_TEXTURE_2D, GL_TEXTURE_WRAP_T, GL_CLAMP_TO_EDGE);
-        gl->PixelStorei(GL_UNPACK_ALIGNMENT, 4);
-        gl->TexImage2D(GL_TEXTURE_2D, 0, GL_RGB32F, cam->width, cam->height, 0, GL_RGB, GL_FLOAT, v->residual_up);
-        gl->BindTexture(GL_TEXTURE_2D, 0);
-        v->residual_shown = 1;
-    }
-    if (v->residual_shown) v->shown = v->residual_tex;
+    upload_residual(v, cam);
     return LM_OK;
 }
 
@@ -534,6 +594,12 @@ static lm_result draw_picture(view_state *v, rend_frame *f, const scene_camera *
     const uint32_t full = VIEW_ACCUM_SIDE * VIEW_ACCUM_SIDE;
     int rest = f == v->frame && v->snap && v->snap->converged && !v->snap->failed && v->accum;
     v->shown = o->texture;
+    if (v->indirect != REF_ESTIMATOR_PATHS) { /* a peer's picture at rest (show_peer), the cache's meanwhile */
+        v->accum_n = 0;
+        v->accum_key.generation = 0;
+        lm_result r = rend_frame_draw(f, cam, v->snap, NULL, err);
+        return r == LM_OK ? show_peer(v, f, cam, err) : r;
+    }
     if (!rest) {
         residual_stop(v);
         v->accum_n = 0;
@@ -749,7 +815,7 @@ lm_result view_app_run(const view_app_desc *d, lm_error *err)
     if (!d || !d->scene || d->camera < 0 || (uint32_t)d->camera >= d->scene->camera_count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "view_app_run: no scene or no such camera");
     view_state v = {.d = d, .s = d->scene, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
-                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL,
+                    .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL, .indirect = d->indirect,
                     .startup = {-1, -1, -1, -1, -1, -1}};
     lm_result r = reset_lights(&v, err);
     if (r != LM_OK) return r;

@@ -33,6 +33,7 @@
 #include "mesh/cache/cache_worker.h"
 #include "src/base/util.h"
 #include "src/render/rend_frame.h"
+#include "sampling/reference.h"
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
 #include "src/view/view_script.h"
@@ -75,6 +76,9 @@ typedef struct view_app_report {
     uint32_t residual_spp;             /* the picture shown is the resting one corrected by this many path
                                           samples a pixel at least (view_residual.h); 0: not corrected */
     double residual_corrected;         /* the share of its blocks corrected */
+    const char *indirect;              /* "cache", "vpl" or "bdir": what the picture at rest shows (I) */
+    uint32_t peer_spp;                 /* the picture shown is a peer's (vpl, bdir) of this many samples a
+                                          pixel at least; 0: the cache's */
 } view_app_report;
 
 typedef struct view_app_desc {
@@ -91,6 +95,10 @@ typedef struct view_app_desc {
     double scene_load_seconds;        /* how long reading it took (startup.load); 0 = not known */
     int no_residual;                  /* non-zero: the resting picture is not corrected by path samples
                                          (view_residual.h) */
+    ref_estimator indirect;           /* what shows the picture while the camera rests (I cycles it):
+                                         REF_ESTIMATOR_PATHS the cache; VPL or BDIR that peer of it,
+                                         rendered on the residual's thread (docs/peers.md), the cache's
+                                         picture shown until its first pass */
     void *user;
     /* Called after each screenshot is written (report->snap: the snapshot in it). */
     void (*screenshot)(const char *path, const view_app_report *report, void *user);

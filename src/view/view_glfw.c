@@ -62,6 +62,7 @@ static void key_cb(GLFWwindow *w, int key, int scancode, int action, int mods)
     case GLFW_KEY_R: a = VIEW_ACTION_RELOAD; break;
     case GLFW_KEY_K: a = VIEW_ACTION_LIGHT_COLOR; break;
     case GLFW_KEY_B: a = VIEW_ACTION_BOUNCES; break;
+    case GLFW_KEY_I: a = VIEW_ACTION_INDIRECT; break;
     default: break;
     }
     if (a != VIEW_ACTION_NONE) win->pending.actions[a]++;

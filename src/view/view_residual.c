@@ -40,7 +40,7 @@ struct view_residual {
 
 static int same_view(const view_residual_view *a, const view_residual_view *b, uint32_t lights)
 {
-    if (!camera_equal(&a->cam, &b->cam) || a->bounces != b->bounces) return 0;
+    if (!camera_equal(&a->cam, &b->cam) || a->bounces != b->bounces || a->peer != b->peer) return 0;
     return memcmp(a->light_values, b->light_values, 3 * (size_t)lights * sizeof *a->light_values) == 0;
 }
 
@@ -48,6 +48,7 @@ static int same_view(const view_residual_view *a, const view_residual_view *b, u
  * picture it corrects. Touched by this thread only. */
 typedef struct residual_thread {
     rend_residual *rr;
+    ref_renderer *peer;             /* instead of rr with a peer (view_residual_view.peer) */
     view_residual_view view;
     float *lights, *cached, *out;
     size_t cap;
@@ -69,10 +70,11 @@ static int take_start(view_residual *vr, residual_thread *t, start_kind *kind)
         if (!c || !o) return 0;
         t->cap = n;
     }
-    memcpy(t->cached, vr->pending_cached, n * sizeof *t->cached);
-    *kind = t->rr && same_view(v, &t->view, vr->lights) ? START_SAME
-            : !t->rr || v->cam.width != t->view.cam.width || v->cam.height != t->view.cam.height ||
-                    v->bounces != t->view.bounces
+    if (v->peer == REF_ESTIMATOR_PATHS) memcpy(t->cached, vr->pending_cached, n * sizeof *t->cached);
+    const int made = v->peer == REF_ESTIMATOR_PATHS ? t->rr != NULL : t->peer != NULL;
+    *kind = made && same_view(v, &t->view, vr->lights) ? START_SAME
+            : !made || v->cam.width != t->view.cam.width || v->cam.height != t->view.cam.height ||
+                    v->bounces != t->view.bounces || v->peer != t->view.peer
                 ? START_MAKE
                 : START_RESTART;
     memcpy(t->lights, vr->pending_lights, 3 * (size_t)vr->lights * sizeof *t->lights);
@@ -84,13 +86,40 @@ static int take_start(view_residual *vr, residual_thread *t, start_kind *kind)
 /* Acts on a start taken (without the lock: making the residual builds its BVH):
  * the samples go on for the same view, else the residual is made again (a new
  * size or bounce count) or restarted. 0 when it cannot be made. */
-static int begin_start(view_residual *vr, residual_thread *t, start_kind kind)
+/* The same for a peer: its renderer made (its own BVH) or restarted at the view,
+ * with the lights now. */
+static int begin_peer(view_residual *vr, residual_thread *t, start_kind kind)
 {
     const view_residual_view *v = &t->view;
     if (kind == START_SAME) return 1;
     if (kind == START_MAKE) {
         rend_residual_destroy(t->rr);
         t->rr = NULL;
+        ref_destroy(t->peer);
+        t->peer = NULL;
+        long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+        lm_error err;
+        if (ref_create(&(ref_desc){.scene = vr->s, .view = &v->cam, .width = v->cam.width, .height = v->cam.height,
+                                   .bounces = v->bounces, .estimator = v->peer, .vpl_keep = 1,
+                                   .threads = ncpu > 2 ? (int)ncpu - 1 : 1},
+                       &t->peer, &err) != LM_OK)
+            return 0;
+    }
+    for (uint32_t l = 0; l < vr->lights; ++l) (void)ref_set_light(t->peer, l, t->lights + 3 * (size_t)l, NULL);
+    ref_restart(t->peer, &v->cam);
+    return 1;
+}
+
+static int begin_start(view_residual *vr, residual_thread *t, start_kind kind)
+{
+    const view_residual_view *v = &t->view;
+    if (v->peer != REF_ESTIMATOR_PATHS) return begin_peer(vr, t, kind);
+    if (kind == START_SAME) return 1;
+    if (kind == START_MAKE) {
+        rend_residual_destroy(t->rr);
+        t->rr = NULL;
+        ref_destroy(t->peer);
+        t->peer = NULL;
         long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
         lm_error err;
         if (rend_residual_create(&(rend_residual_desc){.scene = vr->s, .camera = &v->cam, .width = v->cam.width,
@@ -128,17 +157,31 @@ static void *thread_main(void *arg)
         if (!begin_start(vr, &t, kind)) { /* no BVH: nothing to correct until the next start */
             rend_residual_destroy(t.rr);
             t.rr = NULL;
+            ref_destroy(t.peer);
+            t.peer = NULL;
             pthread_mutex_lock(&vr->lock);
             if (!vr->pending) vr->active = 0; /* a start since then is tried again */
             continue;
         }
-        rend_residual_run(t.rr, NULL, lm_now_seconds() + VIEW_RESIDUAL_SLICE);
-        rend_residual_info info;
-        rend_residual_apply(t.rr, t.cached, t.out, &info);
+        rend_residual_info info = {0};
+        const double deadline = lm_now_seconds() + VIEW_RESIDUAL_SLICE;
+        if (t.peer) { /* passes to the slice's end; its picture as it stands */
+            while (lm_now_seconds() < deadline) ref_render_pass(t.peer, NULL, deadline);
+            ref_stats st;
+            ref_get_stats(t.peer, &st);
+            ref_get_image(t.peer, t.out, NULL, NULL);
+            info.min_samples = st.min_samples;
+            info.max_samples = st.max_samples;
+            info.rays = st.rays;
+        } else {
+            rend_residual_run(t.rr, NULL, deadline);
+            rend_residual_apply(t.rr, t.cached, t.out, &info);
+        }
+        const uint32_t needed = t.peer ? 1u : REND_RESIDUAL_MIN_SAMPLES_DEFAULT;
         pthread_mutex_lock(&vr->lock);
         size_t n = (size_t)t.view.cam.width * (size_t)t.view.cam.height * 3;
         /* Handed back only while this view is still wanted, and once it can correct. */
-        if (vr->active && !vr->pending && info.min_samples >= REND_RESIDUAL_MIN_SAMPLES_DEFAULT) {
+        if (vr->active && !vr->pending && info.min_samples >= needed) {
             if (n > vr->published_cap) {
                 float *p = realloc(vr->published, n * sizeof *p);
                 if (p) {
@@ -157,6 +200,7 @@ static void *thread_main(void *arg)
     }
     pthread_mutex_unlock(&vr->lock);
     rend_residual_destroy(t.rr);
+    ref_destroy(t.peer);
     free(t.lights);
     free(t.cached);
     free(t.out);
@@ -217,7 +261,7 @@ lm_result view_residual_start(view_residual *vr, const view_residual_view *view,
         vr->pending_cached = p;
         vr->pending_cap = n;
     }
-    memcpy(vr->pending_cached, cached, n * sizeof *cached);
+    if (cached) memcpy(vr->pending_cached, cached, n * sizeof *cached);
     memcpy(vr->pending_lights, view->light_values, 3 * (size_t)vr->lights * sizeof *vr->pending_lights);
     vr->view = *view;
     vr->view.light_values = vr->pending_lights;

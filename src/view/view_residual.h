@@ -12,6 +12,10 @@
  *     view_residual_destroy(vr);
  * A start with the same view (camera, size, bounces, lights) as the samples it has
  * goes on with them and corrects the new picture; any other view forgets them.
+ * A start with view.peer VPL or BDIR runs that estimator of the reference
+ * renderer instead (instant radiosity: docs/peers.md) and hands back its own
+ * picture: the viewer's --indirect vpl|bdir. Its VPLs are kept across camera
+ * moves (ref_desc.vpl_keep: the thesis's temporal reuse), not across light edits.
  *
  * Threads: every call on the display thread. The thread made by create owns the
  * rend_residual (its BVH, its passes: rend_residual.h's one thread); the starts
@@ -41,6 +45,10 @@ typedef struct view_residual_view {
     scene_camera cam;          /* with the picture's width and height */
     int bounces;               /* the model's diffuse bounces (what the cache shows) */
     const float *light_values; /* 3 per light (area, then point): radiance or intensity now */
+    ref_estimator peer;        /* REF_ESTIMATOR_PATHS: correct the cached picture (the residual);
+                                  VPL, BDIR: show that peer's own picture of the view instead (the
+                                  viewer's --indirect, docs/peers.md): the cached picture is not
+                                  used, and a picture is handed back from its first complete pass */
 } view_residual_view;
 
 /* s must outlive the residual. The thread starts idle. */
@@ -49,7 +57,8 @@ lm_result view_residual_create(const scene *s, view_residual **out, lm_error *er
 void view_residual_destroy(view_residual *vr);
 
 /* Corrects `cached` (the resting picture, copied) seen as `view` says, from now on
- * until view_residual_stop. */
+ * until view_residual_stop; with a peer (view->peer), renders the view instead
+ * (`cached` may be NULL). */
 lm_result view_residual_start(view_residual *vr, const view_residual_view *view, const float *cached, lm_error *err);
 /* The thread stops sampling at the end of its slice (at most 0.2 s) and hands
  * back nothing more until the next start. */

@@ -22,7 +22,7 @@ view_action view_action_from_key_name(const char *name)
         {"bracketright", VIEW_ACTION_LIGHT_UP}, {"bracketleft", VIEW_ACTION_LIGHT_DOWN},
         {"1", VIEW_ACTION_TOGGLE_DIRECT},     {"2", VIEW_ACTION_TOGGLE_SPECULAR},
         {"3", VIEW_ACTION_TOGGLE_INDIRECT},   {"4", VIEW_ACTION_TOGGLE_EMISSION},
-        {"h", VIEW_ACTION_HELP},
+        {"h", VIEW_ACTION_HELP},              {"i", VIEW_ACTION_INDIRECT},
     };
     for (size_t i = 0; i < sizeof keys / sizeof keys[0]; ++i)
         if (strcmp(name, keys[i].name) == 0) return keys[i].action;

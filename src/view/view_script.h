@@ -68,6 +68,7 @@ typedef enum view_action {
     VIEW_ACTION_OVERLAY_KIND,  /* V: the overlay shows sample points / the leaf wireframe */
     VIEW_ACTION_RELOAD,        /* R: the scene again from its file */
     VIEW_ACTION_BOUNCES,       /* B: the next bounce setting: auto, 1, 2, 3, 4, 8 */
+    VIEW_ACTION_INDIRECT,      /* I: what shows the picture at rest: the cache, VPLs, BDIR (docs/peers.md) */
     VIEW_ACTION_COUNT
 } view_action;
 
