@@ -248,19 +248,28 @@ static void glossy_source(ctx *c, const ref_surface *x, lm_vec3 wo, int bounces,
     for (int k = 0; k < 3; ++k) out[k] *= w;
 }
 
-static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
+/* The surface x a camera ray meets, and L set to what it emits towards the camera
+ * (front side only); 0 with L zero on a miss. */
+static int camera_hit(ctx *c, lm_vec3 org, lm_vec3 dir, ref_surface *x, float L[3])
 {
     const ref_renderer *r = c->r;
     L[0] = L[1] = L[2] = 0.0f;
     rt_hit h;
-    if (!trace(c, org, dir, &h)) return;
-    lm_vec3 wo = v3_scale(dir, -1.0f);
-    ref_surface x;
-    ref_surface_from_hit(r->s, &h, wo, &x);
-    if (x.front) {
-        const float *le = r->s->tris[h.tri].light >= 0 ? area_le(r, h.tri) : x.m->le;
+    if (!trace(c, org, dir, &h)) return 0;
+    ref_surface_from_hit(r->s, &h, v3_scale(dir, -1.0f), x);
+    if (x->front) {
+        const float *le = r->s->tris[h.tri].light >= 0 ? area_le(r, h.tri) : x->m->le;
         for (int k = 0; k < 3; ++k) L[k] += le[k];
     }
+    return 1;
+}
+
+static void radiance_model(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
+{
+    const ref_renderer *r = c->r;
+    lm_vec3 wo = v3_scale(dir, -1.0f);
+    ref_surface x;
+    if (!camera_hit(c, org, dir, &x, L)) return;
     float dd[3], ds[3];
     direct_light(c, &x, wo, 1, MIS_LOBE_ONLY, dd, ds);
     int bounces = r->desc.bounces == REF_BOUNCES_NONE ? 0 : r->desc.bounces == 0 ? 1 : r->desc.bounces;
@@ -330,16 +339,9 @@ static int vpl_lobe(const ref_renderer *r, const scene_material *m, int *by_ray)
 static void radiance_vpl(ctx *c, lm_vec3 org, lm_vec3 dir, float L[3])
 {
     const ref_renderer *r = c->r;
-    L[0] = L[1] = L[2] = 0.0f;
-    rt_hit h;
-    if (!trace(c, org, dir, &h)) return;
     lm_vec3 wo = v3_scale(dir, -1.0f);
     ref_surface x;
-    ref_surface_from_hit(r->s, &h, wo, &x);
-    if (x.front) {
-        const float *le = r->s->tris[h.tri].light >= 0 ? area_le(r, h.tri) : x.m->le;
-        for (int k = 0; k < 3; ++k) L[k] += le[k];
-    }
+    if (!camera_hit(c, org, dir, &x, L)) return;
     float dd[3], ds[3], ind[3], is[3] = {0, 0, 0};
     direct_light(c, &x, wo, 1, MIS_LOBE_ONLY, dd, ds);
     int by_ray;

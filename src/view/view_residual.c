@@ -83,25 +83,34 @@ static int take_start(view_residual *vr, residual_thread *t, start_kind *kind)
     return 1;
 }
 
-/* Acts on a start taken (without the lock: making the residual builds its BVH):
- * the samples go on for the same view, else the residual is made again (a new
- * size or bounce count) or restarted. 0 when it cannot be made. */
-/* The same for a peer: its renderer made (its own BVH) or restarted at the view,
- * with the lights now. */
+/* Frees what the thread renders with (before making another). */
+static void drop_renderers(residual_thread *t)
+{
+    rend_residual_destroy(t->rr);
+    t->rr = NULL;
+    ref_destroy(t->peer);
+    t->peer = NULL;
+}
+
+/* Every core but the display's. */
+static int pass_threads(void)
+{
+    long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+    return ncpu > 2 ? (int)ncpu - 1 : 1;
+}
+
+/* begin_start for a peer: its renderer made (its own BVH) or restarted at the
+ * view, with the lights now. */
 static int begin_peer(view_residual *vr, residual_thread *t, start_kind kind)
 {
     const view_residual_view *v = &t->view;
     if (kind == START_SAME) return 1;
     if (kind == START_MAKE) {
-        rend_residual_destroy(t->rr);
-        t->rr = NULL;
-        ref_destroy(t->peer);
-        t->peer = NULL;
-        long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+        drop_renderers(t);
         lm_error err;
         if (ref_create(&(ref_desc){.scene = vr->s, .view = &v->cam, .width = v->cam.width, .height = v->cam.height,
                                    .bounces = v->bounces, .estimator = v->peer, .vpl_keep = 1,
-                                   .threads = ncpu > 2 ? (int)ncpu - 1 : 1},
+                                   .threads = pass_threads()},
                        &t->peer, &err) != LM_OK)
             return 0;
     }
@@ -110,21 +119,20 @@ static int begin_peer(view_residual *vr, residual_thread *t, start_kind kind)
     return 1;
 }
 
+/* Acts on a start taken (without the lock: making the residual builds its BVH):
+ * the samples go on for the same view, else the residual is made again (a new
+ * size or bounce count) or restarted. 0 when it cannot be made. */
 static int begin_start(view_residual *vr, residual_thread *t, start_kind kind)
 {
     const view_residual_view *v = &t->view;
     if (v->peer != REF_ESTIMATOR_PATHS) return begin_peer(vr, t, kind);
     if (kind == START_SAME) return 1;
     if (kind == START_MAKE) {
-        rend_residual_destroy(t->rr);
-        t->rr = NULL;
-        ref_destroy(t->peer);
-        t->peer = NULL;
-        long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+        drop_renderers(t);
         lm_error err;
         if (rend_residual_create(&(rend_residual_desc){.scene = vr->s, .camera = &v->cam, .width = v->cam.width,
                                                        .height = v->cam.height, .bounces = v->bounces,
-                                                       .threads = ncpu > 2 ? (int)ncpu - 1 : 1},
+                                                       .threads = pass_threads()},
                                  &t->rr, &err) != LM_OK)
             return 0;
     }
@@ -155,10 +163,7 @@ static void *thread_main(void *arg)
         }
         pthread_mutex_unlock(&vr->lock);
         if (!begin_start(vr, &t, kind)) { /* no BVH: nothing to correct until the next start */
-            rend_residual_destroy(t.rr);
-            t.rr = NULL;
-            ref_destroy(t.peer);
-            t.peer = NULL;
+            drop_renderers(&t);
             pthread_mutex_lock(&vr->lock);
             if (!vr->pending) vr->active = 0; /* a start since then is tried again */
             continue;
