@@ -44,14 +44,12 @@
 #include "src/base/tonemap.h"
 #include "src/cli/app_stats.h"
 #include "src/cli/cli.h"
-#include "src/cli/plot.h"
+#include "src/cli/converge_internal.h"
 #include "src/image/compare.h"
 #include "src/image/image.h"
 #include "src/render/rend_residual.h"
 #include "src/render/rend_session.h"
 #include "src/scene/scene.h"
-
-enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64, MAX_METHODS = 4 };
 
 /* Written by the SIGINT handler, read by the measuring loops and the path tracer. */
 static volatile sig_atomic_t interrupted = 0;
@@ -62,88 +60,6 @@ static void on_sigint(int sig)
     if (interrupted) _exit(130); /* a second Ctrl-C: leave at once */
     interrupted = 1;
 }
-
-/* converged: the cache's estimate is below the JND (cache_estimate_converged), at
- * the lowest JND it refines to (rend_session_desc.jnd_floor);
- * below-jnd: it was below the scene's JND, and the worker refines on to a lower one;
- * finished: nothing left it can do at the JND it refines to, yet its estimate is
- * above that JND somewhere (below the scene's JND when it converged there before:
- * the column jnd says which);
- */
-typedef enum row_state { ROW_REFINING = 0, ROW_CONVERGED, ROW_NO_SNAPSHOT, ROW_FINISHED, ROW_BELOW_JND } row_state;
-static const char *const state_names[] = {"refining", "converged", "no-snapshot", "finished", "below-jnd"};
-
-/* One measured image. */
-typedef struct conv_row {
-    double target;            /* requested time, seconds */
-    double seconds;           /* when the image was taken (see the file comment) */
-    row_state state;
-    uint64_t tested;          /* lumesh: leaves tested */
-    uint64_t samples[MAX_MESHES]; /* lumesh: light meshes, then direct, indirect, specular */
-    uint32_t spp_min, spp_max;/* samples a pixel: a peer's (path tracer, VPL), or lumesh's residual's */
-    uint64_t vpls;            /* VPL, BDIR: virtual point lights made so far (BDIR: candidates) */
-    double vpl_seconds;       /* VPL, BDIR: of `seconds`, the time spent making them (and resampling) */
-    uint64_t rays;            /* the same paths' rays */
-    double residual_weight;   /* lumesh: mean James–Stein weight of the residual's blocks (rend_residual_info) */
-    double residual_corrected;/* lumesh: share of the blocks the residual corrects */
-    double residual_est;      /* lumesh: the corrected picture's relMSE as the residual estimates it */
-    double est_delta_e;       /* lumesh: the cache's own estimate of delta_e_mean (cache_estimate, over the image) */
-    double est_above_jnd;     /* lumesh: its estimated fraction of pixels above the JND */
-    double est_untested;      /* lumesh: the fraction of pixels in leaves not tested yet (the estimate a guess) */
-    double jnd;               /* lumesh: the JND the cache refined to (below the scene's once converged) */
-    cmp_result m;
-    char image[64];           /* file name in DIR (EXR; the PNG beside it) */
-} conv_row;
-
-typedef struct conv_run {
-    const char *method;       /* "lumesh", "lumesh-single-mesh", "vpl", "bdir", "path-tracer" */
-    int peer;                 /* a method of the reference renderer (ref_estimator): no cache columns */
-    ref_estimator estimator;  /* a peer's */
-    conv_row rows[MAX_SNAPSHOTS];
-    int count;
-} conv_run;
-
-typedef struct conv_ctx {
-    const app_command *cmd;
-    scene *s;
-    int cam, w, h;
-    const char *dir;
-    img_image ref;
-    float exposure;
-    double times[MAX_SNAPSHOTS];
-    int time_count;
-    double seconds;           /* --seconds */
-    int supersample;          /* --supersample: s×s samples a pixel in the measured images */
-    int accumulate;           /* --accumulate: k×k jittered draws of a converged snapshot */
-    int residual;             /* --residual on: path-trace the residual beside the cache (background) */
-    uint32_t residual_seed;
-    int tty;
-    uint32_t light_count;     /* mesh columns: light_count + 3 */
-    double first_image;       /* seconds from the scene loaded; < 0 until drawn */
-    /* Where that time went (first_image_phases in the JSON), seconds from the
-     * scene loaded; < 0 until reached: the session made (worker started, GL
-     * context taken), the preview renderer made, the first snapshot taken. */
-    double phase[3];
-    /* Before the clock: seconds from the command's start to the reference read
-     * and to the scene loaded ("load_phases"; the early GL context is made
-     * meanwhile, and the load's forks wait for its start: fork_guard.h). */
-    double load[2];
-    double converged_at;      /* published time of the first converged snapshot; < 0: never */
-    cache_snapshot final;     /* statistics of the last snapshot measured (lights copied below) */
-    cache_mesh_stats final_lights[MAX_MESHES];
-    rend_frame_times frame_times;
-    double id_seconds;
-    uint64_t frames;
-    int have_final;
-    ref_transport transport;  /* the reference's (its lumesh:transport; model when it does not say) */
-    int ref_bounces;          /* model transport: its bounce count (REF_BOUNCES_NONE: direct only) */
-    ref_glossy glossy;        /* model transport: what its glossy materials reflect (lumesh:glossy; a file
-                                 without it was made before the room was reflected: the lights only) */
-    int bounces;              /* the previewer's (cache_desc.bounces) */
-    char transport_note[384]; /* where these came from */
-    int vpl_paths, vpl_per_sample; /* --vpl-paths, --vpl-per-sample (0: ref_desc's defaults) */
-    float vpl_clamp;          /* --vpl-clamp (0: the default; REF_VPL_NO_CLAMP: none) */
-} conv_ctx;
 
 /* "0.1,0.2,1" into increasing positive times ≤ limit (limit itself added last). */
 static int parse_times(const char *list, double limit, double *out, int *count)
@@ -462,221 +378,6 @@ static lm_result run_peer(conv_ctx *c, uint32_t seed, conv_run *run, lm_error *e
     return r;
 }
 
-/* ---- output ------------------------------------------------------------------------ */
-
-static const char *mesh_column(const conv_ctx *c, uint32_t k, char *buf, size_t n)
-{
-    if (k < c->light_count)
-        snprintf(buf, n, "light%u", k);
-    else
-        snprintf(buf, n, "%s", k == c->light_count ? "direct" : k == c->light_count + 1 ? "indirect" : "specular");
-    return buf;
-}
-
-static lm_result write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm_error *err)
-{
-    size_t rows = 0;
-    for (int k = 0; k < nrun; ++k) rows += (size_t)runs[k].count;
-    size_t cap = 4096 + rows * (640 + 24 * MAX_MESHES), len = 0;
-    char *t = malloc(cap), name[32];
-    if (!t) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory writing convergence.csv");
-#define OUT(...) len += (size_t)snprintf(t + len, cap - len, __VA_ARGS__)
-    OUT("method,target_seconds,seconds,state,leaves_tested");
-    for (uint32_t k = 0; k < c->light_count + 3; ++k) OUT(",samples_%s", mesh_column(c, k, name, sizeof name));
-    OUT(",spp_min,spp_max,rays,rmse,relmse,relmse_reference_noise,psnr,mean_abs_error,max_abs_error,delta_e_mean,delta_e_p99,delta_e_max,"
-        "delta_e_above_jnd,estimated_delta_e_mean,estimated_fraction_above_jnd,estimated_fraction_untested,jnd,"
-        "residual_weight,residual_corrected,residual_estimated_relmse,vpls,image\n");
-    for (int k = 0; k < nrun; ++k)
-        for (int i = 0; i < runs[k].count; ++i) {
-            const conv_row *w = &runs[k].rows[i];
-            int pt = runs[k].peer;
-            OUT("%s,%.3f,%.4f,%s,", runs[k].method, w->target, w->seconds, pt ? "" : state_names[w->state]);
-            if (!pt) OUT("%llu", (unsigned long long)w->tested);
-            for (uint32_t m = 0; m < c->light_count + 3; ++m)
-                if (pt)
-                    OUT(",");
-                else
-                    OUT(",%llu", (unsigned long long)w->samples[m]);
-            if (pt || w->spp_max)
-                OUT(",%u,%u,%llu", w->spp_min, w->spp_max, (unsigned long long)w->rays);
-            else
-                OUT(",,,");
-            OUT(",%.6g,%.6g,%.6g,%.4f,%.6g,%.6g,%.4f,%.4f,%.4f,", w->m.rmse, w->m.relmse, w->m.relmse_reference_noise,
-                w->m.psnr, w->m.mean_abs_error,
-                w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max);
-            OUT("%.5f,", w->m.delta_e_above_jnd);
-            if (!pt) OUT("%.4f,%.5f,%.5f,%.4g", w->est_delta_e, w->est_above_jnd, w->est_untested, w->jnd);
-            else OUT(",,,");
-            if (!pt && w->spp_max) OUT(",%.4f,%.4f,%.4g", w->residual_weight, w->residual_corrected, w->residual_est);
-            else OUT(",,,");
-            if (runs[k].peer && runs[k].estimator != REF_ESTIMATOR_PATHS) OUT(",%llu", (unsigned long long)w->vpls);
-            else OUT(",");
-            OUT(",%s\n", w->image);
-        }
-#undef OUT
-    char path[SCENE_PATH_MAX + 32];
-    snprintf(path, sizeof path, "%s/convergence.csv", c->dir);
-    lm_result r = app_write_text(path, t, len, err);
-    free(t);
-    return r;
-}
-
-static double rounded(double v, double unit) { return isfinite(v) ? round(v / unit) * unit : v; }
-
-static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w)
-{
-    int pt = run->peer;
-    cJSON *o = cJSON_CreateObject(), *m;
-    char name[32];
-    if (!o) return NULL;
-    cJSON_AddNumberToObject(o, "target_seconds", w->target);
-    cJSON_AddNumberToObject(o, "seconds", rounded(w->seconds, 1e-4));
-    if (pt) {
-        cJSON_AddNumberToObject(o, "spp_min", w->spp_min);
-        cJSON_AddNumberToObject(o, "spp_max", w->spp_max);
-        cJSON_AddNumberToObject(o, "rays", (double)w->rays);
-        if (run->estimator != REF_ESTIMATOR_PATHS) {
-            cJSON_AddNumberToObject(o, "vpls", (double)w->vpls);
-            cJSON_AddNumberToObject(o, "vpl_seconds", rounded(w->vpl_seconds, 1e-4));
-        }
-    } else {
-        cJSON_AddStringToObject(o, "state", state_names[w->state]);
-        cJSON_AddNumberToObject(o, "leaves_tested", (double)w->tested);
-        if ((m = cJSON_AddObjectToObject(o, "estimated_error"))) {
-            cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->est_delta_e, 1e-5));
-            cJSON_AddNumberToObject(m, "fraction_above_jnd", rounded(w->est_above_jnd, 1e-6));
-            cJSON_AddNumberToObject(m, "fraction_untested", rounded(w->est_untested, 1e-6));
-            cJSON_AddNumberToObject(m, "jnd", rounded(w->jnd, 1e-5));
-        }
-        if ((m = cJSON_AddObjectToObject(o, "samples")))
-            for (uint32_t k = 0; k < c->light_count + 3; ++k)
-                cJSON_AddNumberToObject(m, mesh_column(c, k, name, sizeof name), (double)w->samples[k]);
-        if (w->spp_max && (m = cJSON_AddObjectToObject(o, "residual"))) {
-            cJSON_AddNumberToObject(m, "spp_min", w->spp_min);
-            cJSON_AddNumberToObject(m, "spp_max", w->spp_max);
-            cJSON_AddNumberToObject(m, "rays", (double)w->rays);
-            cJSON_AddNumberToObject(m, "mean_weight", rounded(w->residual_weight, 1e-5));
-            cJSON_AddNumberToObject(m, "fraction_corrected", rounded(w->residual_corrected, 1e-5));
-            if (isfinite(w->residual_est)) cJSON_AddNumberToObject(m, "estimated_relmse", w->residual_est);
-        }
-    }
-    if ((m = cJSON_AddObjectToObject(o, "error"))) {
-        cJSON_AddNumberToObject(m, "rmse", w->m.rmse);
-        cJSON_AddNumberToObject(m, "relmse", w->m.relmse);
-        cJSON_AddNumberToObject(m, "relmse_reference_noise", w->m.relmse_reference_noise);
-        if (isfinite(w->m.psnr))
-            cJSON_AddNumberToObject(m, "psnr", rounded(w->m.psnr, 1e-4));
-        else
-            cJSON_AddStringToObject(m, "psnr", "inf");
-        cJSON_AddNumberToObject(m, "mean_abs_error", w->m.mean_abs_error);
-        cJSON_AddNumberToObject(m, "max_abs_error", w->m.max_abs_error);
-        cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->m.delta_e_mean, 1e-5));
-        cJSON_AddNumberToObject(m, "delta_e_p99", rounded(w->m.delta_e_p99, 1e-5));
-        cJSON_AddNumberToObject(m, "delta_e_max", rounded(w->m.delta_e_max, 1e-5));
-        cJSON_AddNumberToObject(m, "delta_e_above_jnd", rounded(w->m.delta_e_above_jnd, 1e-6));
-        cJSON_AddNumberToObject(m, "pixels_compared", (double)w->m.pixels_compared);
-    }
-    cJSON_AddStringToObject(o, "image", w->image);
-    return o;
-}
-
-static lm_result write_json(const conv_ctx *c, const char *ref_path, const conv_run *runs, int nrun,
-                            const cJSON *stats, lm_error *err)
-{
-    cJSON *j = cJSON_CreateObject();
-    if (!j) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory writing convergence.json");
-    cJSON_AddStringToObject(j, "scene", c->s->source);
-    cJSON_AddStringToObject(j, "reference", ref_path);
-    cJSON_AddStringToObject(j, "transport", c->transport == REF_TRANSPORT_FULL ? "full" : "model");
-    if (c->bounces == CACHE_BOUNCES_AUTO)
-        cJSON_AddStringToObject(j, "bounces", "auto");
-    else
-        cJSON_AddNumberToObject(j, "bounces", c->bounces);
-    cJSON_AddStringToObject(j, "glossy", c->glossy == REF_GLOSSY_DIRECT ? "direct" : "indirect");
-    cJSON_AddStringToObject(j, "transport_note", c->transport_note);
-    cJSON_AddNumberToObject(j, "width", c->w);
-    cJSON_AddNumberToObject(j, "height", c->h);
-    cJSON_AddNumberToObject(j, "exposure", c->exposure);
-    cJSON_AddNumberToObject(j, "seconds", c->seconds);
-    cJSON_AddNumberToObject(j, "supersample", c->supersample);
-    cJSON_AddNumberToObject(j, "accumulate", c->accumulate);
-    cJSON_AddBoolToObject(j, "interrupted", interrupted != 0);
-    if (c->first_image >= 0)
-        cJSON_AddNumberToObject(j, "first_image_seconds", rounded(c->first_image, 1e-5));
-    else
-        cJSON_AddNullToObject(j, "first_image_seconds");
-    static const char *const phase_names[] = {"session", "renderer", "first_snapshot"};
-    static const char *const load_names[] = {"reference", "scene"};
-    const double phases[] = {rounded(c->phase[0], 1e-5), rounded(c->phase[1], 1e-5), rounded(c->phase[2], 1e-5)};
-    const double loads[] = {rounded(c->load[0], 1e-5), rounded(c->load[1], 1e-5)};
-    app_stats_add_phases(j, "first_image_phases", phase_names, phases, 3);
-    app_stats_add_phases(j, "load_phases", load_names, loads, 2);
-    if (c->converged_at >= 0)
-        cJSON_AddNumberToObject(j, "converged_seconds", rounded(c->converged_at, 1e-4));
-    else
-        cJSON_AddNullToObject(j, "converged_seconds");
-    cJSON *methods = cJSON_AddObjectToObject(j, "methods");
-    for (int k = 0; methods && k < nrun; ++k) {
-        cJSON *arr = cJSON_AddArrayToObject(methods, runs[k].method);
-        for (int i = 0; arr && i < runs[k].count; ++i)
-            cJSON_AddItemToArray(arr, row_json(c, &runs[k], &runs[k].rows[i]));
-    }
-    if (stats) cJSON_AddItemToObject(j, "stats", cJSON_Duplicate(stats, 1));
-    char path[SCENE_PATH_MAX + 32];
-    snprintf(path, sizeof path, "%s/convergence.json", c->dir);
-    lm_result r = app_write_json(path, j, err);
-    cJSON_Delete(j);
-    return r;
-}
-
-static lm_result write_plot(const conv_ctx *c, const conv_run *runs, int nrun, lm_error *err)
-{
-    static const uint8_t colours[MAX_METHODS][3] = {{214, 39, 40}, {31, 119, 180}, {44, 160, 44}, {148, 103, 189}};
-    double *buf = malloc((size_t)MAX_SNAPSHOTS * 3 * MAX_METHODS * sizeof *buf);
-    if (!buf) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory plotting");
-    plot_series rel[MAX_METHODS], de[MAX_METHODS];
-    char labels[MAX_METHODS][64];
-    for (int k = 0; k < nrun; ++k) {
-        double *x = buf + (size_t)k * 3 * MAX_SNAPSHOTS, *y1 = x + MAX_SNAPSHOTS, *y2 = y1 + MAX_SNAPSHOTS;
-        for (int i = 0; i < runs[k].count; ++i) {
-            x[i] = runs[k].rows[i].seconds;
-            y1[i] = runs[k].rows[i].m.relmse;
-            y2[i] = runs[k].rows[i].m.delta_e_mean;
-        }
-        int pt = runs[k].peer && runs[k].estimator == REF_ESTIMATOR_PATHS;
-        snprintf(labels[k], sizeof labels[k], "%s",
-                 pt                ? "path tracer (Embree, same transport)"
-                 : runs[k].peer && runs[k].estimator == REF_ESTIMATOR_VPL ? "VPLs (instant radiosity, same transport)"
-                 : runs[k].peer    ? "BDIR (VPLs resampled, same transport)"
-                                   : runs[k].method);
-        rel[k] = (plot_series){.label = labels[k], .x = x, .y = y1, .count = runs[k].count, .dashed = pt};
-        de[k] = rel[k];
-        de[k].y = y2;
-        memcpy(rel[k].rgb, colours[k], 3);
-        memcpy(de[k].rgb, colours[k], 3);
-    }
-    plot_panel panels[2] = {
-        {.title = "relMSE against the reference", .xlabel = "seconds since the scene was loaded",
-         .ylabel = "log-log", .series = rel, .series_count = nrun},
-        {.title = "mean dE (CIE76, tone-mapped)", .xlabel = "seconds since the scene was loaded",
-         .ylabel = "log-log", .series = de, .series_count = nrun,
-         .hlines = {{2.0, "JND (dE 2)"}, {1.0, "dE 1"}}},
-    };
-    char title[SCENE_PATH_MAX + 64];
-    const char *base = strrchr(c->s->source, '/');
-    snprintf(title, sizeof title, "%s, %dx%d: error against time", base ? base + 1 : c->s->source, c->w, c->h);
-    uint8_t *rgb = NULL;
-    int pw, ph;
-    lm_result r = plot_render(&(plot_desc){.title = title, .panels = panels, .panel_count = 2}, &rgb, &pw, &ph, err);
-    free(buf);
-    if (r != LM_OK) return r;
-    char path[SCENE_PATH_MAX + 32];
-    snprintf(path, sizeof path, "%s/convergence.png", c->dir);
-    r = img_write(&(img_write_desc){.path = path, .width = pw, .height = ph, .channels = 3, .pixels8 = rgb}, err);
-    free(rgb);
-    return r;
-}
-
 /* ---- the command ------------------------------------------------------------------- */
 
 /* The transport to measure against, from the reference's header (lumesh
@@ -927,9 +628,10 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
                                                  .first_image_seconds = c.first_image, .snap = &c.final,
                                                  .id_seconds = c.id_seconds, .frame = &c.frame_times,
                                                  .frames = c.frames});
-    if (r == LM_OK && measured) r = write_csv(&c, runs, nrun, &err);
-    if (r == LM_OK && measured) r = write_json(&c, ref_path, runs, nrun, stats, &err);
-    if (r == LM_OK && measured) r = write_plot(&c, runs, nrun, &err);
+    c.interrupted = interrupted != 0;
+    if (r == LM_OK && measured) r = conv_write_csv(&c, runs, nrun, &err);
+    if (r == LM_OK && measured) r = conv_write_json(&c, ref_path, runs, nrun, stats, &err);
+    if (r == LM_OK && measured) r = conv_write_plot(&c, runs, nrun, &err);
     if (r == LM_OK && stats_path && stats) r = app_write_json(stats_path, stats, &err);
     cJSON_Delete(stats);
     sigaction(SIGINT, &old, NULL);
