@@ -52,7 +52,7 @@ struct ref_renderer {
     atomic_ullong pass_rays;
     atomic_ullong bad_samples;
 
-    /* REF_ESTIMATOR_VPL: the pass's VPLs, made when a pass starts (resume_tile 0), read-only while it runs */
+    /* VPL, BDIR: the pass's VPLs, made on the calling thread when a pass starts, read-only while its workers run */
     ref_vpl_set vpl;
     int vpl_ready;          /* the set belongs to the pass under way */
     uint64_t passes;        /* complete passes since the last restart: the VPL sets' stream */
