@@ -126,7 +126,8 @@ static const char k_help[] =
     "L: next light    ] [: its power x2 / x0.5    K: its colour (no new light samples)\n"
     "+ -: exposure    P: pause refinement    F12: screenshot (PNG + EXR)\n"
     "O: overlay the next mesh    V: wireframe / sample points\n"
-    "B: bounces (auto, 1, 2, 3, 4, 8)    R: reload the scene from its file    H: this help    Esc / Q: quit";
+    "B: bounces (auto, 1, 2, 3, 4, 8)    I: a still view by the cache, VPLs or BDIR\n"
+    "R: reload the scene from its file    H: this help    Esc / Q: quit";
 
 static uint64_t all_samples(const cache_snapshot *s)
 {
@@ -172,6 +173,13 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
             k += (size_t)snprintf(out + k, size - k, ", corrected by %u+ path samples a pixel (%.0f%% of it)",
                                   rep.residual_spp, 100.0 * rep.residual_corrected);
         if (rep.rest_draws && k < size) k += (size_t)snprintf(out + k, size - k, "\n");
+        if (strcmp(rep.indirect, "cache") != 0 && k < size) { /* I: a peer renders the still view (show_peer) */
+            const char *peer = strcmp(rep.indirect, "vpl") == 0 ? "instant radiosity (VPLs)" : "BDIR";
+            if (rep.peer_spp)
+                k += (size_t)snprintf(out + k, size - k, "picture: %s, %u samples a pixel\n", peer, rep.peer_spp);
+            else
+                k += (size_t)snprintf(out + k, size - k, "picture: the cache's until the first pass of %s\n", peer);
+        }
         if (k < size) k += (size_t)snprintf(out + k, size - k, "samples:");
         for (uint32_t l = 0; l < s->stats.light_count && l < 8 && k < size; ++l)
             k += (size_t)snprintf(out + k, size - k, " light%u %llu,", l, (unsigned long long)s->stats.lights[l].samples);
