@@ -65,21 +65,28 @@ uint32_t ref_pick_cdf(const float *cdf, uint32_t n, float u)
     return lo;
 }
 
+lm_vec3 ref_area_light_point(const ref_lights *L, uint32_t li, float u1, float u2, float u3, uint32_t *tri)
+{
+    const scene *s = L->s;
+    const scene_area_light *A = &s->area_lights[li];
+    *tri = s->light_tris[A->first + ref_pick_cdf(L->tri_cdf + A->first, A->count, u1)];
+    const uint32_t *v = s->tris[*tri].v;
+    /* Uniform point on the triangle. */
+    float su = sqrtf(u2), b0 = 1.0f - su, b1 = u3 * su;
+    lm_vec3 a = v3_load(s->positions + 3 * (size_t)v[0]);
+    lm_vec3 b = v3_load(s->positions + 3 * (size_t)v[1]);
+    lm_vec3 c = v3_load(s->positions + 3 * (size_t)v[2]);
+    return v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
+}
+
 int ref_sample_area_light(const ref_lights *L, lm_rng *g, lm_vec3 p, ref_light_sample *out)
 {
     const scene *s = L->s;
     float u0 = lm_rng_float(g), u1 = lm_rng_float(g), u2 = lm_rng_float(g), u3 = lm_rng_float(g);
     uint32_t li = ref_pick_cdf(L->light_cdf, s->area_light_count, u0);
     const scene_area_light *A = &s->area_lights[li];
-    uint32_t k = ref_pick_cdf(L->tri_cdf + A->first, A->count, u1);
-    uint32_t tri = s->light_tris[A->first + k];
-    const uint32_t *v = s->tris[tri].v;
-    /* Uniform point on the triangle. */
-    float su = sqrtf(u2), b0 = 1.0f - su, b1 = u3 * su;
-    lm_vec3 a = v3_load(s->positions + 3 * (size_t)v[0]);
-    lm_vec3 b = v3_load(s->positions + 3 * (size_t)v[1]);
-    lm_vec3 c = v3_load(s->positions + 3 * (size_t)v[2]);
-    lm_vec3 y = v3_add(v3_add(v3_scale(a, b0), v3_scale(b, b1)), v3_scale(c, 1.0f - b0 - b1));
+    uint32_t tri;
+    lm_vec3 y = ref_area_light_point(L, li, u1, u2, u3, &tri);
     lm_vec3 d = v3_sub(y, p);
     float dist = v3_length(d);
     if (!(dist > 0.0f)) return 0;

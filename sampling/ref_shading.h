@@ -48,6 +48,10 @@ typedef struct ref_light_sample {
 /* The first index whose cumulative value exceeds u (cdf of n entries, the last 1). */
 uint32_t ref_pick_cdf(const float *cdf, uint32_t n, float u);
 
+/* A point uniform by area on area light li (its triangle by area from u1, the
+ * point from u2, u3), and that triangle in *tri. */
+lm_vec3 ref_area_light_point(const ref_lights *L, uint32_t li, float u1, float u2, float u3, uint32_t *tri);
+
 /* Samples one area light by power and a point on it by area. Returns 0 when the
  * point's front does not face p (no contribution). */
 int ref_sample_area_light(const ref_lights *L, lm_rng *g, lm_vec3 p, ref_light_sample *out);

@@ -65,13 +65,8 @@ static int emit(const ref_vpl_set *set, uint32_t nlights, lm_rng *g, lm_vec3 *or
     const float *v = P->light_value + 3 * (size_t)li;
     if (li < s->area_light_count) {
         const scene_area_light *A = &s->area_lights[li];
-        uint32_t k = ref_pick_cdf(P->lights->tri_cdf + A->first, A->count, u1);
-        uint32_t tri = s->light_tris[A->first + k];
-        const uint32_t *c = s->tris[tri].v;
-        float su = sqrtf(u2), b0 = 1.0f - su, b1 = u3 * su;
-        lm_vec3 y = v3_add(v3_add(v3_scale(v3_load(s->positions + 3 * (size_t)c[0]), b0),
-                                  v3_scale(v3_load(s->positions + 3 * (size_t)c[1]), b1)),
-                           v3_scale(v3_load(s->positions + 3 * (size_t)c[2]), 1.0f - b0 - b1));
+        uint32_t tri;
+        lm_vec3 y = ref_area_light_point(P->lights, li, u1, u2, u3, &tri);
         lm_vec3 n = v3_load(s->tri_normals + 3 * (size_t)tri);
         *dir = ref_sample_cosine(n, u4, u5); /* a Lambertian emitter's front: pdf cosθ/π */
         *org = v3_add(y, v3_scale(n, rt_scene_tri_epsilon(P->rt, tri)));
@@ -89,13 +84,8 @@ static int emit(const ref_vpl_set *set, uint32_t nlights, lm_rng *g, lm_vec3 *or
 
 static lm_result push(ref_vpl_set *set, const ref_vpl *v, lm_error *err)
 {
-    if (set->count == set->capacity) {
-        uint32_t cap = set->capacity ? 2 * set->capacity : 1024;
-        ref_vpl *a = realloc(set->vpls, cap * sizeof *a);
-        if (!a) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for %u VPLs", cap);
-        set->vpls = a;
-        set->capacity = cap;
-    }
+    if (!LM_GROW(set->vpls, set->capacity, (size_t)set->count + 1))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for %u VPLs", set->count + 1);
     set->vpls[set->count++] = *v;
     return LM_OK;
 }
@@ -229,7 +219,6 @@ void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, in
     const double stride = (double)V / (double)M;
     const float weight = (float)V / (float)M / (float)P->paths, d_min2 = P->d_min * P->d_min;
     const float eps_x = rt_scene_tri_epsilon(P->rt, x->tri);
-    (void)mx;
     for (uint32_t j = 0; j < M; ++j) {
         uint32_t i = (uint32_t)(((double)j + (double)lm_rng_float(g)) * stride);
         const ref_vpl *v = &set->vpls[i < V ? i : V - 1];

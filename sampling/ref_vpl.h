@@ -83,7 +83,8 @@ typedef struct ref_vpl_params {
 typedef struct ref_vpl_set {
     ref_vpl_params params;
     ref_vpl *vpls;
-    uint32_t count, capacity;
+    uint32_t count;
+    size_t capacity;
     float *light_cdf;          /* all lights by power now; rebuilt each pass (light edits) */
     float *light_pmf;
     uint32_t light_capacity;
