@@ -165,7 +165,7 @@ float ref_phong_pdf(float n, lm_vec3 wi, lm_vec3 wo, lm_vec3 ns)
 }
 
 /* An orthonormal frame around a unit vector (Duff et al. 2017). */
-static void frame(lm_vec3 n, lm_vec3 *t, lm_vec3 *b)
+void ref_frame(lm_vec3 n, lm_vec3 *t, lm_vec3 *b)
 {
     float sign = copysignf(1.0f, n.z);
     float a = -1.0f / (sign + n.z);
@@ -178,7 +178,7 @@ static lm_vec3 around(lm_vec3 axis, float cos_t, float phi)
 {
     float sin_t = sqrtf(fmaxf(0.0f, 1.0f - cos_t * cos_t));
     lm_vec3 t, b;
-    frame(axis, &t, &b);
+    ref_frame(axis, &t, &b);
     return v3_add(v3_add(v3_scale(t, sin_t * cosf(phi)), v3_scale(b, sin_t * sinf(phi))),
                   v3_scale(axis, cos_t));
 }

@@ -65,6 +65,8 @@ float ref_phong_lobe(float n, lm_vec3 wi, lm_vec3 wo, lm_vec3 ns);
 float ref_phong_pdf(float n, lm_vec3 wi, lm_vec3 wo, lm_vec3 ns);
 lm_vec3 ref_sample_phong(float n, lm_vec3 wo, lm_vec3 ns, float u1, float u2);
 lm_vec3 ref_sample_cosine(lm_vec3 n, float u1, float u2);
+/* An orthonormal frame (t, b, n) around the unit vector n (Duff et al. 2017). */
+void ref_frame(lm_vec3 n, lm_vec3 *t, lm_vec3 *b);
 
 /* Power heuristic (β = 2). */
 static inline float ref_mis(float a, float b)

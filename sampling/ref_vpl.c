@@ -2,6 +2,8 @@
  * surface point (see ref_vpl.h for the estimator and its bias). */
 #include "sampling/ref_vpl.h"
 
+#include "sampling/ref_ism.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -172,8 +174,9 @@ lm_result ref_vpl_generate(ref_vpl_set *set, const ref_vpl_params *params, uint6
 /* The radiance VPL v sends to x and x reflects towards wo (c: RGB), with the
  * clamp; 0 when there is none (facing away, black, or hidden: the shadow ray,
  * counted in *rays, is traced only for a non-zero value). */
-static int contribution(const ref_vpl_params *P, const ref_vpl *v, const ref_surface *x, lm_vec3 wo, int lobe_x,
-                        float d_min2, float eps_x, float c[3], uint64_t *rays)
+static int contribution(const ref_vpl_params *P, const ref_ism *ism, uint32_t vi, const ref_vpl *v,
+                        const ref_surface *x, lm_vec3 wo, int lobe_x, float d_min2, float eps_x, float c[3],
+                        uint64_t *rays)
 {
     const scene_material *mx = x->m;
     lm_vec3 d = v3_sub(v->p, x->p);
@@ -192,6 +195,7 @@ static int contribution(const ref_vpl_params *P, const ref_vpl *v, const ref_sur
         c[k] = fx * fy * v->flux[k] * geometry;
     }
     if (!any_positive(c)) return 0;
+    if (ism) return ref_ism_visible(ism, vi, x->p, x->ng);
     float a[3], na[3], b[3], nb[3];
     v3_store(a, x->p);
     v3_store(na, x->ng);
@@ -221,10 +225,11 @@ void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, in
     const float eps_x = rt_scene_tri_epsilon(P->rt, x->tri);
     for (uint32_t j = 0; j < M; ++j) {
         uint32_t i = (uint32_t)(((double)j + (double)lm_rng_float(g)) * stride);
-        const ref_vpl *v = &set->vpls[i < V ? i : V - 1];
+        if (i >= V) i = V - 1;
+        const ref_vpl *v = &set->vpls[i];
         if (v->depth > deepest) continue;
         float c[3];
-        if (!contribution(P, v, x, wo, lobe_x, d_min2, eps_x, c, rays)) continue;
+        if (!contribution(P, set->ism, i, v, x, wo, lobe_x, d_min2, eps_x, c, rays)) continue;
         for (int k = 0; k < 3; ++k) out[k] += weight * c[k];
     }
 }
@@ -255,8 +260,8 @@ lm_result ref_vpl_resample(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t e
             uint32_t j = (uint32_t)(lm_rng_float(&g) * (float)eye_count);
             const ref_vpl_eye *e = &eyes[j < eye_count ? j : eye_count - 1];
             float c[3];
-            if (contribution(P, &set->vpls[i], &e->x, e->wo, e->lobe, d_min2, rt_scene_tri_epsilon(P->rt, e->x.tri), c,
-                             rays))
+            if (contribution(P, NULL, i, &set->vpls[i], &e->x, e->wo, e->lobe, d_min2,
+                             rt_scene_tri_epsilon(P->rt, e->x.tri), c, rays))
                 sum += ref_luminance(c);
         }
         p[i] = sum;

@@ -42,7 +42,9 @@
  *
  * Threads: ref_vpl_generate on one thread (between passes); ref_vpl_gather from
  * any number of threads at once (the set is read-only then).
- * Does NOT do: imperfect shadow maps (GL), resampling by importance (BDIR),
+ * Visibility: an Embree shadow ray a join, or a lookup in the VPL's imperfect
+ * shadow map when set->ism is set (ref_ism.h; then *rays counts no rays).
+ * Does NOT do: resampling by importance (BDIR, below),
  * bias compensation, camera paths through more than one glossy surface.
  * Units: positions in scene units; flux in W (area lights: radiance·area·π).
  */
@@ -79,9 +81,13 @@ typedef struct ref_vpl_params {
     float d_min;               /* clamp distance, scene units (0: none) */
 } ref_vpl_params;
 
+struct ref_ism;
+
 /* The VPLs of one pass. Owned by the renderer's thread; read-only while a pass runs. */
 typedef struct ref_vpl_set {
     ref_vpl_params params;
+    const struct ref_ism *ism; /* non-NULL: gathers look up its maps (built of these VPLs, in this
+                                  order) instead of tracing shadow rays; the caller sets it */
     ref_vpl *vpls;
     uint32_t count;
     size_t capacity;

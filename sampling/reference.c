@@ -13,6 +13,7 @@
 #include <unistd.h>
 
 #include "sampling/ref_shading.h"
+#include "sampling/ref_ism.h"
 #include "sampling/ref_vpl.h"
 #include "sampling/rt_scene.h"
 #include "src/scene/camera.h"
@@ -58,6 +59,7 @@ struct ref_renderer {
     uint64_t passes;        /* complete passes since the last restart: the VPL sets' stream */
     uint32_t light_edits;   /* ref_set_light calls that changed a value: the kept VPLs' stream (vpl_keep) */
     float vpl_d_min;        /* the clamp, scene units */
+    ref_ism *ism;           /* REF_VPL_VISIBILITY_ISM: the pass's maps, built with its VPLs on the calling thread */
 };
 
 /* ---- tracing helpers ------------------------------------------------------ */
@@ -402,6 +404,8 @@ static lm_result make_vpls(ref_renderer *r, lm_error *err)
         free(eyes);
     }
     r->rays += rays;
+    if (res == LM_OK && r->ism) res = ref_ism_build(r->ism, r->vpl.vpls, r->vpl.count, err);
+    r->vpl.ism = r->ism;
     return res;
 }
 
@@ -536,7 +540,7 @@ int ref_render_pass(ref_renderer *r, volatile sig_atomic_t *cancel, double deadl
     double t0 = lm_now_seconds();
     if (r->desc.estimator != REF_ESTIMATOR_PATHS && !r->vpl_ready) { /* a pass starts: its VPLs */
         lm_error err;
-        if (make_vpls(r, &err) != LM_OK) r->vpl.count = 0; /* out of memory: this pass without indirect light */
+        if (make_vpls(r, &err) != LM_OK) r->vpl.count = 0; /* out of memory, or GL failed: this pass without indirect light */
         r->vpl_ready = 1;
     }
     r->cancel = cancel;
@@ -589,6 +593,8 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
         !(desc->vpl_clamp >= 0.0f || desc->vpl_clamp == REF_VPL_NO_CLAMP) || !(desc->vpl_clamp < 1.0f))
         return lm_fail(err, LM_ERR_INVALID_ARG,
                        "ref_create: VPL paths and VPLs a sample are not negative, the clamp is in [0, 1) or none");
+    if ((unsigned)desc->vpl_visibility >= REF_VPL_VISIBILITY_COUNT)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "ref_create: unknown VPL visibility %d", (int)desc->vpl_visibility);
     const scene_camera *cam = desc->view ? desc->view : &s->cameras[desc->camera];
     ref_renderer *r = calloc(1, sizeof *r);
     if (!r) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
@@ -621,6 +627,13 @@ lm_result ref_create(const ref_desc *desc, ref_renderer **out, lm_error *err)
     if (res != LM_OK) {
         ref_destroy(r);
         return res;
+    }
+    if (desc->estimator != REF_ESTIMATOR_PATHS && desc->vpl_visibility == REF_VPL_VISIBILITY_ISM) {
+        res = ref_ism_create(&(ref_ism_desc){.s = s, .platform = desc->gl_platform, .seed = desc->seed}, &r->ism, err);
+        if (res != LM_OK) {
+            ref_destroy(r);
+            return res;
+        }
     }
     r->cam = camera_basis_make(cam, r->width, r->height);
     if (desc->vpl_clamp != REF_VPL_NO_CLAMP) {
@@ -674,6 +687,7 @@ void ref_destroy(ref_renderer *r)
     free(r->mask);
     free(r->light_value);
     ref_vpl_free(&r->vpl);
+    ref_ism_destroy(r->ism);
     rt_scene_destroy(r->rt);
     ref_lights_free(&r->lights);
     free(r->pixels);
@@ -712,6 +726,7 @@ void ref_get_stats(const ref_renderer *r, ref_stats *out)
     out->vpls = r->vpl.made;
     if (r->desc.estimator != REF_ESTIMATOR_PATHS) out->vpl_passes = r->passes + (uint64_t)r->vpl_ready;
     out->vpl_seconds = r->vpl.seconds;
+    ref_ism_totals(r->ism, &out->ism_maps, &out->ism_seconds);
 }
 
 void ref_get_image(const ref_renderer *r, float *rgb, float *stderr_rgb, float *samples)

@@ -41,6 +41,7 @@
 #include <stdint.h>
 
 #include "src/base/util.h"
+#include "src/gpu/gl_platform.h"
 #include "src/scene/scene.h"
 
 #ifdef __cplusplus
@@ -61,6 +62,15 @@ typedef enum ref_glossy {
     REF_GLOSSY_DIRECT,       /* the lights only: the paper's model (references made before it) */
     REF_GLOSSY_COUNT
 } ref_glossy;
+
+/* How the VPL estimators see whether a VPL lights a point (ref_desc.vpl_visibility). */
+typedef enum ref_vpl_visibility {
+    REF_VPL_VISIBILITY_RAYS = 0, /* default: an Embree shadow ray a join (exact) */
+    REF_VPL_VISIBILITY_ISM,      /* imperfect shadow maps made on the GL back end each pass
+                                    (sampling/ref_ism.h; biased: leaks and over-shadows, docs/peers.md);
+                                    BDIR's importance tests stay rays (candidates have no maps) */
+    REF_VPL_VISIBILITY_COUNT
+} ref_vpl_visibility;
 
 /* How the renderer estimates the transport (ref_desc.estimator). */
 typedef enum ref_estimator {
@@ -100,6 +110,8 @@ typedef struct ref_desc {
     float vpl_clamp;          /* VPL: distances below this fraction of the scene's bounding-box diagonal
                                  count as this (the geometry term's clamp); 0 = REF_VPL_CLAMP_DEFAULT,
                                  REF_VPL_NO_CLAMP: none (unbiased, spiky) */
+    ref_vpl_visibility vpl_visibility; /* VPL, BDIR: how a join's visibility is found (default: rays) */
+    glctx_platform gl_platform; /* VPL, BDIR with REF_VPL_VISIBILITY_ISM: the maps' GL (default: EGL) */
     int background;           /* non-zero: passes run on threads of the lowest priority (Linux
                                  SCHED_IDLE), which take only the cycles other threads leave
                                  (the cache's worker, a viewer's drawing); the caller waits */
@@ -148,6 +160,8 @@ typedef struct ref_stats {
     uint64_t vpls;                     /* VPL: virtual point lights made so far (all passes) */
     uint64_t vpl_passes;               /* VPL: sets made (one a pass) */
     double vpl_seconds;                /* VPL: wall time making them (part of seconds) */
+    uint64_t ism_maps;                 /* VPL with ISM visibility: imperfect shadow maps made (all passes) */
+    double ism_seconds;                /* ...wall time making them, GL and read-back (part of seconds) */
 } ref_stats;
 
 void ref_get_stats(const ref_renderer *r, ref_stats *out);

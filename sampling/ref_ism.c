@@ -1,0 +1,333 @@
+/* ref_ism.c — imperfect shadow maps on the GL back end (see ref_ism.h). */
+#include "sampling/ref_ism.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "src/base/rng.h"
+#include "src/gpu/gl_context.h"
+#include "src/gpu/gl_program.h"
+
+enum {
+    LEVELS = 3, /* the map and the two coarser levels pull-push uses (as Ritschel
+                   et al.) */
+    ATLAS_SIDE = 4096
+};                               /* texels: the atlas's width, and its most rows of maps in one build chunk */
+#define EMPTY 1e30f              /* a texel no point reached (the shaders' EMPTY) */
+#define PULL_THRESHOLD_REL 0.05f /* of the scene's extent, doubled a level (thesis §2.6.5) */
+/* The lookup's constant bias, of the scene's extent: about a point's spacing
+ * (a splat is flat, facing the VPL, so a surface tilted away behind it is
+ * farther than its distance by up to its radius). CornellBox-Original,
+ * reference_ism_test, light wrongly shadowed / leaked by the maps: 1e-3: 3.4% /
+ * 0.2%; 0.01: 2.8% / 0.2%; 0.02: 2.6% / 0.2% (with SPLAT_SCALE 1). */
+#define BIAS_ABS_REL 0.01f
+/* A splat's side over the angle its area spans (same test, wrongly shadowed /
+ * leaked): 1 makes near points' squares shadow what lies behind their tilted
+ * surfaces (5.1% / 0.2%, BIAS_ABS_REL 1e-3); 0.5 leaks (2.1% / 1.4%, 1e-3);
+ * 0.7 with the bias 0.01 balances them (1.6% / 0.8%). */
+#define SPLAT_SCALE 0.7f
+#define BIAS_TEXELS 2.0f    /* footprint of a texel and half a typical splat, in texels */
+#define BIAS_MAX_SLOPE 8.0f /* tan of the steepest receiver slope the bias follows */
+#define ISM_SEED_SALT 0x15a9c0deu
+
+/* One VPL as the splat shader reads it (std430 struct Vpl). */
+typedef struct ism_vpl {
+    float p[4]; /* position; w: the first point of its share of the cloud */
+    float t[4], b[4], n[4];
+} ism_vpl;
+
+/* Owned by the thread that calls create/build/destroy (one at a time); maps and
+ * frames are read by any number of gathering threads between builds. */
+struct ref_ism {
+    ref_ism_desc desc; /* defaults filled in */
+    glctx *ctx;
+    const GladGLContext *gl;
+    GLuint prog_splat, prog_pull, prog_push;
+    GLint loc_points, loc_per_map, loc_tile, loc_cols, loc_splat, loc_pull_thr;
+    GLuint points_buf, vpl_buf, color;
+    int cols, rows; /* maps per atlas row; rows of maps the atlas holds now */
+    int max_rows;   /* rows of one build chunk */
+    float splat, extent;
+    ism_vpl *frames; /* the last build's VPLs, as drawn (the lookup uses the same
+                        frames) */
+    float *maps;     /* per chunk: the atlas's rows of maps, ATLAS_SIDE wide,
+                        distances */
+    size_t frames_cap, maps_cap;
+    uint32_t count;
+    uint64_t builds, made;
+    double seconds;
+};
+
+static const char *const splat_names[] = {"ref_ism_splat.comp", NULL};
+static const char *const pullpush_names[] = {"ref_ism_pullpush.comp", NULL};
+
+/* The cloud: desc.points points spread over the surfaces by area (stratified
+ * over the cumulative area), then shuffled so that any run of them is a random
+ * subset of the scene. */
+static lm_result make_points(ref_ism *m, lm_error *err) {
+    const scene *s = m->desc.s;
+    const size_t n = (size_t)m->desc.points;
+    double *cdf = malloc((s->tri_count ? s->tri_count : 1) * sizeof *cdf);
+    float *pts = malloc(4 * n * sizeof *pts);
+    if (!cdf || !pts) {
+        free(cdf);
+        free(pts);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "imperfect shadow maps: out of memory for %zu points", n);
+    }
+    double total = 0.0;
+    for (uint32_t t = 0; t < s->tri_count; ++t) cdf[t] = total += s->tri_areas[t];
+    lm_rng g;
+    lm_rng_seed(&g, (uint64_t)m->desc.seed ^ ISM_SEED_SALT, 0, 0);
+    uint32_t tri = 0;
+    for (size_t j = 0; j < n; ++j) {
+        double target = ((double)j + lm_rng_float(&g)) / (double)n * total;
+        while (tri + 1 < s->tri_count && cdf[tri] <= target) tri++;
+        float u = lm_rng_float(&g), v = lm_rng_float(&g);
+        if (u + v > 1.0f) {
+            u = 1.0f - u;
+            v = 1.0f - v;
+        }
+        const float *a = s->positions + 3 * (size_t)s->tris[tri].v[0];
+        const float *b = s->positions + 3 * (size_t)s->tris[tri].v[1];
+        const float *c = s->positions + 3 * (size_t)s->tris[tri].v[2];
+        for (int k = 0; k < 3; ++k) pts[4 * j + (size_t)k] = a[k] + u * (b[k] - a[k]) + v * (c[k] - a[k]);
+        pts[4 * j + 3] = 0.0f;
+    }
+    for (size_t j = n - 1; j > 0; --j) { /* Fisher-Yates */
+        size_t k = (size_t)(lm_rng_float(&g) * (float)(j + 1));
+        if (k > j) k = j;
+        float tmp[4];
+        memcpy(tmp, pts + 4 * j, sizeof tmp);
+        memcpy(pts + 4 * j, pts + 4 * k, sizeof tmp);
+        memcpy(pts + 4 * k, tmp, sizeof tmp);
+    }
+    m->gl->NamedBufferStorage(m->points_buf, (GLsizeiptr)(4 * n * sizeof *pts), pts, 0);
+    /* Each map gets points_per_map of them: each stands for total/points_per_map
+     * of the surface; seen at unit distance its side spans sqrt(that) radians,
+     * and a texel at the map's centre 4/tile. */
+    m->splat = SPLAT_SCALE * sqrtf((float)(total / m->desc.points_per_map)) * (float)m->desc.tile / 4.0f;
+    free(cdf);
+    free(pts);
+    return LM_OK;
+}
+
+/* An atlas of `rows` rows of maps, with the pull-push levels. */
+static lm_result make_atlas(ref_ism *m, int rows, lm_error *err) {
+    const GladGLContext *gl = m->gl;
+    if (m->color) gl->DeleteTextures(1, &m->color);
+    m->color = 0;
+    gl->CreateTextures(GL_TEXTURE_2D, 1, &m->color);
+    gl->TextureStorage2D(m->color, LEVELS, GL_R32F, m->cols * m->desc.tile, rows * m->desc.tile);
+    m->rows = rows;
+    return glctx_check(m->ctx, "the imperfect shadow maps' atlas", err);
+}
+
+void ref_ism_destroy(ref_ism *m) {
+    if (!m) return;
+    if (m->ctx && glctx_make_current(m->ctx, NULL) == LM_OK) {
+        const GladGLContext *gl = m->gl;
+        GLuint bufs[] = {m->points_buf, m->vpl_buf};
+        gl->DeleteBuffers(2, bufs);
+        if (m->color) gl->DeleteTextures(1, &m->color);
+        GLuint progs[] = {m->prog_splat, m->prog_pull, m->prog_push};
+        for (int i = 0; i < 3; ++i)
+            if (progs[i]) gl->DeleteProgram(progs[i]);
+    }
+    glctx_destroy(m->ctx);
+    free(m->frames);
+    free(m->maps);
+    free(m);
+}
+
+lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err) {
+    *out = NULL;
+    if (!desc || !desc->s) return lm_fail(err, LM_ERR_INVALID_ARG, "ref_ism_create: no scene");
+    ref_ism_desc d = *desc;
+    if (d.tile == 0) d.tile = REF_ISM_TILE_DEFAULT;
+    if (d.points_per_map == 0) d.points_per_map = REF_ISM_POINTS_PER_MAP_DEFAULT;
+    if (d.points == 0) d.points = REF_ISM_POINTS_DEFAULT;
+    if (d.points < d.points_per_map) d.points = d.points_per_map;
+    if (d.tile < 4 || d.tile % 4 != 0 || d.tile > 1024)
+        return lm_fail(err, LM_ERR_INVALID_ARG,
+                       "imperfect shadow maps: a map's side must be a multiple of "
+                       "4 up to 1024, not %d",
+                       d.tile);
+    if (d.points_per_map < 0 || d.points > (1 << 24))
+        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: %d points (at most %d)", d.points, 1 << 24);
+    if (d.s->tri_count == 0)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: the scene has no triangles");
+    ref_ism *m = calloc(1, sizeof *m);
+    if (!m) return lm_fail(err, LM_ERR_NO_MEMORY, "imperfect shadow maps: out of memory");
+    m->desc = d;
+    const scene *s = d.s;
+    m->extent = v3_length(v3_sub(v3_load(s->bounds_max), v3_load(s->bounds_min)));
+    lm_result r = glctx_create(&(glctx_desc){.platform = d.platform}, &m->ctx, err);
+    if (r == LM_OK) {
+        m->gl = glctx_gl(m->ctx);
+        r = glprog_build(m->gl, "imperfect shadow maps", splat_names, "", &m->prog_splat, err);
+    }
+    if (r == LM_OK) r = glprog_build(m->gl, "imperfect shadow maps", pullpush_names, "", &m->prog_pull, err);
+    if (r == LM_OK)
+        r = glprog_build(m->gl, "imperfect shadow maps", pullpush_names, "#define PUSH 1\n", &m->prog_push, err);
+    if (r == LM_OK) {
+        const GladGLContext *gl = m->gl;
+        m->loc_points = gl->GetUniformLocation(m->prog_splat, "u_points");
+        m->loc_per_map = gl->GetUniformLocation(m->prog_splat, "u_per_map");
+        m->loc_tile = gl->GetUniformLocation(m->prog_splat, "u_tile");
+        m->loc_cols = gl->GetUniformLocation(m->prog_splat, "u_cols");
+        m->loc_splat = gl->GetUniformLocation(m->prog_splat, "u_splat");
+        m->loc_pull_thr = gl->GetUniformLocation(m->prog_pull, "u_threshold");
+        GLint max_tex = 0;
+        gl->GetIntegerv(GL_MAX_TEXTURE_SIZE, &max_tex);
+        const int side = max_tex < ATLAS_SIDE ? max_tex : ATLAS_SIDE;
+        m->cols = side / d.tile;
+        m->max_rows = side / d.tile;
+        GLuint bufs[2];
+        gl->CreateBuffers(2, bufs);
+        m->points_buf = bufs[0];
+        m->vpl_buf = bufs[1];
+        if (m->cols < 1)
+            r = lm_fail(err, LM_ERR_RUNTIME, "imperfect shadow maps: textures of %d texels are too small", max_tex);
+    }
+    if (r == LM_OK) r = make_points(m, err);
+    if (r == LM_OK) r = glctx_check(m->ctx, "the imperfect shadow maps' creation", err);
+    if (r != LM_OK) {
+        ref_ism_destroy(m);
+        return r;
+    }
+    glctx_release(m->ctx);
+    *out = m;
+    return LM_OK;
+}
+
+/* Pull-push over the atlas's `rows` rows of maps (levels 0 → 1 → 2 → 1 → 0). */
+static void pull_push(ref_ism *m, int rows) {
+    const GladGLContext *gl = m->gl;
+    const int w = m->cols * m->desc.tile, h = rows * m->desc.tile;
+    for (int pass = 0; pass < 2 * (LEVELS - 1); ++pass) {
+        const int pull = pass < LEVELS - 1;
+        const int fine = pull ? pass : 2 * (LEVELS - 1) - 1 - pass;
+        const int fw = w >> fine, fh = h >> fine, cw = fw / 2, ch = fh / 2;
+        gl->UseProgram(pull ? m->prog_pull : m->prog_push);
+        if (pull) gl->Uniform1f(m->loc_pull_thr, PULL_THRESHOLD_REL * m->extent * (float)(1 << fine));
+        gl->BindImageTexture(0, m->color, fine, GL_FALSE, 0, GL_READ_WRITE, GL_R32F);
+        gl->BindImageTexture(1, m->color, fine + 1, GL_FALSE, 0, GL_READ_WRITE, GL_R32F);
+        const int gw = pull ? cw : fw, gh = pull ? ch : fh;
+        gl->DispatchCompute((GLuint)((gw + 7) / 8), (GLuint)((gh + 7) / 8), 1);
+        gl->MemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT | GL_TEXTURE_UPDATE_BARRIER_BIT);
+    }
+}
+
+lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_error *err) {
+    const double t0 = lm_now_seconds();
+    m->count = 0;
+    if (count == 0) return LM_OK;
+    lm_result r = glctx_make_current(m->ctx, err);
+    if (r != LM_OK) return r;
+    const GladGLContext *gl = m->gl;
+    const int tile = m->desc.tile, w = m->cols * tile;
+    const uint32_t per_chunk = (uint32_t)(m->cols * m->max_rows);
+    const uint32_t chunks = (count + per_chunk - 1) / per_chunk;
+    const size_t chunk_floats = (size_t)w * (size_t)m->max_rows * (size_t)tile;
+    if (!LM_GROW(m->frames, m->frames_cap, count) || !LM_GROW(m->maps, m->maps_cap, (size_t)chunks * chunk_floats)) {
+        glctx_release(m->ctx);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "imperfect shadow maps: out of memory for %u maps", count);
+    }
+    lm_rng g;
+    lm_rng_seed(&g, (uint64_t)m->desc.seed ^ ISM_SEED_SALT, 1, m->builds);
+    for (uint32_t i = 0; i < count; ++i) {
+        lm_vec3 t, b, n = vpls[i].ng;
+        ref_frame(n, &t, &b);
+        ism_vpl *f = &m->frames[i];
+        v3_store(f->p, vpls[i].p);
+        v3_store(f->t, t);
+        v3_store(f->b, b);
+        v3_store(f->n, n);
+        /* A different run of the shuffled cloud for every map (exact in a float:
+         * points ≤ 2²⁴). */
+        f->p[3] = floorf(lm_rng_float(&g) * (float)m->desc.points);
+        f->t[3] = f->b[3] = f->n[3] = 0.0f;
+    }
+    const GLsizeiptr need = (GLsizeiptr)((size_t)(count < per_chunk ? count : per_chunk) * sizeof(ism_vpl));
+    GLint have = 0;
+    gl->GetNamedBufferParameteriv(m->vpl_buf, GL_BUFFER_SIZE, &have);
+    if (have < need) gl->NamedBufferData(m->vpl_buf, need, NULL, GL_STREAM_DRAW);
+    gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, m->points_buf);
+    gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1, m->vpl_buf);
+    for (uint32_t c = 0; c < chunks && r == LM_OK; ++c) {
+        const uint32_t first = c * per_chunk, n = count - first < per_chunk ? count - first : per_chunk;
+        const int rows = (int)((n + (uint32_t)m->cols - 1) / (uint32_t)m->cols);
+        if (rows > m->rows) { /* grow by doubling: VPL counts vary from pass to pass */
+            const int doubled = m->rows * 2 < m->max_rows ? m->rows * 2 : m->max_rows;
+            r = make_atlas(m, rows > doubled ? rows : doubled, err);
+        }
+        if (r != LM_OK) break;
+        gl->NamedBufferSubData(m->vpl_buf, 0, (GLsizeiptr)(n * sizeof(ism_vpl)), m->frames + first);
+        const float empty = EMPTY;
+        gl->ClearTexImage(m->color, 0, GL_RED, GL_FLOAT, &empty);
+        gl->UseProgram(m->prog_splat);
+        gl->Uniform1i(m->loc_points, m->desc.points);
+        gl->Uniform1i(m->loc_per_map, m->desc.points_per_map);
+        gl->Uniform1i(m->loc_tile, tile);
+        gl->Uniform1i(m->loc_cols, m->cols);
+        gl->Uniform1f(m->loc_splat, m->splat);
+        /* The R32F level as 32-bit unsigned integers (compatible by size): atomic
+         * minimum. */
+        gl->BindImageTexture(0, m->color, 0, GL_FALSE, 0, GL_READ_WRITE, GL_R32UI);
+        gl->DispatchCompute((GLuint)((m->desc.points_per_map + 63) / 64), n, 1);
+        gl->MemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
+        pull_push(m, m->rows);
+        const int h = rows * tile;
+        gl->GetTextureSubImage(m->color, 0, 0, 0, 0, w, h, 1, GL_RED, GL_FLOAT,
+                               (GLsizei)((size_t)w * (size_t)h * sizeof(float)), m->maps + (size_t)c * chunk_floats);
+        r = glctx_check(m->ctx, "the imperfect shadow maps' build", err);
+    }
+    gl->UseProgram(0);
+    glctx_release(m->ctx);
+    if (r != LM_OK) return r;
+    m->count = count;
+    m->builds++;
+    m->made += count;
+    m->seconds += lm_now_seconds() - t0;
+    return LM_OK;
+}
+
+int ref_ism_visible(const ref_ism *m, uint32_t i, lm_vec3 x, lm_vec3 ng) {
+    if (i >= m->count) return 1;
+    const ism_vpl *f = &m->frames[i];
+    lm_vec3 d = v3_sub(x, v3_load(f->p));
+    const float dist = v3_length(d);
+    if (!(dist > 0.0f)) return 1;
+    lm_vec3 w = v3_scale(d, 1.0f / dist);
+    const float lz = v3_dot(w, v3_load(f->n));
+    if (!(lz > 0.0f))
+        return 1; /* behind the VPL: not its map's to say (it sends nothing there)
+                   */
+    const int tile = m->desc.tile;
+    float u = v3_dot(w, v3_load(f->t)) / (1.0f + lz), v = v3_dot(w, v3_load(f->b)) / (1.0f + lz);
+    int tx = (int)floorf((u * 0.5f + 0.5f) * (float)tile), ty = (int)floorf((v * 0.5f + 0.5f) * (float)tile);
+    tx = tx < 0 ? 0 : tx >= tile ? tile - 1 : tx;
+    ty = ty < 0 ? 0 : ty >= tile ? tile - 1 : ty;
+    const uint32_t per_chunk = (uint32_t)(m->cols * m->max_rows), j = i % per_chunk;
+    const size_t w_atlas = (size_t)m->cols * (size_t)tile;
+    const size_t chunk_floats = w_atlas * (size_t)m->max_rows * (size_t)tile;
+    const size_t row = j / (uint32_t)m->cols, col = j % (uint32_t)m->cols;
+    const float stored = m->maps[(size_t)(i / per_chunk) * chunk_floats + (row * (size_t)tile + (size_t)ty) * w_atlas +
+                                 col * (size_t)tile + (size_t)tx];
+    if (stored >= 0.5f * EMPTY) return 1;
+    /* The texel spans 4·cos²(θ/2)/tile radians; over x's surface, tilted by the
+     * angle between its normal and the ray, that footprint's distances spread by
+     * its width times the tangent: x's own surface must not shadow it. */
+    const float cos_x = fabsf(v3_dot(w, ng));
+    const float tan_x =
+        cos_x > 0.0f ? fminf(sqrtf(fmaxf(0.0f, 1.0f - cos_x * cos_x)) / cos_x, BIAS_MAX_SLOPE) : BIAS_MAX_SLOPE;
+    const float texel = 2.0f * (1.0f + lz) / (float)tile * dist;
+    const float bias = BIAS_ABS_REL * m->extent + BIAS_TEXELS * texel * tan_x;
+    return dist <= stored + bias;
+}
+
+void ref_ism_totals(const ref_ism *m, uint64_t *maps, double *seconds) {
+    *maps = m ? m->made : 0;
+    *seconds = m ? m->seconds : 0.0;
+}
