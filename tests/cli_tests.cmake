@@ -161,7 +161,9 @@ lumesh_cli_test(converge_bad_snapshots 1 ARGS converge --reference r.exr --secon
 lumesh_cli_test(converge_missing_reference 2 ARGS converge --reference ${CMAKE_CURRENT_BINARY_DIR}/no-such.exr --seconds 1
   --out ${CMAKE_CURRENT_BINARY_DIR}/conv-never ONE_ERR_LINE ERR "no-such\\.exr")
 lumesh_cli_test(converge_bad_method 1 ARGS converge --reference r.exr --seconds 1 --out d --methods cache,photons
-  ERR "--methods takes each of cache, vpl, bdir, path-tracer at most once, separated by commas \\('photons' is not one\\)")
+  ERR "--methods takes each of cache, vpl, bdir, vpl-ism, bdir-ism, path-tracer at most once, separated by commas \\('photons' is not one\\)")
+lumesh_cli_test(view_bad_indirect 1 ARGS view --indirect photons
+  ERR "--indirect takes cache, vpl, bdir, vpl-ism or bdir-ism, not 'photons'")
 lumesh_cli_test(converge_repeated_method 1 ARGS converge --reference r.exr --seconds 1 --out d --methods vpl,vpl
   ERR "'vpl' is repeated")
 lumesh_cli_test(converge_methods_and_vs 1 ARGS converge --reference r.exr --seconds 1 --out d --methods vpl

@@ -9,10 +9,10 @@
 # determinism: render --samples N --deterministic twice gives identical images.
 # glossy: a reference made with --glossy direct (glossy materials reflect the
 #         lights only) has converge model the same: its JSON and note say so.
-# peers:  --methods vpl,path-tracer (no cache): rows for both, the VPLs made
-#         growing, instant radiosity's relMSE falling, and its picture's mean
-#         within 2% of the reference's (the VPLs' flux and the clamp's bias: a
-#         wrong normalisation is off by far more).
+# peers:  --methods vpl,vpl-ism,path-tracer (no cache): rows for each, the VPLs
+#         made growing, instant radiosity's relMSE falling, the imperfect shadow
+#         maps made, and each VPL picture's mean dE not far above the path
+#         tracer's (a wrong flux or a lost bounce is off by far more).
 cmake_minimum_required(VERSION 3.19)
 set(ref ${DIR}/ref.exr)
 set(out ${DIR}/run)
@@ -77,18 +77,22 @@ if(MODE STREQUAL "peers")
                   RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 120)
   check("rc EQUAL 0" "reference failed: ${o}${e}")
   execute_process(COMMAND ${LUMESH} converge --reference ${ref} --seconds 2 --snapshots 0.2,1 --out ${out}
-                          --methods vpl,path-tracer
+                          --methods vpl,vpl-ism,path-tracer
                   RESULT_VARIABLE rc OUTPUT_VARIABLE o ERROR_VARIABLE e TIMEOUT 180)
   check("rc EQUAL 0" "converge failed (${rc}): ${o}${e}")
   file(STRINGS ${out}/convergence.csv lines)
   list(LENGTH lines n)
-  check("n EQUAL 7" "convergence.csv has ${n} lines, expected 7 (3 snapshots of 2 methods):\n${o}")
+  check("n EQUAL 10" "convergence.csv has ${n} lines, expected 10 (3 snapshots of 3 methods):\n${o}")
   list(GET lines 0 header)
   check("header MATCHES \",vpls,image$\"" "no vpls column: ${header}")
   file(READ ${out}/convergence.json j)
   string(JSON nv LENGTH "${j}" methods vpl)
   string(JSON np LENGTH "${j}" methods path-tracer)
-  check("nv EQUAL 3 AND np EQUAL 3" "convergence.json: ${nv} VPL and ${np} path tracer snapshots")
+  string(JSON ni LENGTH "${j}" methods vpl-ism)
+  check("nv EQUAL 3 AND ni EQUAL 3 AND np EQUAL 3" "convergence.json: ${nv} VPL, ${ni} VPL-ISM and ${np} path tracer snapshots")
+  string(JSON m_first GET "${j}" methods vpl-ism 0 ism_maps)
+  string(JSON m_last GET "${j}" methods vpl-ism 2 ism_maps)
+  check("m_first GREATER 0 AND m_last GREATER m_first" "imperfect shadow maps made: ${m_first} -> ${m_last}")
   string(JSON has_lumesh ERROR_VARIABLE none GET "${j}" methods lumesh)
   check("NOT none STREQUAL \"NOTFOUND\"" "the cache ran though --methods did not name it")
   string(JSON v_first GET "${j}" methods vpl 0 vpls)
@@ -107,7 +111,11 @@ if(MODE STREQUAL "peers")
   hundredths(${p_de} p100)
   math(EXPR bound "3 * ${p100} + 100")
   check("v100 LESS bound" "instant radiosity's mean dE ${v_de} is far above the path tracer's ${p_de}")
-  message(STATUS "ok: VPLs ${v_first} -> ${v_last}, relMSE ${e_first} -> ${e_last}, mean dE ${v_de} (path tracer ${p_de})")
+  string(JSON i_de GET "${j}" methods vpl-ism 2 error delta_e_mean)
+  hundredths(${i_de} i100)
+  check("i100 LESS bound" "instant radiosity's mean dE with shadow maps ${i_de} is far above the path tracer's ${p_de}")
+  message(STATUS "ok: VPLs ${v_first} -> ${v_last}, relMSE ${e_first} -> ${e_last}, mean dE ${v_de}, with maps ${i_de} "
+                 "(${m_last} maps; path tracer ${p_de})")
   return()
 endif()
 

@@ -16,8 +16,9 @@
 # draw (0) (both at 160x120). Ten seconds later the converged mean is corrected by path
 # samples (the residual: at least 32 a pixel).
 # The peers (key i, --indirect; docs/peers.md): the still view rendered by VPLs,
-# then again after an orbit (their picture of the new view), then by BDIR, each
-# shown from a complete pass (peer spp 1 or more); a third i shows the cache again.
+# then again after an orbit (their picture of the new view), then by BDIR, then
+# both with imperfect shadow maps (vpl-ism, bdir-ism), each shown from a complete
+# pass (peer spp 1 or more) with VPLs made; a fifth i shows the cache again.
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -93,6 +94,12 @@ screenshot ${DIR}/peer-moved.png
 key i
 wait 3
 screenshot ${DIR}/bdir.png
+key i
+wait 3
+screenshot ${DIR}/vpl-ism.png
+key i
+wait 3
+screenshot ${DIR}/bdir-ism.png
 key i
 frames 2
 screenshot ${DIR}/back.png
@@ -262,21 +269,22 @@ if(CMAKE_MATCH_1 EQUAL 0 AND NOT CMAKE_MATCH_3 EQUAL 0)
 endif()
 message("residual.exr: converged ${CMAKE_MATCH_1}, ${CMAKE_MATCH_3} path samples a pixel")
 
-# The peers shown at rest (key i): VPLs, VPLs after an orbit, BDIR, then the cache again.
-foreach(pair "peer.exr;vpl" "peer-moved.png;vpl" "bdir.png;bdir")
+# The peers shown at rest (key i): VPLs, VPLs after an orbit, BDIR, both with
+# imperfect shadow maps, then the cache again; each shown with VPLs made.
+foreach(pair "peer.exr;vpl" "peer-moved.png;vpl" "bdir.png;bdir" "vpl-ism.png;vpl-ism" "bdir-ism.png;bdir-ism")
   list(GET pair 0 f)
   list(GET pair 1 m)
   string(REPLACE "." "\\." fre "${f}")
-  if(NOT out MATCHES "screenshot [^\n]*/${fre}: [^\n]*indirect ${m}, peer spp ([0-9]+)")
+  if(NOT out MATCHES "screenshot [^\n]*/${fre}: [^\n]*indirect ${m}, peer spp ([0-9]+), peer vpls ([0-9]+)")
     message(FATAL_ERROR "no screenshot line for ${f} with indirect ${m}")
   endif()
-  if(CMAKE_MATCH_1 LESS 1)
-    message(FATAL_ERROR "${f}: the ${m} picture is not shown (peer spp ${CMAKE_MATCH_1})")
+  if(CMAKE_MATCH_1 LESS 1 OR CMAKE_MATCH_2 LESS 1)
+    message(FATAL_ERROR "${f}: the ${m} picture is not shown (peer spp ${CMAKE_MATCH_1}, VPLs ${CMAKE_MATCH_2})")
   endif()
-  message("${f}: ${m}, ${CMAKE_MATCH_1} samples a pixel")
+  message("${f}: ${m}, ${CMAKE_MATCH_1} samples a pixel, ${CMAKE_MATCH_2} VPLs")
 endforeach()
 if(NOT out MATCHES "screenshot [^\n]*/back[.]png: [^\n]*indirect cache, peer spp 0")
-  message(FATAL_ERROR "a third i did not show the cache's picture again")
+  message(FATAL_ERROR "a fifth i did not show the cache's picture again")
 endif()
 execute_process(COMMAND ${CHECK} ${DIR}/peer.exr ${DIR}/peer-moved.png RESULT_VARIABLE crc OUTPUT_VARIABLE cout
                 ERROR_VARIABLE cerr)

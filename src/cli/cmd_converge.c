@@ -342,7 +342,8 @@ static lm_result run_peer(conv_ctx *c, uint32_t seed, conv_run *run, lm_error *e
         r = ref_create(&(ref_desc){.scene = c->s, .camera = c->cam, .width = c->w, .height = c->h,
                                    .transport = c->transport, .bounces = c->ref_bounces, .glossy = c->glossy,
                                    .seed = seed, .estimator = run->estimator, .vpl_paths = c->vpl_paths,
-                                   .vpl_per_sample = c->vpl_per_sample, .vpl_clamp = c->vpl_clamp},
+                                   .vpl_per_sample = c->vpl_per_sample, .vpl_clamp = c->vpl_clamp,
+                                   .vpl_visibility = run->visibility, .gl_platform = c->gl_platform},
                        &pt, err);
     double setup = lm_now_seconds() - t0;
     ref_stats st = {0};
@@ -365,6 +366,8 @@ static lm_result run_peer(conv_ctx *c, uint32_t seed, conv_run *run, lm_error *e
         row->rays = st.rays;
         row->vpls = st.vpls;
         row->vpl_seconds = st.vpl_seconds;
+        row->ism_maps = st.ism_maps;
+        row->ism_seconds = st.ism_seconds;
         ref_get_image(pt, rgb, NULL, NULL);
         r = measure(c, run->method, rgb, row, err);
         if (r == LM_OK) {
@@ -460,10 +463,13 @@ static int parse_methods(const app_command *cmd, const char *list, int single, c
         const char *name, *column;
         int peer;
         ref_estimator estimator;
-    } known[] = {{"cache", "lumesh", 0, REF_ESTIMATOR_PATHS},
-                 {"vpl", "vpl", 1, REF_ESTIMATOR_VPL},
-                 {"bdir", "bdir", 1, REF_ESTIMATOR_BDIR},
-                 {"path-tracer", "path-tracer", 1, REF_ESTIMATOR_PATHS}};
+        ref_vpl_visibility visibility;
+    } known[] = {{"cache", "lumesh", 0, REF_ESTIMATOR_PATHS, REF_VPL_VISIBILITY_RAYS},
+                 {"vpl", "vpl", 1, REF_ESTIMATOR_VPL, REF_VPL_VISIBILITY_RAYS},
+                 {"bdir", "bdir", 1, REF_ESTIMATOR_BDIR, REF_VPL_VISIBILITY_RAYS},
+                 {"vpl-ism", "vpl-ism", 1, REF_ESTIMATOR_VPL, REF_VPL_VISIBILITY_ISM},
+                 {"bdir-ism", "bdir-ism", 1, REF_ESTIMATOR_BDIR, REF_VPL_VISIBILITY_ISM},
+                 {"path-tracer", "path-tracer", 1, REF_ESTIMATOR_PATHS, REF_VPL_VISIBILITY_RAYS}};
     enum { KNOWN = sizeof known / sizeof known[0] };
     int want[KNOWN] = {0}, n = 0;
     for (const char *p = list; *p;) {
@@ -471,8 +477,9 @@ static int parse_methods(const app_command *cmd, const char *list, int single, c
         int k = 0;
         while (k < KNOWN && !(strlen(known[k].name) == len && strncmp(p, known[k].name, len) == 0)) ++k;
         if (k == KNOWN || want[k]) {
-            *rc = app_usage_error(cmd, "--methods takes each of cache, vpl, bdir, path-tracer at most once, separated by "
-                                       "commas ('%.*s' %s)", (int)len, p, k == KNOWN ? "is not one" : "is repeated");
+            *rc = app_usage_error(cmd,
+                                  "--methods takes each of cache, vpl, bdir, vpl-ism, bdir-ism, path-tracer at most "
+                                  "once, separated by commas ('%.*s' %s)", (int)len, p, k == KNOWN ? "is not one" : "is repeated");
             return 0;
         }
         want[k] = 1;
@@ -483,6 +490,7 @@ static int parse_methods(const app_command *cmd, const char *list, int single, c
             runs[n].method = k == 0 && single ? "lumesh-single-mesh" : known[k].column;
             runs[n].peer = known[k].peer;
             runs[n].estimator = known[k].estimator;
+            runs[n].visibility = known[k].visibility;
             n++;
         }
     if (n == 0) *rc = app_usage_error(cmd, "--methods names no method");
@@ -539,6 +547,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     const int nmethods = parse_methods(cmd, methods ? methods : vs_pt ? "cache,path-tracer" : "cache", single, runs, &rc);
     if (nmethods == 0) return rc;
     c.vpl_paths = (int)vpl_paths;
+    c.gl_platform = sd.gl_platform;
     c.vpl_per_sample = (int)vpl_per_sample;
     if (vpl_clamp) {
         char *end = NULL;

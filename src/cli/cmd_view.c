@@ -30,12 +30,13 @@ static void print_screenshot(const char *path, const view_app_report *rep, void 
     unsigned long long light_samples = 0;
     for (uint32_t l = 0; snap && l < snap->stats.light_count; ++l) light_samples += snap->stats.lights[l].samples;
     printf("screenshot %s: %dx%d, frame %llu, %.2f s, direct samples %llu, light samples %llu, indirect samples %llu, "
-           "generation %llu, bounces %d, converged %d, rest draws %u, residual spp %u, indirect %s, peer spp %u\n",
+           "generation %llu, bounces %d, converged %d, rest draws %u, residual spp %u, indirect %s, peer spp %u, peer vpls %llu\n",
            path, rep->width, rep->height, (unsigned long long)rep->frames, rep->seconds,
            snap ? (unsigned long long)snap->stats.direct.samples : 0ull, light_samples,
            snap ? (unsigned long long)snap->stats.indirect.samples : 0ull,
            snap ? (unsigned long long)snap->generation : 0ull, snap ? snap->stats.bounces.bounces : 0,
-           snap ? snap->converged : 0, rep->rest_draws, rep->residual_spp, rep->indirect, rep->peer_spp);
+           snap ? snap->converged : 0, rep->rest_draws, rep->residual_spp, rep->indirect, rep->peer_spp,
+           (unsigned long long)rep->peer_vpls);
     fflush(stdout);
 }
 
@@ -118,11 +119,10 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     if (opts[OPT_WIDTH].seen != opts[OPT_HEIGHT].seen) return app_usage_error(cmd, "give both --width and --height");
     if (strcmp(residual, "on") != 0 && strcmp(residual, "off") != 0)
         return app_usage_error(cmd, "--residual takes on or off");
-    const ref_estimator peer = strcmp(indirect, "vpl") == 0    ? REF_ESTIMATOR_VPL
-                               : strcmp(indirect, "bdir") == 0 ? REF_ESTIMATOR_BDIR
-                                                               : REF_ESTIMATOR_PATHS;
-    if (peer == REF_ESTIMATOR_PATHS && strcmp(indirect, "cache") != 0)
-        return app_usage_error(cmd, "--indirect takes cache, vpl or bdir, not '%s'", indirect);
+    ref_estimator peer;
+    ref_vpl_visibility visibility;
+    if (!view_app_indirect_from_name(indirect, &peer, &visibility))
+        return app_usage_error(cmd, "--indirect takes cache, vpl, bdir, vpl-ism or bdir-ism, not '%s'", indirect);
     /* As render: the 2% tolerance (rend_session_desc_defaults), the sampler chosen by
      * --sampler (auto by default). */
     rend_session_desc sd = {0};
@@ -148,7 +148,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
                                           .scene_load_seconds = t_scene - t_load_start, .user = &c,
                                           .screenshot = print_screenshot, .finished = finished, .reload = reload,
                                           .release = release, .no_residual = strcmp(residual, "off") == 0,
-                                          .indirect = peer},
+                                          .indirect = peer, .indirect_visibility = visibility},
                          &err);
         s = c.current; /* the scene shown last (the first one or a reload's); the others are freed */
         scene_destroy(c.pending); /* a reload the run ended before taking (an error) */

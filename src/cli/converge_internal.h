@@ -14,7 +14,7 @@
 
 #include <cjson/cJSON.h>
 
-enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64, MAX_METHODS = 4 };
+enum { MAX_SNAPSHOTS = 256, MAX_MESHES = 64, MAX_METHODS = 6 };
 
 /* converged: the cache's estimate is below the JND (cache_estimate_converged), at
  * the lowest JND it refines to (rend_session_desc.jnd_floor);
@@ -36,6 +36,8 @@ typedef struct conv_row {
     uint32_t spp_min, spp_max;/* samples a pixel: a peer's (path tracer, VPL), or lumesh's residual's */
     uint64_t vpls;            /* VPL, BDIR: virtual point lights made so far (BDIR: candidates) */
     double vpl_seconds;       /* VPL, BDIR: of `seconds`, the time spent making them (and resampling) */
+    uint64_t ism_maps;        /* -ism: imperfect shadow maps made so far */
+    double ism_seconds;       /* -ism: of `seconds`, the time spent making them (GL and read-back) */
     uint64_t rays;            /* the same paths' rays */
     double residual_weight;   /* lumesh: mean James–Stein weight of the residual's blocks (rend_residual_info) */
     double residual_corrected;/* lumesh: share of the blocks the residual corrects */
@@ -49,9 +51,10 @@ typedef struct conv_row {
 } conv_row;
 
 typedef struct conv_run {
-    const char *method;       /* "lumesh", "lumesh-single-mesh", "vpl", "bdir", "path-tracer" */
+    const char *method;       /* "lumesh", "lumesh-single-mesh", "vpl", "bdir", "vpl-ism", "bdir-ism", "path-tracer" */
     int peer;                 /* a method of the reference renderer (ref_estimator): no cache columns */
     ref_estimator estimator;  /* a peer's */
+    ref_vpl_visibility visibility; /* VPL, BDIR: shadow rays, or imperfect shadow maps (-ism) */
     conv_row rows[MAX_SNAPSHOTS];
     int count;
 } conv_run;
@@ -97,6 +100,7 @@ typedef struct conv_ctx {
     int interrupted;          /* the run was stopped by Ctrl-C: what was measured is written */
     int vpl_paths, vpl_per_sample; /* --vpl-paths, --vpl-per-sample (0: ref_desc's defaults) */
     float vpl_clamp;          /* --vpl-clamp (0: the default; REF_VPL_NO_CLAMP: none) */
+    glctx_platform gl_platform; /* --gl: the GL of the -ism methods' maps too */
 } conv_ctx;
 
 /* DIR/convergence.csv, .json (with the --stats object, may be NULL) and .png, each

@@ -86,6 +86,10 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
         if (run->estimator != REF_ESTIMATOR_PATHS) {
             cJSON_AddNumberToObject(o, "vpls", (double)w->vpls);
             cJSON_AddNumberToObject(o, "vpl_seconds", rounded(w->vpl_seconds, 1e-4));
+            if (run->visibility == REF_VPL_VISIBILITY_ISM) {
+                cJSON_AddNumberToObject(o, "ism_maps", (double)w->ism_maps);
+                cJSON_AddNumberToObject(o, "ism_seconds", rounded(w->ism_seconds, 1e-4));
+            }
         }
     } else {
         cJSON_AddStringToObject(o, "state", conv_state_names[w->state]);
@@ -179,7 +183,8 @@ lm_result conv_write_json(const conv_ctx *c, const char *ref_path, const conv_ru
 
 lm_result conv_write_plot(const conv_ctx *c, const conv_run *runs, int nrun, lm_error *err)
 {
-    static const uint8_t colours[MAX_METHODS][3] = {{214, 39, 40}, {31, 119, 180}, {44, 160, 44}, {148, 103, 189}};
+    static const uint8_t colours[MAX_METHODS][3] = {{214, 39, 40},   {31, 119, 180}, {44, 160, 44},
+                                                    {148, 103, 189}, {255, 127, 14}, {140, 86, 75}};
     double *buf = malloc((size_t)MAX_SNAPSHOTS * 3 * MAX_METHODS * sizeof *buf);
     if (!buf) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory plotting");
     plot_series rel[MAX_METHODS], de[MAX_METHODS];
@@ -192,11 +197,13 @@ lm_result conv_write_plot(const conv_ctx *c, const conv_run *runs, int nrun, lm_
             y2[i] = runs[k].rows[i].m.delta_e_mean;
         }
         int pt = runs[k].peer && runs[k].estimator == REF_ESTIMATOR_PATHS;
-        snprintf(labels[k], sizeof labels[k], "%s",
+        const char *ism = runs[k].visibility == REF_VPL_VISIBILITY_ISM ? ", imperfect shadow maps" : "";
+        snprintf(labels[k], sizeof labels[k], "%s%s",
                  pt                ? "path tracer (Embree, same transport)"
-                 : runs[k].peer && runs[k].estimator == REF_ESTIMATOR_VPL ? "VPLs (instant radiosity, same transport)"
-                 : runs[k].peer    ? "BDIR (VPLs resampled, same transport)"
-                                   : runs[k].method);
+                 : runs[k].peer && runs[k].estimator == REF_ESTIMATOR_VPL ? "VPLs (instant radiosity"
+                 : runs[k].peer    ? "BDIR (VPLs resampled"
+                                   : runs[k].method,
+                 pt || !runs[k].peer ? "" : ism[0] ? ", imperfect shadow maps)" : ", same transport)");
         rel[k] = (plot_series){.label = labels[k], .x = x, .y = y1, .count = runs[k].count, .dashed = pt};
         de[k] = rel[k];
         de[k].y = y2;

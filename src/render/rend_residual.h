@@ -121,6 +121,8 @@ typedef struct rend_residual_info {
     double est_relmse;                 /* the corrected picture's relMSE as the samples estimate it:
                                           Σ_B w²·Σq·s² + (1−w)²·(Σq·R² − Σq·s²) over the values;
                                           NAN while a block is short of samples */
+    uint64_t vpls;                     /* a peer in its place (view_residual.h, --indirect vpl|bdir):
+                                          VPLs made since it was made; 0 for the residual */
 } rend_residual_info;
 
 /* out = cached + w_B·(P̄ − cached) per block, width·height·3 floats each (out may

@@ -54,8 +54,9 @@ void view_app_report_of(const view_state *v, view_app_report *r)
                            .rest_draws = view_app_showing_mean(v) ? v->accum_n : 0,
                            .residual_spp = view_app_showing_residual(v) && !v->peer_on ? v->residual_info.min_samples : 0,
                            .residual_corrected = view_app_showing_residual(v) && !v->peer_on ? v->residual_info.corrected : 0.0,
-                           .indirect = v->indirect == REF_ESTIMATOR_VPL ? "vpl" : v->indirect == REF_ESTIMATOR_BDIR ? "bdir" : "cache",
-                           .peer_spp = view_app_showing_residual(v) && v->peer_on ? v->residual_info.min_samples : 0};
+                           .indirect = view_app_indirect_name(v->indirect, v->indirect_visibility),
+                           .peer_spp = view_app_showing_residual(v) && v->peer_on ? v->residual_info.min_samples : 0,
+                           .peer_vpls = view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpls : 0};
 }
 
 /* K's colours: multipliers of the scene's, about equal in luminance. */
@@ -304,9 +305,19 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
     case VIEW_ACTION_TOGGLE_EMISSION: v->components ^= REND_FRAME_COMPONENT_EMISSION; break;
     case VIEW_ACTION_HELP: v->help = !v->help; break;
     case VIEW_ACTION_INDIRECT:
-        v->indirect = v->indirect == REF_ESTIMATOR_PATHS  ? REF_ESTIMATOR_VPL
-                      : v->indirect == REF_ESTIMATOR_VPL ? REF_ESTIMATOR_BDIR
-                                                          : REF_ESTIMATOR_PATHS;
+        /* cache → vpl → bdir → vpl-ism → bdir-ism → cache */
+        if (v->indirect == REF_ESTIMATOR_PATHS) {
+            v->indirect = REF_ESTIMATOR_VPL;
+            v->indirect_visibility = REF_VPL_VISIBILITY_RAYS;
+        } else if (v->indirect == REF_ESTIMATOR_VPL) {
+            v->indirect = REF_ESTIMATOR_BDIR;
+        } else if (v->indirect_visibility == REF_VPL_VISIBILITY_RAYS) {
+            v->indirect = REF_ESTIMATOR_VPL;
+            v->indirect_visibility = REF_VPL_VISIBILITY_ISM;
+        } else {
+            v->indirect = REF_ESTIMATOR_PATHS;
+            v->indirect_visibility = REF_VPL_VISIBILITY_RAYS;
+        }
         residual_stop(v);
         break;
     case VIEW_ACTION_RELOAD: return reload_scene(v, err);
@@ -536,10 +547,12 @@ static lm_result show_peer(view_state *v, const rend_frame *f, const scene_camer
     k.generation = 0; /* the peer does not follow the cache's snapshots */
     const int bounces = v->snap && v->snap->stats.bounces.bounces > 0 ? v->snap->stats.bounces.bounces : 1;
     if (!v->peer_on || !accum_same_view(&v->residual_key, &k) || v->peer_bounces != bounces ||
-        v->peer_kind != v->indirect) {
+        v->peer_kind != v->indirect || v->peer_visibility != v->indirect_visibility) {
         for (uint32_t l = 0; l < v->light_count; ++l)
             light_value(v->s, l, v->light_scale[l], v->light_tint + 3 * (size_t)l, v->residual_lights + 3 * (size_t)l);
-        view_residual_view rv = {.cam = *cam, .bounces = bounces, .light_values = v->residual_lights, .peer = v->indirect};
+        view_residual_view rv = {.cam = *cam, .bounces = bounces, .light_values = v->residual_lights,
+                                 .peer = v->indirect, .visibility = v->indirect_visibility,
+                                 .gl_platform = v->d->session.gl_platform};
         r = view_residual_start(v->residual, &rv, NULL, err);
         if (r != LM_OK) return r;
         v->residual_on = v->peer_on = 1;
@@ -547,6 +560,7 @@ static lm_result show_peer(view_state *v, const rend_frame *f, const scene_camer
         v->residual_shown = 0;
         v->peer_bounces = bounces;
         v->peer_kind = v->indirect;
+        v->peer_visibility = v->indirect_visibility;
     }
     upload_residual(v, cam);
     return LM_OK;
@@ -810,12 +824,42 @@ static lm_result frame(view_state *v, lm_error *err)
     return r;
 }
 
+static const struct {
+    const char *name;
+    ref_estimator peer;
+    ref_vpl_visibility visibility;
+} k_indirect[] = {{"cache", REF_ESTIMATOR_PATHS, REF_VPL_VISIBILITY_RAYS},
+                  {"vpl", REF_ESTIMATOR_VPL, REF_VPL_VISIBILITY_RAYS},
+                  {"bdir", REF_ESTIMATOR_BDIR, REF_VPL_VISIBILITY_RAYS},
+                  {"vpl-ism", REF_ESTIMATOR_VPL, REF_VPL_VISIBILITY_ISM},
+                  {"bdir-ism", REF_ESTIMATOR_BDIR, REF_VPL_VISIBILITY_ISM}};
+
+int view_app_indirect_from_name(const char *name, ref_estimator *peer, ref_vpl_visibility *visibility)
+{
+    for (size_t i = 0; i < sizeof k_indirect / sizeof k_indirect[0]; ++i)
+        if (strcmp(name, k_indirect[i].name) == 0) {
+            *peer = k_indirect[i].peer;
+            *visibility = k_indirect[i].visibility;
+            return 1;
+        }
+    return 0;
+}
+
+const char *view_app_indirect_name(ref_estimator peer, ref_vpl_visibility visibility)
+{
+    for (size_t i = 0; i < sizeof k_indirect / sizeof k_indirect[0]; ++i)
+        if (k_indirect[i].peer == peer && (peer == REF_ESTIMATOR_PATHS || k_indirect[i].visibility == visibility))
+            return k_indirect[i].name;
+    return "cache";
+}
+
 lm_result view_app_run(const view_app_desc *d, lm_error *err)
 {
     if (!d || !d->scene || d->camera < 0 || (uint32_t)d->camera >= d->scene->camera_count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "view_app_run: no scene or no such camera");
     view_state v = {.d = d, .s = d->scene, .cam = d->scene->cameras[d->camera], .exposure = d->scene->exposure,
                     .first_image = -1, .camera_moved = 1, .components = REND_FRAME_COMPONENTS_ALL, .indirect = d->indirect,
+                    .indirect_visibility = d->indirect_visibility,
                     .startup = {-1, -1, -1, -1, -1, -1}};
     lm_result r = reset_lights(&v, err);
     if (r != LM_OK) return r;

@@ -76,9 +76,11 @@ typedef struct view_app_report {
     uint32_t residual_spp;             /* the picture shown is the resting one corrected by this many path
                                           samples a pixel at least (view_residual.h); 0: not corrected */
     double residual_corrected;         /* the share of its blocks corrected */
-    const char *indirect;              /* "cache", "vpl" or "bdir": what the picture at rest shows (I) */
+    const char *indirect;              /* "cache", "vpl", "bdir", "vpl-ism" or "bdir-ism": what the
+                                          picture at rest shows (I) */
     uint32_t peer_spp;                 /* the picture shown is a peer's (vpl, bdir) of this many samples a
                                           pixel at least; 0: the cache's */
+    uint64_t peer_vpls;                /* ...and the VPLs it has made (BDIR: its candidates) */
 } view_app_report;
 
 typedef struct view_app_desc {
@@ -99,6 +101,8 @@ typedef struct view_app_desc {
                                          REF_ESTIMATOR_PATHS the cache; VPL or BDIR that peer of it,
                                          rendered on the residual's thread (docs/peers.md), the cache's
                                          picture shown until its first pass */
+    ref_vpl_visibility indirect_visibility; /* the peer's: shadow rays or imperfect shadow maps (vpl-ism,
+                                         bdir-ism; made on session.gl_platform's GL) */
     void *user;
     /* Called after each screenshot is written (report->snap: the snapshot in it). */
     void (*screenshot)(const char *path, const view_app_report *report, void *user);
@@ -112,6 +116,11 @@ typedef struct view_app_desc {
 } view_app_desc;
 
 lm_result view_app_run(const view_app_desc *desc, lm_error *err);
+
+/* What shows a still view, by name ("cache", "vpl", "bdir", "vpl-ism", "bdir-ism";
+ * --indirect and the I key): 1 when the name is one, else 0. */
+int view_app_indirect_from_name(const char *name, ref_estimator *peer, ref_vpl_visibility *visibility);
+const char *view_app_indirect_name(ref_estimator peer, ref_vpl_visibility visibility);
 
 #ifdef __cplusplus
 }

@@ -101,9 +101,11 @@ typedef struct view_state {
     GLuint residual_tex;            /* the correction shown (RGB32F); 0 = none made */
     int residual_shown;             /* residual_tex holds a correction of residual_key (or the peer's picture) */
     ref_estimator indirect;         /* I: the cache (PATHS), or the peer shown at rest (VPL, BDIR) */
+    ref_vpl_visibility indirect_visibility; /* the peer's visibility: shadow rays or imperfect shadow maps */
     int peer_on;                    /* the residual's thread renders the peer for residual_key, */
     int peer_bounces;               /* with these bounces */
     ref_estimator peer_kind;        /* and this estimator */
+    ref_vpl_visibility peer_visibility; /* and this visibility */
     /* The script: the command running and when it started. */
     size_t si;
     int cmd_started;

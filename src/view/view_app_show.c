@@ -126,7 +126,7 @@ static const char k_help[] =
     "L: next light    ] [: its power x2 / x0.5    K: its colour (no new light samples)\n"
     "+ -: exposure    P: pause refinement    F12: screenshot (PNG + EXR)\n"
     "O: overlay the next mesh    V: wireframe / sample points\n"
-    "B: bounces (auto, 1, 2, 3, 4, 8)    I: a still view by the cache, VPLs or BDIR\n"
+    "B: bounces (auto, 1, 2, 3, 4, 8)    I: still view by cache, VPLs, BDIR (+ shadow maps)\n"
     "R: reload the scene from its file    H: this help    Esc / Q: quit";
 
 static uint64_t all_samples(const cache_snapshot *s)
@@ -174,9 +174,13 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
                                   rep.residual_spp, 100.0 * rep.residual_corrected);
         if (rep.rest_draws && k < size) k += (size_t)snprintf(out + k, size - k, "\n");
         if (strcmp(rep.indirect, "cache") != 0 && k < size) { /* I: a peer renders the still view (show_peer) */
-            const char *peer = strcmp(rep.indirect, "vpl") == 0 ? "instant radiosity (VPLs)" : "BDIR";
+            const char *peer = strcmp(rep.indirect, "vpl") == 0       ? "instant radiosity (VPLs)"
+                               : strcmp(rep.indirect, "vpl-ism") == 0 ? "instant radiosity (VPLs, shadow maps)"
+                               : strcmp(rep.indirect, "bdir-ism") == 0 ? "BDIR (shadow maps)"
+                                                                       : "BDIR";
             if (rep.peer_spp)
-                k += (size_t)snprintf(out + k, size - k, "picture: %s, %u samples a pixel\n", peer, rep.peer_spp);
+                k += (size_t)snprintf(out + k, size - k, "picture: %s, %u samples a pixel, %llu VPLs made\n", peer,
+                                      rep.peer_spp, (unsigned long long)rep.peer_vpls);
             else
                 k += (size_t)snprintf(out + k, size - k, "picture: the cache's until the first pass of %s\n", peer);
         }

@@ -74,7 +74,7 @@ static int take_start(view_residual *vr, residual_thread *t, start_kind *kind)
     const int made = v->peer == REF_ESTIMATOR_PATHS ? t->rr != NULL : t->peer != NULL;
     *kind = made && same_view(v, &t->view, vr->lights) ? START_SAME
             : !made || v->cam.width != t->view.cam.width || v->cam.height != t->view.cam.height ||
-                    v->bounces != t->view.bounces || v->peer != t->view.peer
+                    v->bounces != t->view.bounces || v->peer != t->view.peer || v->visibility != t->view.visibility
                 ? START_MAKE
                 : START_RESTART;
     memcpy(t->lights, vr->pending_lights, 3 * (size_t)vr->lights * sizeof *t->lights);
@@ -110,6 +110,7 @@ static int begin_peer(view_residual *vr, residual_thread *t, start_kind kind)
         lm_error err;
         if (ref_create(&(ref_desc){.scene = vr->s, .view = &v->cam, .width = v->cam.width, .height = v->cam.height,
                                    .bounces = v->bounces, .estimator = v->peer, .vpl_keep = 1,
+                                   .vpl_visibility = v->visibility, .gl_platform = v->gl_platform,
                                    .threads = pass_threads()},
                        &t->peer, &err) != LM_OK)
             return 0;
@@ -178,6 +179,7 @@ static void *thread_main(void *arg)
             info.min_samples = st.min_samples;
             info.max_samples = st.max_samples;
             info.rays = st.rays;
+            info.vpls = st.vpls;
         } else {
             rend_residual_run(t.rr, NULL, deadline);
             rend_residual_apply(t.rr, t.cached, t.out, &info);

@@ -49,6 +49,9 @@ typedef struct view_residual_view {
                                   VPL, BDIR: show that peer's own picture of the view instead (the
                                   viewer's --indirect, docs/peers.md): the cached picture is not
                                   used, and a picture is handed back from its first complete pass */
+    ref_vpl_visibility visibility; /* a peer's: shadow rays, or imperfect shadow maps (GL, made on
+                                      the residual's thread in a context of its own) */
+    glctx_platform gl_platform;    /* the maps' GL (default EGL) */
 } view_residual_view;
 
 /* s must outlive the residual. The thread starts idle. */
