@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # bench/peers.sh — the cache against its peers inside lumesh (issue 17): for each
-# scene, `lumesh converge --methods cache,vpl,bdir,path-tracer` against one reference,
+# scene, `lumesh converge --methods cache,vpl,bdir,vpl-ism,bdir-ism,path-tracer`
+# (METHODS overrides the list) against one reference,
 # each method alone on the machine for the same times (from the scene loaded),
 # and one table: relMSE and mean dE of each method at 1, 10 and 60 s (or the
-# times asked), and the VPLs instant radiosity made. docs/peers.md has the
+# times asked), the VPLs instant radiosity made, and the imperfect shadow maps'
+# share of the -ism methods' time. docs/peers.md has the
 # methods, their bias and the measured tables.
 #
 # usage: bench/peers.sh [BUILD_DIR] [SECONDS] [REFERENCE_SECONDS] [SCENES...]
@@ -43,17 +45,18 @@ for name in "${names[@]}"; do
   fi
   out=$data/$name-peers
   "$lumesh" converge "$scene" --reference "$ref" --seconds "$seconds" --out "$out" --snapshots "$snaps" \
-    --methods cache,vpl,bdir,path-tracer > "$out.log"
+    --methods "${METHODS:-cache,vpl,bdir,vpl-ism,bdir-ism,path-tracer}" > "$out.log"
   python3 - "$name" "$out/convergence.json" <<'PY'
 import json, sys
 name, path = sys.argv[1], sys.argv[2]
 j = json.load(open(path))
 m = j["methods"]
-order = [k for k in ("lumesh", "vpl", "bdir", "path-tracer") if k in m]
+order = [k for k in ("lumesh", "vpl", "bdir", "vpl-ism", "bdir-ism", "path-tracer") if k in m]
 print("\n%s, %dx%d, %g s a method (reference %s; %s)" % (name, j["width"], j["height"], j["seconds"], j["reference"],
                                                         j["transport_note"]))
-print("| time | " + " | ".join("%s relMSE / mean dE" % k for k in order) + " | VPLs made (vpl / bdir's candidates) |")
-print("|---|" + "---|" * len(order) + "---|")
+print("| time | " + " | ".join("%s relMSE / mean dE" % k for k in order) +
+      " | VPLs made (vpl / bdir's candidates) | maps' share of vpl-ism / bdir-ism time |")
+print("|---|" + "---|" * len(order) + "---|---|")
 rows = {k: {r["target_seconds"]: r for r in m[k]} for k in order}
 for t in sorted(rows[order[0]]):
     cells = []
@@ -61,7 +64,9 @@ for t in sorted(rows[order[0]]):
         r = rows[k].get(t)
         cells.append("%.3g / %.2f" % (r["error"]["relmse"], r["error"]["delta_e_mean"]) if r else "-")
     made = ["%d" % rows[k][t]["vpls"] if k in rows and t in rows[k] else "-" for k in ("vpl", "bdir")]
-    print("| %g s | %s | %s |" % (t, " | ".join(cells), " / ".join(made)))
+    share = ["%.0f%%" % (100.0 * rows[k][t]["ism_seconds"] / rows[k][t]["seconds"]) if k in rows and t in rows[k]
+             else "-" for k in ("vpl-ism", "bdir-ism")]
+    print("| %g s | %s | %s | %s |" % (t, " | ".join(cells), " / ".join(made), " / ".join(share)))
 noise = m[order[0]][0]["error"].get("relmse_reference_noise", 0.0)
 print("the reference's own noise: relMSE %.3g of every relMSE above" % noise)
 PY

@@ -44,8 +44,8 @@
  * any number of threads at once (the set is read-only then).
  * Visibility: an Embree shadow ray a join, or a lookup in the VPL's imperfect
  * shadow map when set->ism is set (ref_ism.h; then *rays counts no rays).
- * Does NOT do: resampling by importance (BDIR, below),
- * bias compensation, camera paths through more than one glossy surface.
+ * Does NOT do: bias compensation, camera paths through more than one glossy
+ * surface (BDIR's resampling by importance is ref_vpl_resample, below).
  * Units: positions in scene units; flux in W (area lights: radiance·area·π).
  */
 #ifndef LUMESH_REF_VPL_H
