@@ -9,11 +9,7 @@
 #include "src/gpu/gl_context.h"
 #include "src/gpu/gl_program.h"
 
-enum {
-    LEVELS = 3, /* the map and the two coarser levels pull-push uses (as Ritschel
-                   et al.) */
-    ATLAS_SIDE = 4096
-};                               /* texels: the atlas's width, and its most rows of maps in one build chunk */
+enum { LEVELS = 3 }; /* the map and the two coarser levels pull-push uses (as Ritschel et al.) */
 #define EMPTY 1e30f              /* a texel no point reached (the shaders' EMPTY) */
 #define PULL_THRESHOLD_REL 0.05f /* of the scene's extent, doubled a level (thesis §2.6.5) */
 /* The lookup's constant bias, of the scene's extent: about a point's spacing
@@ -49,10 +45,8 @@ struct ref_ism {
     int cols, rows; /* maps per atlas row; rows of maps the atlas holds now */
     int max_rows;   /* rows of one build chunk */
     float splat, extent;
-    ism_vpl *frames; /* the last build's VPLs, as drawn (the lookup uses the same
-                        frames) */
-    float *maps;     /* per chunk: the atlas's rows of maps, ATLAS_SIDE wide,
-                        distances */
+    ism_vpl *frames; /* the last build's VPLs, as drawn (the lookup uses the same frames) */
+    float *maps;     /* per chunk: the atlas's rows of maps (cols·tile wide), distances */
     size_t frames_cap, maps_cap;
     uint32_t count;
     uint64_t builds, made;
@@ -148,11 +142,13 @@ lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err)
     if (d.points_per_map == 0) d.points_per_map = REF_ISM_POINTS_PER_MAP_DEFAULT;
     if (d.points == 0) d.points = REF_ISM_POINTS_DEFAULT;
     if (d.points < d.points_per_map) d.points = d.points_per_map;
+    if (d.atlas_side == 0) d.atlas_side = REF_ISM_ATLAS_SIDE_DEFAULT;
     if (d.tile < 4 || d.tile % 4 != 0 || d.tile > 1024)
-        return lm_fail(err, LM_ERR_INVALID_ARG,
-                       "imperfect shadow maps: a map's side must be a multiple of "
-                       "4 up to 1024, not %d",
-                       d.tile);
+        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: a map's side must be a multiple of 4 up to 1024, "
+                       "not %d", d.tile);
+    if (d.atlas_side < d.tile)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: an atlas of %d texels holds no map of %d",
+                       d.atlas_side, d.tile);
     if (d.points_per_map < 0 || d.points > (1 << 24))
         return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: %d points (at most %d)", d.points, 1 << 24);
     if (d.s->tri_count == 0)
@@ -180,7 +176,7 @@ lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err)
         m->loc_pull_thr = gl->GetUniformLocation(m->prog_pull, "u_threshold");
         GLint max_tex = 0;
         gl->GetIntegerv(GL_MAX_TEXTURE_SIZE, &max_tex);
-        const int side = max_tex < ATLAS_SIDE ? max_tex : ATLAS_SIDE;
+        const int side = max_tex < d.atlas_side ? max_tex : d.atlas_side;
         m->cols = side / d.tile;
         m->max_rows = side / d.tile;
         GLuint bufs[2];
@@ -229,8 +225,12 @@ lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_erro
     const int tile = m->desc.tile, w = m->cols * tile;
     const uint32_t per_chunk = (uint32_t)(m->cols * m->max_rows);
     const uint32_t chunks = (count + per_chunk - 1) / per_chunk;
+    /* Every chunk but the last is full; the last holds the rows of maps it uses. */
     const size_t chunk_floats = (size_t)w * (size_t)m->max_rows * (size_t)tile;
-    if (!LM_GROW(m->frames, m->frames_cap, count) || !LM_GROW(m->maps, m->maps_cap, (size_t)chunks * chunk_floats)) {
+    const uint32_t last = count - (chunks - 1) * per_chunk;
+    const size_t last_rows = (last + (uint32_t)m->cols - 1) / (uint32_t)m->cols;
+    const size_t floats = (size_t)(chunks - 1) * chunk_floats + last_rows * (size_t)tile * (size_t)w;
+    if (!LM_GROW(m->frames, m->frames_cap, count) || !LM_GROW(m->maps, m->maps_cap, floats)) {
         glctx_release(m->ctx);
         return lm_fail(err, LM_ERR_NO_MEMORY, "imperfect shadow maps: out of memory for %u maps", count);
     }

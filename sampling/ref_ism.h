@@ -54,10 +54,13 @@ typedef struct ref_ism_desc {
     int tile;                /* texels of a map's side, a multiple of 4; 0: REF_ISM_TILE_DEFAULT */
     int points_per_map;      /* points splatted into each map; 0: REF_ISM_POINTS_PER_MAP_DEFAULT */
     int points;              /* the cloud; 0: REF_ISM_POINTS_DEFAULT (at least points_per_map) */
+    int atlas_side;          /* texels of the atlas's side (GL's largest texture at most): more maps
+                                than fit are built in turns; 0: REF_ISM_ATLAS_SIDE_DEFAULT */
     uint32_t seed;
 } ref_ism_desc;
 
-enum { REF_ISM_TILE_DEFAULT = 64, REF_ISM_POINTS_PER_MAP_DEFAULT = 4096, REF_ISM_POINTS_DEFAULT = 1 << 18 };
+enum { REF_ISM_TILE_DEFAULT = 64, REF_ISM_POINTS_PER_MAP_DEFAULT = 4096, REF_ISM_POINTS_DEFAULT = 1 << 18,
+       REF_ISM_ATLAS_SIDE_DEFAULT = 4096 };
 
 typedef struct ref_ism ref_ism;
 
