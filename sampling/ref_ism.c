@@ -18,7 +18,7 @@ enum { LEVELS = 3 }; /* the map and the two coarser levels pull-push uses (as Ri
  * surface tilted away behind it is a little farther than its distance). Light
  * wrongly shadowed / leaked of what the exact visibility passes on
  * CornellBox-Original (reference_ism_test), and the door's camera room image
- * mean against shadow rays (VPL pairs 64 paths, 3 bounces):
+ * mean against shadow rays (64×48, 8 passes; the pairs: 64 paths, 3 bounces):
  *   a depth bias of 2 texels × the receiver's slope (tan, up to 8), 0.01: 1.6% / 0.8%, door +617%
  *   (grazing receivers in the camera room saw through the wall to the lamp's room);
  *   normal offset 1, 0.002: 7.9% / 0.6%, door +40%;  2, 0.002: 4.7% / 0.7%, +50%;
@@ -27,8 +27,8 @@ enum { LEVELS = 3 }; /* the map and the two coarser levels pull-push uses (as Ri
  * 16,384 points a map +18%, at 2.5× the build time. */
 #define NORMAL_OFFSET_TEXELS 2.0f
 #define BIAS_ABS_REL 0.005f
-/* A splat's side over the angle its area spans (with the slope bias above,
- * wrongly shadowed / leaked): 1 made near points' squares shadow what lies
+/* A splat's side over the angle its area spans (measured with the slope-scaled
+ * bias above, wrongly shadowed / leaked): 1 made near points' squares shadow what lies
  * behind their tilted surfaces (5.1% / 0.2%), 0.5 leaked (2.1% / 1.4%), 0.7
  * balanced them (1.6% / 0.8%). */
 #define SPLAT_SCALE 0.7f
@@ -56,7 +56,7 @@ struct ref_ism {
     float *maps;     /* per chunk: the atlas's rows of maps (cols·tile wide), distances */
     size_t frames_cap, maps_cap;
     uint32_t count;
-    uint64_t builds, made;
+    uint64_t made;
     double seconds;
 };
 
@@ -66,7 +66,8 @@ static const char *const pullpush_names[] = {"ref_ism_pullpush.comp", NULL};
 /* The cloud: desc.points points spread over the surfaces by area (stratified
  * over the cumulative area), then shuffled so that any run of them is a random
  * subset of the scene. */
-static lm_result make_points(ref_ism *m, lm_error *err) {
+static lm_result make_points(ref_ism *m, lm_error *err)
+{
     const scene *s = m->desc.s;
     const size_t n = (size_t)m->desc.points;
     double *cdf = malloc((s->tri_count ? s->tri_count : 1) * sizeof *cdf);
@@ -114,7 +115,8 @@ static lm_result make_points(ref_ism *m, lm_error *err) {
 }
 
 /* An atlas of `rows` rows of maps, with the pull-push levels. */
-static lm_result make_atlas(ref_ism *m, int rows, lm_error *err) {
+static lm_result make_atlas(ref_ism *m, int rows, lm_error *err)
+{
     const GladGLContext *gl = m->gl;
     if (m->color) gl->DeleteTextures(1, &m->color);
     m->color = 0;
@@ -124,7 +126,8 @@ static lm_result make_atlas(ref_ism *m, int rows, lm_error *err) {
     return glctx_check(m->ctx, "the imperfect shadow maps' atlas", err);
 }
 
-void ref_ism_destroy(ref_ism *m) {
+void ref_ism_destroy(ref_ism *m)
+{
     if (!m) return;
     if (m->ctx && glctx_make_current(m->ctx, NULL) == LM_OK) {
         const GladGLContext *gl = m->gl;
@@ -141,7 +144,8 @@ void ref_ism_destroy(ref_ism *m) {
     free(m);
 }
 
-lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err) {
+lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err)
+{
     *out = NULL;
     if (!desc || !desc->s) return lm_fail(err, LM_ERR_INVALID_ARG, "ref_ism_create: no scene");
     ref_ism_desc d = *desc;
@@ -151,13 +155,14 @@ lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err)
     if (d.points < d.points_per_map) d.points = d.points_per_map;
     if (d.atlas_side == 0) d.atlas_side = REF_ISM_ATLAS_SIDE_DEFAULT;
     if (d.tile < 4 || d.tile % 4 != 0 || d.tile > 1024)
-        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: a map's side must be a multiple of 4 up to 1024, "
-                       "not %d", d.tile);
+        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: a map's side must be a multiple of 4 up to "
+                       "1024, not %d", d.tile);
     if (d.atlas_side < d.tile)
         return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: an atlas of %d texels holds no map of %d",
                        d.atlas_side, d.tile);
     if (d.points_per_map < 0 || d.points > (1 << 24))
-        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: %d points (at most %d)", d.points, 1 << 24);
+        return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: %d points a map of %d (at most %d)",
+                       d.points_per_map, d.points, 1 << 24);
     if (d.s->tri_count == 0)
         return lm_fail(err, LM_ERR_INVALID_ARG, "imperfect shadow maps: the scene has no triangles");
     ref_ism *m = calloc(1, sizeof *m);
@@ -204,8 +209,9 @@ lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err)
     return LM_OK;
 }
 
-/* Pull-push over the atlas's `rows` rows of maps (levels 0 → 1 → 2 → 1 → 0). */
-static void pull_push(ref_ism *m, int rows) {
+/* Pull-push over the atlas's first `rows` rows of maps (levels 0 → 1 → 2 → 1 → 0). */
+static void pull_push(ref_ism *m, int rows)
+{
     const GladGLContext *gl = m->gl;
     const int w = m->cols * m->desc.tile, h = rows * m->desc.tile;
     for (int pass = 0; pass < 2 * (LEVELS - 1); ++pass) {
@@ -222,7 +228,8 @@ static void pull_push(ref_ism *m, int rows) {
     }
 }
 
-lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_error *err) {
+lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, uint64_t stream, lm_error *err)
+{
     const double t0 = lm_now_seconds();
     m->count = 0;
     if (count == 0) return LM_OK;
@@ -242,7 +249,7 @@ lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_erro
         return lm_fail(err, LM_ERR_NO_MEMORY, "imperfect shadow maps: out of memory for %u maps", count);
     }
     lm_rng g;
-    lm_rng_seed(&g, (uint64_t)m->desc.seed ^ ISM_SEED_SALT, 1, m->builds);
+    lm_rng_seed(&g, (uint64_t)m->desc.seed ^ ISM_SEED_SALT, 1, stream);
     for (uint32_t i = 0; i < count; ++i) {
         lm_vec3 t, b, n = vpls[i].ng;
         ref_frame(n, &t, &b);
@@ -251,8 +258,7 @@ lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_erro
         v3_store(f->t, t);
         v3_store(f->b, b);
         v3_store(f->n, n);
-        /* A different run of the shuffled cloud for every map (exact in a float:
-         * points ≤ 2²⁴). */
+        /* A different run of the shuffled cloud for every map (exact in a float: points ≤ 2²⁴). */
         f->p[3] = floorf(lm_rng_float(&g) * (float)m->desc.points);
         f->t[3] = f->b[3] = f->n[3] = 0.0f;
     }
@@ -279,12 +285,11 @@ lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_erro
         gl->Uniform1i(m->loc_tile, tile);
         gl->Uniform1i(m->loc_cols, m->cols);
         gl->Uniform1f(m->loc_splat, m->splat);
-        /* The R32F level as 32-bit unsigned integers (compatible by size): atomic
-         * minimum. */
+        /* The R32F level as 32-bit unsigned integers (compatible by size): atomic minimum. */
         gl->BindImageTexture(0, m->color, 0, GL_FALSE, 0, GL_READ_WRITE, GL_R32UI);
         gl->DispatchCompute((GLuint)((m->desc.points_per_map + 63) / 64), n, 1);
         gl->MemoryBarrier(GL_SHADER_IMAGE_ACCESS_BARRIER_BIT);
-        pull_push(m, m->rows);
+        pull_push(m, rows);
         const int h = rows * tile;
         gl->GetTextureSubImage(m->color, 0, 0, 0, 0, w, h, 1, GL_RED, GL_FLOAT,
                                (GLsizei)((size_t)w * (size_t)h * sizeof(float)), m->maps + (size_t)c * chunk_floats);
@@ -294,7 +299,6 @@ lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_erro
     glctx_release(m->ctx);
     if (r != LM_OK) return r;
     m->count = count;
-    m->builds++;
     m->made += count;
     m->seconds += lm_now_seconds() - t0;
     return LM_OK;
@@ -337,7 +341,8 @@ int ref_ism_visible(const ref_ism *m, uint32_t i, lm_vec3 x, lm_vec3 ng)
     return stored >= 0.5f * EMPTY || dist <= stored + BIAS_ABS_REL * m->extent;
 }
 
-void ref_ism_totals(const ref_ism *m, uint64_t *maps, double *seconds) {
+void ref_ism_totals(const ref_ism *m, uint64_t *maps, double *seconds)
+{
     *maps = m ? m->made : 0;
     *seconds = m ? m->seconds : 0.0;
 }

@@ -8,7 +8,7 @@
  * Usage (reference.c):
  *     ref_ism *ism;
  *     ref_ism_create(&(ref_ism_desc){.s = scene}, &ism, &err);  // a GL context of its own
- *     ref_ism_build(ism, set.vpls, set.count, &err);             // once a pass, after the VPLs
+ *     ref_ism_build(ism, set.vpls, set.count, stream, &err);     // once a pass, after the VPLs
  *     int v = ref_ism_visible(ism, i, x, ng);                     // any thread, per join
  *     ref_ism_destroy(ism);
  *
@@ -65,8 +65,11 @@ enum { REF_ISM_TILE_DEFAULT = 64, REF_ISM_POINTS_PER_MAP_DEFAULT = 4096, REF_ISM
 typedef struct ref_ism ref_ism;
 
 lm_result ref_ism_create(const ref_ism_desc *desc, ref_ism **out, lm_error *err);
-/* Makes the maps of count VPLs (their p and ng), replacing the last build's. */
-lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, lm_error *err);
+/* Makes the maps of count VPLs (their p and ng), replacing the last build's.
+ * Which points each map gets comes from (desc.seed, stream) alone: the same
+ * VPLs and stream give the same maps (the renderer passes its VPLs' stream, so a
+ * restart that keeps its VPLs keeps their maps too). */
+lm_result ref_ism_build(ref_ism *m, const ref_vpl *vpls, uint32_t count, uint64_t stream, lm_error *err);
 /* Non-zero when the map of VPL i (of the last build) sees x, a point on a
  * surface of geometric normal ng (its side facing the VPL or not). */
 int ref_ism_visible(const ref_ism *m, uint32_t i, lm_vec3 x, lm_vec3 ng);

@@ -404,7 +404,9 @@ static lm_result make_vpls(ref_renderer *r, lm_error *err)
         free(eyes);
     }
     r->rays += rays;
-    if (res == LM_OK && r->ism) res = ref_ism_build(r->ism, r->vpl.vpls, r->vpl.count, err);
+    if (res == LM_OK && r->ism)
+        res = ref_ism_build(r->ism, r->vpl.vpls, r->vpl.count, ((uint64_t)p.generation << 32) | (r->passes & 0xffffffffu),
+                            err);
     r->vpl.ism = r->ism;
     return res;
 }

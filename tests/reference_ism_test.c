@@ -32,7 +32,8 @@ enum { SKIP = 77, W = 64, H = 48, PASSES = 8 };
 #define LEAK_MAX 0.02
 #define MEAN_MAX 0.01
 
-static int visibility_agreement(const scene *s) {
+static int visibility_agreement(const scene *s)
+{
     lm_error err;
     rt_scene *rt = NULL;
     ref_lights lights = {0};
@@ -76,8 +77,8 @@ static int visibility_agreement(const scene *s) {
                             .paths = 64,
                             .per_sample = 16};
         CHECK_MSG(ref_vpl_generate(&set, &p, pass, &rays, &err) == LM_OK, "%s", err.msg);
-        CHECK_MSG(ref_ism_build(ism, set.vpls, set.count, &err) == LM_OK, "%s", err.msg);
-        CHECK_MSG(ref_ism_build(small, set.vpls, set.count, &err) == LM_OK, "%s", err.msg);
+        CHECK_MSG(ref_ism_build(ism, set.vpls, set.count, pass, &err) == LM_OK, "%s", err.msg);
+        CHECK_MSG(ref_ism_build(small, set.vpls, set.count, pass, &err) == LM_OK, "%s", err.msg);
         CHECK(set.count > 3 * 16);
         for (uint32_t i = 0; i < set.count; ++i)
             for (uint32_t j = 0; j < set.count; ++j) {
@@ -132,7 +133,8 @@ static int visibility_agreement(const scene *s) {
     return 0;
 }
 
-static void image_mean(const scene *s, ref_vpl_visibility vis, double mean[3], ref_stats *st) {
+static void image_mean(const scene *s, ref_vpl_visibility vis, double mean[3], ref_stats *st)
+{
     ref_desc d = {.scene = s,
                   .width = W,
                   .height = H,
@@ -155,7 +157,8 @@ static void image_mean(const scene *s, ref_vpl_visibility vis, double mean[3], r
         for (int k = 0; k < 3; ++k) mean[k] += rgb[3 * i + k] / (double)(W * H);
 }
 
-int main(void) {
+int main(void)
+{
     scene *s = NULL;
     lm_error err;
     CHECK_MSG(scene_load(&(scene_load_desc){.path = LUMESH_SCENES "/cornell-box/CornellBox-Original.obj"}, &s, &err) ==
