@@ -17,10 +17,10 @@
 # samples (the residual: at least 32 a pixel).
 # The peers (key i, --indirect; docs/peers.md): the still view rendered by VPLs,
 # then again after an orbit (their picture of the new view), then by BDIR, then
-# both with imperfect shadow maps (vpl-ism, bdir-ism; the first waits a second
-# more for its GL context and point cloud: under ASan its first picture came at
-# about 3 s), each shown from a complete pass (peer spp 1 or more) with VPLs
-# made; a fifth i shows the cache again.
+# both with imperfect shadow maps (vpl-ism, bdir-ism), each shown from a complete
+# pass (peer spp 1 or more) with VPLs made: the script waits for that picture
+# (peer-picture, at most 20 s: under TSan a first pass with maps takes 3-5 s);
+# a fifth i shows the cache again.
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -87,20 +87,21 @@ screenshot ${DIR}/rest.exr
 wait 10
 screenshot ${DIR}/residual.exr
 key i
-wait 3
+peer-picture 20
 screenshot ${DIR}/peer.exr
 orbit 10 0
 frames 1
-wait 3
+wait 1
+peer-picture 20
 screenshot ${DIR}/peer-moved.png
 key i
-wait 3
+peer-picture 20
 screenshot ${DIR}/bdir.png
 key i
-wait 4
+peer-picture 20
 screenshot ${DIR}/vpl-ism.png
 key i
-wait 3
+peer-picture 20
 screenshot ${DIR}/bdir-ism.png
 key i
 frames 2

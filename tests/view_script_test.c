@@ -34,16 +34,17 @@ static void test_script(void)
         CHECK(c[7].kind == VIEW_CMD_QUIT && c[7].line == 10);
     }
     free(c);
-    test_write_file("view_script_light.txt", "light 1 0.5\nnext-snapshot 30\nkey bracketright\nkey 3\nkey l\n", path,
+    test_write_file("view_script_light.txt", "light 1 0.5\nnext-snapshot 30\nkey bracketright\nkey 3\nkey l\npeer-picture 12.5\n", path,
                     sizeof path);
     CHECK_MSG(view_script_load(path, &c, &n, &err) == LM_OK, "%s", err.msg);
-    CHECK(n == 5);
-    if (n == 5) {
+    CHECK(n == 6);
+    if (n == 6) {
         CHECK(c[0].kind == VIEW_CMD_LIGHT && c[0].a == 1 && c[0].b == 0.5);
         CHECK(c[1].kind == VIEW_CMD_NEXT_SNAPSHOT && c[1].a == 30);
         CHECK(c[2].kind == VIEW_CMD_KEY && c[2].action == VIEW_ACTION_LIGHT_UP);
         CHECK(c[3].kind == VIEW_CMD_KEY && c[3].action == VIEW_ACTION_TOGGLE_INDIRECT);
         CHECK(c[4].kind == VIEW_CMD_KEY && c[4].action == VIEW_ACTION_LIGHT_NEXT);
+        CHECK(c[5].kind == VIEW_CMD_PEER_PICTURE && c[5].a == 12.5);
     }
     free(c);
     test_write_file("view_script_moves.txt", "pan 0.1 -0.2\nfly 1 2 3\nlook 5 -5\ncamera 2\nkey c\nkey f12\n"
@@ -70,7 +71,7 @@ static void test_script(void)
                          "jump 3\n",    "quit now\n",   "light 0\n",     "light 0.5 1\n",    "light 0 -1\n",
                          "next-snapshot\n", "pan 1\n",     "fly 1 2\n",   "look x y\n",      "camera 1.5\n",
                          "camera -1\n",    "key s\n",       "light-color 0 1 1\n", "light-color 0 1 -1 1\n",
-                         "window-shot\n"};
+                         "window-shot\n",  "peer-picture\n", "peer-picture -1\n"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
         char text[64];
         snprintf(text, sizeof text, "wait 1\n%s", bad[i]);

@@ -374,6 +374,13 @@ static lm_result run_script(view_state *v, lm_error *err)
             if ((!v->snap || v->snap->generation == v->cmd_generation0) && lm_now_seconds() - v->cmd_t0 < c->a)
                 return LM_OK;
             break;
+        case VIEW_CMD_PEER_PICTURE: {
+            /* As the screenshot line counts it: the peer's picture is shown, from a complete pass. */
+            view_app_report rep;
+            view_app_report_of(v, &rep);
+            if (rep.peer_spp == 0 && lm_now_seconds() - v->cmd_t0 < c->a) return LM_OK;
+            break;
+        }
         case VIEW_CMD_LIGHT: r = set_light_scale(v, (uint32_t)c->a, (float)c->b, err); break;
         case VIEW_CMD_LIGHT_COLOR:
             r = (uint32_t)c->a < v->light_count

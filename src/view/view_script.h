@@ -91,6 +91,7 @@ typedef enum view_cmd_kind {
     VIEW_CMD_LIGHT_COLOR, /* a: light index, rgb: colour multipliers of the scene's */
     VIEW_CMD_RESIZE,     /* a, b: width, height */
     VIEW_CMD_MINIMISE,   /* a: 1 minimise, 0 restore */
+    VIEW_CMD_PEER_PICTURE, /* a: seconds at most, until the picture shown is a peer's complete pass */
     VIEW_CMD_COUNT
 } view_cmd_kind;
 
