@@ -197,13 +197,13 @@ lm_result conv_write_plot(const conv_ctx *c, const conv_run *runs, int nrun, lm_
             y2[i] = runs[k].rows[i].m.delta_e_mean;
         }
         int pt = runs[k].peer && runs[k].estimator == REF_ESTIMATOR_PATHS;
-        const char *ism = runs[k].visibility == REF_VPL_VISIBILITY_ISM ? ", imperfect shadow maps" : "";
+        const int ism = runs[k].visibility == REF_VPL_VISIBILITY_ISM; /* shorter: the legend's width is the panel's */
         snprintf(labels[k], sizeof labels[k], "%s%s",
                  pt                ? "path tracer (Embree, same transport)"
-                 : runs[k].peer && runs[k].estimator == REF_ESTIMATOR_VPL ? "VPLs (instant radiosity"
-                 : runs[k].peer    ? "BDIR (VPLs resampled"
+                 : runs[k].peer && runs[k].estimator == REF_ESTIMATOR_VPL ? (ism ? "VPLs" : "VPLs (instant radiosity")
+                 : runs[k].peer    ? (ism ? "BDIR" : "BDIR (VPLs resampled")
                                    : runs[k].method,
-                 pt || !runs[k].peer ? "" : ism[0] ? ", imperfect shadow maps)" : ", same transport)");
+                 pt || !runs[k].peer ? "" : ism ? " (imperfect shadow maps)" : ", same transport)");
         rel[k] = (plot_series){.label = labels[k], .x = x, .y = y1, .count = runs[k].count, .dashed = pt};
         de[k] = rel[k];
         de[k].y = y2;
