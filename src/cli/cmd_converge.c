@@ -140,8 +140,9 @@ static void snapshot_samples(const conv_ctx *c, const cache_snapshot *snap, conv
     row->jnd = snap->jnd;
 }
 
-static void keep_final(conv_ctx *c, const cache_snapshot *snap)
+static void keep_final(conv_ctx *c, const cache_snapshot *snap, double t0)
 {
+    c->final_seconds = snap->published_at - t0 - c->stopped;
     c->final = *snap;
     memcpy(c->final_lights, snap->stats.lights, c->light_count * sizeof *c->final_lights);
     c->final.stats.lights = c->final_lights;
@@ -201,14 +202,11 @@ static lm_result residual_make(conv_ctx *c, rend_residual **res, lm_error *err)
                                 res, err);
 }
 
-/* A snapshot's picture corrected by the path-traced residual run until `until`
- * (a finished cache's: the machine is the residual's until then): the residual is
- * made at the first call if not before (the reference's transport and bounces:
- * the truth measured against), the cached picture drawn (k × k accumulated) once
+/* A snapshot's picture corrected by the path-traced residual as it stands (run
+ * by the caller): the cached picture drawn (k jittered draws accumulated) once
  * per snapshot generation. */
-static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snapshot *snap, double until, int k,
-                                rend_residual **res, float **cached, uint64_t *cached_generation, float *rgb,
-                                conv_row *row, lm_error *err)
+static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snapshot *snap, int k, rend_residual *res,
+                                float **cached, uint64_t *cached_generation, float *rgb, conv_row *row, lm_error *err)
 {
     const scene_camera *cam = &c->s->cameras[c->cam];
     size_t n = (size_t)c->w * (size_t)c->h;
@@ -220,10 +218,8 @@ static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snaps
         if (r != LM_OK) return r;
         *cached_generation = snap->generation;
     }
-    if (!*res && (r = residual_make(c, res, err)) != LM_OK) return r;
-    rend_residual_run(*res, &interrupted, until);
     rend_residual_info info;
-    rend_residual_apply(*res, *cached, rgb, &info);
+    rend_residual_apply(res, *cached, rgb, &info);
     row->spp_min = info.min_samples;
     row->spp_max = info.max_samples;
     row->rays = info.rays;
@@ -231,6 +227,29 @@ static lm_result residual_image(conv_ctx *c, rend_session *rs, const cache_snaps
     row->residual_corrected = info.corrected;
     row->residual_est = info.est_relmse;
     return LM_OK;
+}
+
+/* The previewer's clock: seconds since the scene was loaded, less the time it
+ * stood still (measuring_begin .. measuring_end). */
+static double clock_of(const conv_ctx *c, double t0) { return lm_now_seconds() - t0 - c->stopped; }
+
+/* A snapshot's image drawn and measured with the clock standing still and the
+ * refinement paused, as the peers' clock is paused while theirs are (run_peer):
+ * the measurement's draws (s×s samples a pixel, k jittered draws once converged,
+ * on llvmpipe's threads) and files are the protocol's cost, not the previewer's.
+ * Running beside the worker they took its cores: Water's cache at 2 s had tested
+ * 26,432 leaves (relMSE 5.3e-4) after snapshots at 0.1, 0.25, 0.5 and 1 s, and
+ * 41,792 (1.3e-4) with none before (docs/cache.md, "Water's first seconds"). */
+static double measuring_begin(rend_session *rs)
+{
+    cache_worker_pause(rend_session_worker(rs));
+    return lm_now_seconds();
+}
+
+static void measuring_end(conv_ctx *c, rend_session *rs, double begun)
+{
+    c->stopped += lm_now_seconds() - begun;
+    cache_worker_resume(rend_session_worker(rs));
 }
 
 /* The previewer: a render session (worker first, then the GL context, the first
@@ -272,13 +291,13 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
         for (;;) {
             ar = rend_session_acquire(rs, &snap, err);
             if (interrupted || ar != LM_OK || (snap && snap->finished)) break;
-            double now = lm_now_seconds() - t0;
+            double now = clock_of(c, t0);
             if (now >= row->target) break;
             if (snap && c->residual) {
                 /* Beside the refining worker, in the background, until the
                  * snapshot's time; then the latest snapshot is taken. */
                 if (!res && (ar = residual_make(c, &res, err)) != LM_OK) break;
-                rend_residual_run(res, &interrupted, t0 + row->target);
+                rend_residual_run(res, &interrupted, t0 + c->stopped + row->target);
                 continue;
             }
             progress(c, run->method, now, run->count ? &run->rows[run->count - 1] : NULL, 0);
@@ -289,35 +308,39 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
             r = ar;
             break;
         }
-        double now = lm_now_seconds() - t0;
+        /* (A snapshot published while the clock ran: no stop came between.) */
+        if (c->converged_at < 0 && snap && snap->converged) c->converged_at = snap->converged_at - t0 - c->stopped;
         if (snap && snap->finished) {
-            /* Converged at the JND it refined to last, or stopped above it. */
+            /* Converged at the JND it refined to last, or stopped above it: the
+             * machine is the residual's until the snapshot's time, on the clock. */
             row->state = snap->converged && cache_estimate_converged(&snap->estimate) ? ROW_CONVERGED : ROW_FINISHED;
-            if (c->converged_at < 0 && snap->converged) c->converged_at = snap->converged_at - t0;
-            row->seconds = row->target > now ? row->target : now;
+            if (c->residual && !res) r = residual_make(c, &res, err);
+            if (r != LM_OK) break;
+            if (res) rend_residual_run(res, &interrupted, t0 + c->stopped + row->target);
+            if (interrupted) break;
+            row->seconds = fmax(row->target, clock_of(c, t0));
         } else {
             row->state = !snap ? ROW_NO_SNAPSHOT : snap->converged ? ROW_BELOW_JND : ROW_REFINING;
-            if (c->converged_at < 0 && snap && snap->converged) c->converged_at = snap->converged_at - t0;
-            row->seconds = now;
+            row->seconds = clock_of(c, t0);
         }
         if (snap) snapshot_samples(c, snap, row);
         /* A converged cache changes slowly: a resting view accumulates jittered
-         * frames of it (rend_session_draw_accumulated); the row is dated when
-         * that image is complete. While refining, one draw. */
+         * frames of it (rend_session_draw_accumulated). While refining, one draw. */
         int k = snap && snap->converged ? c->accumulate : 1;
-        if (snap && c->residual) {
-            r = residual_image(c, rs, snap, t0 + row->target, k, &res, &cached, &cached_generation, rgb, row, err);
+        const double begun = measuring_begin(rs);
+        if (snap && res) {
+            r = residual_image(c, rs, snap, k, res, &cached, &cached_generation, rgb, row, err);
         } else {
             r = rend_session_draw_accumulated(rs, REND_SESSION_FINAL, cam, k, rgb, err);
         }
-        if (k > 1 || res) row->seconds = fmax(row->seconds, lm_now_seconds() - t0);
         c->frames++;
         rend_session_get_info(rs, &in);
         if (r == LM_OK) c->frame_times = in.times[REND_SESSION_FINAL];
         if (r == LM_OK) r = measure(c, run->method, rgb, row, err);
+        measuring_end(c, rs, begun);
         if (r == LM_OK) {
             run->count++;
-            if (snap) keep_final(c, snap);
+            if (snap) keep_final(c, snap, t0);
             progress(c, run->method, row->seconds, row, 0);
         }
     }
@@ -633,7 +656,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     if (c.have_final)
         stats = app_stats_json(&(app_stats_desc){.command = "converge", .scene = c.s->source, .width = c.w,
                                                  .height = c.h, .supersample = c.supersample,
-                                                 .seconds = c.final.published_at - t0,
+                                                 .seconds = c.final_seconds,
                                                  .first_image_seconds = c.first_image, .snap = &c.final,
                                                  .id_seconds = c.id_seconds, .frame = &c.frame_times,
                                                  .frames = c.frames});

@@ -85,6 +85,9 @@ typedef struct conv_ctx {
      * meanwhile, and the load's forks wait for its start: fork_guard.h). */
     double load[2];
     double converged_at;      /* published time of the first converged snapshot; < 0: never */
+    double stopped;           /* the previewer's clock: seconds it stood still while its snapshots
+                                 were drawn and measured (cmd_converge.c, measuring_begin) */
+    double final_seconds;     /* the previewer's clock when the last snapshot measured was published */
     cache_snapshot final;     /* statistics of the last snapshot measured (lights copied below) */
     cache_mesh_stats final_lights[MAX_MESHES];
     rend_frame_times frame_times;
