@@ -140,9 +140,10 @@ static void snapshot_samples(const conv_ctx *c, const cache_snapshot *snap, conv
     row->jnd = snap->jnd;
 }
 
-static void keep_final(conv_ctx *c, const cache_snapshot *snap, double t0)
+/* published: the snapshot's publication on the previewer's clock. */
+static void keep_final(conv_ctx *c, const cache_snapshot *snap, double published)
 {
-    c->final_seconds = snap->published_at - t0 - c->stopped;
+    c->final_seconds = published;
     c->final = *snap;
     memcpy(c->final_lights, snap->stats.lights, c->light_count * sizeof *c->final_lights);
     c->final.stats.lights = c->final_lights;
@@ -308,7 +309,13 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
             r = ar;
             break;
         }
-        /* (A snapshot published while the clock ran: no stop came between.) */
+        /* On the clock: a paused worker publishes nothing, so a snapshot (and a
+         * convergence) came after every stop so far; the one acquired again
+         * (finished) keeps the time it was first given. */
+        const double published = !snap ? 0.0
+                                 : c->have_final && snap->generation == c->final.generation
+                                     ? c->final_seconds
+                                     : snap->published_at - t0 - c->stopped;
         if (c->converged_at < 0 && snap && snap->converged) c->converged_at = snap->converged_at - t0 - c->stopped;
         if (snap && snap->finished) {
             /* Converged at the JND it refined to last, or stopped above it: the
@@ -340,7 +347,7 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
         measuring_end(c, rs, begun);
         if (r == LM_OK) {
             run->count++;
-            if (snap) keep_final(c, snap, t0);
+            if (snap) keep_final(c, snap, published);
             progress(c, run->method, row->seconds, row, 0);
         }
     }
