@@ -36,9 +36,8 @@ void filter_texel(ivec2 p)
 #endif
 }
 
-// Each invocation does a u_block×u_block block of texels: llvmpipe allocates a
-// coroutine frame an invocation, which a texel an invocation paid millions of
-// times a build.
+// Each invocation does a u_block×u_block block of texels (why: PULLPUSH_BLOCK
+// in ref_ism.c).
 uniform int u_block;
 
 void main()

@@ -44,8 +44,7 @@ void splat(int k, int i)
 }
 
 // Each invocation splats every (groups · 64)-th point of its map from its own:
-// llvmpipe runs each invocation as a coroutine whose frame it allocates, a cost
-// that one point an invocation paid 4,096 times a map.
+// several points an invocation (why: SPLAT_POINTS_PER_INVOCATION in ref_ism.c).
 void main()
 {
     int i = int(gl_GlobalInvocationID.y), stride = int(gl_NumWorkGroups.x * gl_WorkGroupSize.x);

@@ -539,10 +539,10 @@ size_t cache_borrowed_waiting(const cache *c);
 
 /* ---- cache_glossy.c: the glossy reflection of the source ------------------------------ */
 
-/* Rays of one glossy gather (a square). */
-/* Rays of a new glossy part (cache_glossy.c): few, so that a specular leaf's test
- * is not held up by it; where its noise is seen the sweep takes it again with 4×
- * as many, up to 4,096 (docs/cache.md, "Water's first seconds"). */
+/* Rays of a new glossy part (a square, for the strata; cache_glossy.c): few, so
+ * that a specular leaf's test is not held up by it; where its noise is seen the
+ * sweep takes it again with 4× as many, up to 4,096 (docs/cache.md, "Water's
+ * first seconds"). */
 enum { CACHE_GLOSSY_RAYS = 16 };
 /* Does the cache reflect the source in glossy materials (a specular mesh, and
  * cache_desc.glossy CACHE_GLOSSY_INDIRECT)? */
