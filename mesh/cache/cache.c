@@ -469,6 +469,9 @@ void cache_get_stats(cache *c, cache_stats *out)
     mesh_qmesh_get_stats(c->direct, &out->direct.mesh);
     mesh_qmesh_get_stats(c->indirect, &out->indirect.mesh);
     if (c->specular) mesh_qmesh_get_stats(c->specular, &out->specular.mesh);
+    out->direct.yield = cache_sched_yield(c, CACHE_KIND_DIRECT);
+    out->indirect.yield = cache_sched_yield(c, CACHE_KIND_INDIRECT);
+    out->specular.yield = c->specular ? cache_sched_yield(c, CACHE_KIND_SPECULAR) : 0.0;
     out->bytes = out->direct.mesh.bytes + out->indirect.mesh.bytes + out->specular.mesh.bytes;
     cache_mesh_stats *ls = c->vis.light_stats;
     for (uint32_t l = 0; l < c->light_count; ++l) {

@@ -294,6 +294,11 @@ typedef struct cache_mesh_stats {
     mesh_qmesh_stats mesh;
     uint64_t samples;           /* fresh samples taken for this mesh */
     uint64_t interpolated;      /* values served by interpolation instead of a sample */
+    double yield;               /* direct, indirect, specular: what its leaf tests removed per unit of
+                                   the priority they were picked at, lately (pixel·ΔE per pixel·ΔE;
+                                   1 before its first test; the heap scheduler weighs the mesh by it,
+                                   docs/cache.md "Meshes weighed by what their tests remove"); light
+                                   meshes: 0 */
 } cache_mesh_stats;
 
 /* Bounces beyond the first (docs/cache.md "Bounces"): they enter the displayed

@@ -340,6 +340,11 @@ typedef struct cache_sched {
      * none yet). The heap scheduler gives the next round to the mesh whose top
      * priority (pixels × ΔE) per ray is highest (cache_sched_refine). */
     double leaf_rays[CACHE_KINDS];
+    /* Per mesh: the error its leaf tests removed (the kept splits: pixels × their
+     * midpoints' ΔE, or an unseen source leaf's change as the viewer sees it)
+     * and the priorities the leaves were picked at, both decayed by YIELD_MEMORY
+     * a round; next_kind weighs each top priority by their ratio (cache_refine.c). */
+    double removed[CACHE_KINDS], predicted[CACHE_KINDS];
 } cache_sched;
 
 struct cache {
@@ -771,6 +776,10 @@ size_t cache_sched_bytes(const cache_sched *st);
 /* Every leaf of that mesh (kind; CACHE_KINDS: of every mesh) is scheduled afresh
  * at the next cache_sched_refine (a light or the camera changed). */
 void cache_sched_requeue(cache_sched *st, int kind);
+/* A mesh's yield: what its leaf tests removed per unit of the priority they
+ * were picked at, lately (cache_sched.removed / predicted; 1 before its first
+ * test). The heap scheduler weighs the mesh's top priority by it. */
+double cache_sched_yield(const cache *c, cache_kind kind);
 /* Forgets every residual of one mesh (its tree was made anew: cache_set_camera). */
 void cache_sched_forget(cache_sched *st, cache_kind kind);
 /* A leaf of `kind` covering px pixels that no test splits: no larger than a

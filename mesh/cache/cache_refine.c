@@ -300,8 +300,8 @@ static lm_result sched_done(cache *c, refine_kind kind, uint32_t node, lm_error 
     return r;
 }
 
-/* The next leaf to test; 0 when none is waiting. */
-static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t *out)
+/* The next leaf to test and the priority it was picked at; 0 when none is waiting. */
+static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t *out, float *picked)
 {
     const mesh_qmesh *m = mesh_of(c, kind);
     if (c->desc.scheduler != CACHE_SCHED_RANDOM) {
@@ -315,6 +315,7 @@ static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_
             /* A leaf of one sample never splits (an unseen source leaf: by its importance). */
             if (!source_only(pixels, kind, n) && below_sample(c, kind, pixels, n)) continue;
             *out = e.node;
+            *picked = e.priority;
             return 1;
         }
         c->sched.waiting[kind] = 0;
@@ -348,6 +349,7 @@ static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_
             node = best;
         }
         const mesh_qnode *leaf = mesh_qmesh_node(m, node);
+        *picked = prio[node];
         if (set_leaf_priority(c, kind, node, -1.0f, &ignore) != LM_OK) return 0; /* being tested */
         if (below_sample(c, kind, pixels, leaf)) continue;
         *out = node;
@@ -376,10 +378,12 @@ float cache_node_priority(const cache *c, int mesh, uint32_t node)
 #define SOURCE_EDGE_JND 0.5f
 #define SOURCE_SIZE_JND 8.0f
 
-static int source_split_seen(const cache *c, uint32_t node, const mesh_qnode *n, const uint32_t mid[3])
+static int source_split_seen(const cache *c, uint32_t node, const mesh_qnode *n, const uint32_t mid[3],
+                             float *seen_change)
 {
     float imax, isum;
     cache_node_importance(c, node, &imax, &isum);
+    *seen_change = 0.0f;
     if (!(imax > 0.0f)) return 0;
     const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
     float dev = 0.0f, peak = source_peak(c, n);
@@ -395,7 +399,9 @@ static int source_split_seen(const cache *c, uint32_t node, const mesh_qnode *n,
         dev += d;
     }
     /* The children's share of the importance is a quarter each: imp_max stays the
-     * parent's bound for the change over the whole leaf. */
+     * parent's bound for the change over the whole leaf. What the viewer sees of
+     * the change, in source_priority's units (pixel·ΔE): isum times it. */
+    *seen_change = isum * 0.25f * dev;
     return imax * 0.25f * dev > SOURCE_EDGE_JND * c->desc.jnd || imax * peak > SOURCE_SIZE_JND * c->desc.jnd;
 }
 
@@ -464,10 +470,23 @@ static float noise_delta_e(const cache *c, uint32_t tri, const float background[
     return tm_delta_e(lab, lab_interp);
 }
 
+/* A leaf's priority (leaf_priority: pixels × (1 + its corners' ΔE);
+ * source_priority) predicts what its test removes, but not equally well for
+ * every mesh: an untested leaf of uniform wall is counted at one ΔE a pixel and
+ * its test usually finds nothing, while a specular leaf across a highlight's
+ * rim finds most of its contrast. The heap scheduler weighs each mesh's top
+ * priority by what that mesh's tests have removed per unit of the priority they
+ * were picked at, its yield (cache_sched_yield): a running ratio in which each round
+ * counts YIELD_MEMORY less a round after (1 until a mesh's first round).
+ * Measured on the Cornell boxes and the Veach door (docs/cache.md, "Meshes
+ * weighed by what their tests remove"). */
+#define YIELD_MEMORY 0.8
+
 typedef struct round_leaf {
     uint32_t node;
     uint32_t mirror;            /* single mesh: the indirect node split along with it */
     uint32_t mid[3];            /* vtable ids of the midpoints of edges 01, 12, 20 */
+    float picked;               /* the priority it was picked at (cache_sched_yield) */
     double mw1[3], mw2[3];      /* their barycentrics */
     double cw1[3], cw2[3];      /* the corners' */
 } round_leaf;
@@ -498,7 +517,8 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
 
     /* Pick and split tentatively. */
     uint32_t node;
-    while (nl < max_leaves && nl < ROUND_LEAVES && r == LM_OK && pick_leaf(c, kind, pixels, &node)) {
+    float picked = 0.0f;
+    while (nl < max_leaves && nl < ROUND_LEAVES && r == LM_OK && pick_leaf(c, kind, pixels, &node, &picked)) {
         const mesh_qnode *n = mesh_qmesh_node(m, node);
         double cw1[3], cw2[3];
         for (int k = 0; k < 3; ++k) cache_node_corner_bary(n, k, &cw1[k], &cw2[k]);
@@ -519,6 +539,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         const mesh_qnode *centre = mesh_qmesh_node(m, n->child + 3); /* (m01, m12, m20) */
         round_leaf *rl = &leaves[nl++];
         rl->node = node;
+        rl->picked = picked;
         rl->mirror = MESH_QMESH_NONE;
         if (kind == KIND_DIRECT && c->desc.single_mesh) {
             /* One combined mesh: the indirect mesh follows the direct one split for
@@ -591,7 +612,10 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     /* What the new visible gathers draw from: the source is refined there. */
     if (r == LM_OK && kind == KIND_INDIRECT) r = schedule_important_sources(c, sites, ns, pixels, err);
 
-    /* Edge tests: keep or undo. */
+    /* Edge tests: keep or undo. What the kept splits removed (pixels × their
+     * midpoints' ΔE; an unseen source leaf's change as the viewer sees it),
+     * against the priorities the leaves were picked at (cache_sched_yield). */
+    double predicted = 0.0, removed = 0.0;
     for (uint32_t i = 0; r == LM_OK && i < nl; ++i) {
         const mesh_qnode *n = mesh_qmesh_node(m, leaves[i].node);
         uint32_t tri = n->tri, corner[3] = {n->v[0], n->v[1], n->v[2]}, child = n->child;
@@ -605,8 +629,9 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         int tested_mid = 0;
         int combined = leaves[i].mirror != MESH_QMESH_NONE;
         int unseen = source_only(pixels, kind, n);
+        float seen_change = 0.0f; /* unseen: what its split changes on screen */
         if (unseen) {
-            found = source_split_seen(c, leaves[i].node, n, leaves[i].mid);
+            found = source_split_seen(c, leaves[i].node, n, leaves[i].mid, &seen_change);
             px = 0.0f;
         }
         for (int k = 0; k < 3 && !found && !unseen; ++k) {
@@ -664,7 +689,9 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         if (!found && !unseen && kind == KIND_INDIRECT && !combined && px > c->desc.min_leaf_pixels &&
             corners_parted(c, n))
             found = 1;
+        predicted += leaves[i].picked;
         if (found || px > min_pixels) {
+            removed += unseen ? (double)seen_change : (double)px * interp_err;
             res->split++;
             uint32_t gen = unseen && source_all_dark(c, n, leaves[i].mid) ? dark_generations(c, leaves[i].node) + 1 : 0;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
@@ -683,6 +710,11 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             res->undone++;
             c->sched.undone++;
         }
+    }
+    if (r == LM_OK && predicted > 0.0) {
+        cache_sched *st = &c->sched;
+        st->removed[kind] = YIELD_MEMORY * st->removed[kind] + removed;
+        st->predicted[kind] = YIELD_MEMORY * st->predicted[kind] + predicted;
     }
     return r;
 }
@@ -895,6 +927,12 @@ static void note_leaf_cost(cache *c, int kind, double rays)
     *s = *s > 0.0 ? 0.8 * *s + 0.2 * rays : rays;
 }
 
+double cache_sched_yield(const cache *c, cache_kind kind)
+{
+    const cache_sched *st = &c->sched;
+    return st->predicted[kind] > 0.0 ? st->removed[kind] / st->predicted[kind] : 1.0;
+}
+
 /* The mesh the heap scheduler tests next, or -1 when no leaf is waiting or the
  * budget is spent: the highest top priority (pixels × ΔE its test may remove)
  * per ray a leaf test of that mesh takes (cache.effort). One budget of leaves a
@@ -912,7 +950,7 @@ static int next_kind(const cache *c, uint32_t total_left, int indirect_too)
         if (!c->sched.waiting[k] || !cache_kind_mesh(c, (cache_kind)k)) continue;
         if (k == KIND_INDIRECT && !indirect_too) continue;
         const double cost = c->sched.leaf_rays[k];
-        const double rate = cost > 0.0 ? (double)top_priority(c, k) / cost : INFINITY;
+        const double rate = cost > 0.0 ? (double)top_priority(c, k) * cache_sched_yield(c, (cache_kind)k) / cost : INFINITY;
         if (rate > best_rate) best = k, best_rate = rate;
     }
     return best;

@@ -44,6 +44,7 @@ static cJSON *mesh_json(const char *name, const char *kind, int light, const cac
     cJSON_AddNumberToObject(o, "splits", (double)m->mesh.splits);
     cJSON_AddNumberToObject(o, "undone_splits", (double)m->mesh.merges);
     cJSON_AddNumberToObject(o, "bytes", (double)m->mesh.bytes);
+    if (light < 0) cJSON_AddNumberToObject(o, "yield", m->yield);
     int last = -1;
     for (int d = 0; d < MESH_QMESH_DEPTHS; ++d)
         if (m->mesh.leaves_at_depth[d]) last = d;
