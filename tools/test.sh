@@ -19,8 +19,22 @@ ctest --test-dir build/release --output-on-failure -j "$jobs"
 
 cmake -S . -B build/asan -DCMAKE_BUILD_TYPE=Debug -DLUMESH_WERROR=ON -DLUMESH_SANITIZE=ON
 cmake --build build/asan -j "$jobs"
-ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
-  ctest --test-dir build/asan --output-on-failure -j "$jobs"
+export ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1
+if ! ctest --test-dir build/asan --output-on-failure -j "$jobs"; then
+  # LeakSanitizer's own tracer thread sometimes crashes at exit while it stops a
+  # process's threads ("Tracer caught signal 11", google/sanitizers#1353): 3 of
+  # ~15 CI runs, each time one CLI test whose run had finished and written its
+  # files. A failure whose output has that signature, and only such failures,
+  # are run once more; any other failure fails the run at once.
+  tmp=build/asan/Testing/Temporary
+  failed=$(cut -d: -f2 "$tmp/LastTestsFailed.log")
+  tracer=$(awk '/^[0-9]+\/[0-9]+ Testing: /{name=$3} /Tracer caught signal/{print name}' "$tmp/LastTest.log" | sort -u)
+  others=$(comm -23 <(echo "$failed" | sort -u) <(echo "$tracer"))
+  if [ -n "$others" ] || [ -z "$failed" ]; then exit 8; fi
+  echo "LeakSanitizer's tracer crashed in: $(echo $failed); running them once more" >&2
+  ctest --test-dir build/asan --output-on-failure -R "^($(echo $failed | tr ' ' '|'))\$"
+fi
+unset ASAN_OPTIONS UBSAN_OPTIONS
 
 cmake -S . -B build/tsan -DCMAKE_BUILD_TYPE=Debug -DLUMESH_WERROR=ON -DLUMESH_TSAN=ON
 cmake --build build/tsan -j "$jobs" --target cache_worker_test lumesh_cli view_image_check
