@@ -935,7 +935,9 @@ double cache_sched_yield(const cache *c, cache_kind kind)
 
 /* The mesh the heap scheduler tests next, or -1 when no leaf is waiting or the
  * budget is spent: the highest top priority (pixels × ΔE its test may remove)
- * per ray a leaf test of that mesh takes (cache.effort). One budget of leaves a
+ * times its mesh's yield (what its tests have removed per unit of priority:
+ * cache_sched_yield, YIELD_MEMORY), per ray a leaf test of that mesh takes
+ * (cache.effort). One budget of leaves a
  * call, shared by cost: on the Veach door a direct leaf (light samples) took
  * 17 µs and an indirect one (gathers of up to 4,096 rays) 2.4 ms; fixed shares of
  * the leaves (a fifth to indirect) gave the gathers 70% of the time and left the
