@@ -189,6 +189,16 @@ check("mesh0 STREQUAL \"light0\"" "statistics: first mesh is '${mesh0}'")
 file(READ ${out}/stats.json s)
 string(JSON nmesh LENGTH "${s}" meshes)
 check("nmesh EQUAL 3" "stats.json lists ${nmesh} meshes, expected light0, direct, indirect (no gloss: no specular)")
+# Each radiance mesh's yield (what its tests removed per unit of priority, which
+# the scheduler weighs it by; docs/stats.md): a number above 0 once it has been
+# refined; a light mesh has none.
+foreach(k 1 2)
+  string(JSON name GET "${s}" meshes ${k} mesh)
+  string(JSON yield GET "${s}" meshes ${k} yield)
+  check("yield GREATER 0" "stats.json: the ${name} mesh's yield is ${yield}")
+endforeach()
+string(JSON light_yield ERROR_VARIABLE no_yield GET "${s}" meshes 0 yield)
+check("NOT no_yield STREQUAL \"NOTFOUND\"" "stats.json: the light mesh has a yield (${light_yield})")
 
 foreach(f convergence.png first-image.exr lumesh-00000.050s.exr lumesh-00003.000s.png path-tracer-00001.000s.exr)
   check("EXISTS ${out}/${f}" "${f} was not written")

@@ -343,7 +343,9 @@ typedef struct cache_sched {
     /* Per mesh: the error its leaf tests removed (the kept splits: pixels × their
      * midpoints' ΔE, or an unseen source leaf's change as the viewer sees it)
      * and the priorities the leaves were picked at, both decayed by YIELD_MEMORY
-     * a round; next_kind weighs each top priority by their ratio (cache_refine.c). */
+     * a round and cleared when the mesh's queue is made afresh (schedule_leaves:
+     * a new view, a light edit, a lower JND); next_kind weighs each top priority
+     * by their ratio (cache_refine.c). */
     double removed[CACHE_KINDS], predicted[CACHE_KINDS];
 } cache_sched;
 

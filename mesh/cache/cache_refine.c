@@ -880,6 +880,10 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
     c->sched.root_count[kind] = 0;
     c->sched.cur_root[kind] = MESH_QMESH_NONE;
     c->sched.requeue[kind] = 0;
+    /* A new queue: its yield is measured afresh. Kept across, a mesh whose last
+     * rounds found nothing (the viewer's direct mesh converged: 1.5e-15) waited
+     * after a move or a light edit until every other mesh was done. */
+    c->sched.removed[kind] = c->sched.predicted[kind] = 0.0;
     if (!m || (kind == KIND_INDIRECT && c->desc.single_mesh)) return LM_OK; /* single mesh: it follows direct */
     free(c->sched.roots[kind]);
     c->sched.roots[kind] = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *c->sched.roots[kind]);
