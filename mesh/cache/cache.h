@@ -296,7 +296,8 @@ typedef struct cache_mesh_stats {
     uint64_t interpolated;      /* values served by interpolation instead of a sample */
     double yield;               /* direct, indirect, specular: what its leaf tests removed per unit of
                                    the priority they were picked at, lately (pixel·ΔE per pixel·ΔE;
-                                   1 before its first test; the heap scheduler weighs the mesh by it,
+                                   1 before its first test since its queue was last made: a new view,
+                                   a light edit, a lower JND; the heap scheduler weighs the mesh by it,
                                    docs/cache.md "Meshes weighed by what their tests remove"); light
                                    meshes: 0 */
 } cache_mesh_stats;

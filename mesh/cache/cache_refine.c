@@ -477,7 +477,8 @@ static float noise_delta_e(const cache *c, uint32_t tri, const float background[
  * rim finds most of its contrast. The heap scheduler weighs each mesh's top
  * priority by what that mesh's tests have removed per unit of the priority they
  * were picked at, its yield (cache_sched_yield): a running ratio in which each round
- * counts YIELD_MEMORY less a round after (1 until a mesh's first round).
+ * counts YIELD_MEMORY less a round after (1 until the mesh's first round since
+ * its queue was last made: schedule_leaves).
  * Measured on the Cornell boxes and the Veach door (docs/cache.md, "Meshes
  * weighed by what their tests remove"). */
 #define YIELD_MEMORY 0.8
