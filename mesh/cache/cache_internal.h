@@ -780,7 +780,8 @@ size_t cache_sched_bytes(const cache_sched *st);
 void cache_sched_requeue(cache_sched *st, int kind);
 /* A mesh's yield: what its leaf tests removed per unit of the priority they
  * were picked at, lately (cache_sched.removed / predicted; 1 before its first
- * test). The heap scheduler weighs the mesh's top priority by it. */
+ * test since its queue was last made). The heap scheduler weighs the mesh's top
+ * priority by it. */
 double cache_sched_yield(const cache *c, cache_kind kind);
 /* Forgets every residual of one mesh (its tree was made anew: cache_set_camera). */
 void cache_sched_forget(cache_sched *st, cache_kind kind);
