@@ -139,13 +139,17 @@ static double seen_delta_e(const float a[3], const float b[3])
     return tm_delta_e(la, lb);
 }
 
-static void lab_of(float radiance, float lab[3])
+/* The diffuse colour of the plane under `radiance` as the display shows it at
+ * `exposure` stops. */
+static void lab_at(float exposure, float radiance, float lab[3])
 {
-    tm_desc tm = {0};
+    tm_desc tm = {.exposure = exposure};
     float rgb[3] = {KD * radiance, KD * radiance, KD * radiance}, d[3];
     tm_to_display(&tm, rgb, d);
     tm_display_to_lab(d, lab);
 }
+
+static void lab_of(float radiance, float lab[3]) { lab_at(0.0f, radiance, lab); }
 
 /* Random point on the plane's central 3×3 (barycentrics in its triangle). */
 static void random_plane_point(lm_rng *g, const scene *s, uint32_t *tri, double *w1, double *w2, float p[3])
@@ -217,10 +221,12 @@ static void test_lone_light(void)
     scene_destroy(s);
 }
 
-/* The cache's G of light 0 against a 4096-ray Embree estimate at 1000 random
- * points of the plane, as the ΔE of the diffuse colour: returns the sum of ΔE,
- * *n the points, *above those beyond the JND. */
-static double against_embree(const run *u, const scene *s, int *n, int *above)
+/* The cache's G of light 0 (direct_mesh: the direct mesh's L_dd) against a
+ * 4096-ray Embree estimate at 1000 random points of the plane, as the ΔE of the
+ * diffuse colour (light 0's radiance le) shown at `exposure`: returns the sum of ΔE, *n the points, *above those beyond
+ * the JND. */
+static double against_embree_at(const run *u, const scene *s, float le, float exposure, int direct_mesh, int *n,
+                                int *above)
 {
     samp_sampler *ref = NULL;
     lm_error err;
@@ -239,8 +245,10 @@ static double against_embree(const run *u, const scene *s, int *n, int *above)
         float Gr, a[3], b[3];
         CHECK(samp_direct(ref, 0, &x, 1, &Gr, &err) == LM_OK);
         CHECK(cache_eval_G(u->c, 0, tri, w1, w2, &G, &err) == LM_OK);
-        lab_of((float)(LE * G / M_PI), a);
-        lab_of((float)(LE * Gr / M_PI), b);
+        float ldd[3];
+        CHECK(cache_eval_direct(u->c, tri, w1, w2, ldd, &err) == LM_OK);
+        lab_at(exposure, direct_mesh ? ldd[0] : (float)(le * G / M_PI), a);
+        lab_at(exposure, (float)(le * Gr / M_PI), b);
         double de = tm_delta_e(a, b);
         sum_de += de;
         *above += de > 2.0;
@@ -248,6 +256,11 @@ static double against_embree(const run *u, const scene *s, int *n, int *above)
     }
     samp_destroy(ref);
     return sum_de;
+}
+
+static double against_embree(const run *u, const scene *s, int *n, int *above)
+{
+    return against_embree_at(u, s, LE, 0.0f, 0, n, above);
 }
 
 static void test_blocker(void)
@@ -273,6 +286,73 @@ static void test_blocker(void)
               (unsigned long long)st.lights[0].samples, (unsigned long long)st.direct.samples);
     stop(&u);
     scene_destroy(s);
+}
+
+/* The display's exposure (cache_set_exposure; the viewer's + and −): a cache
+ * converged at the scene's exposure is judged again at another. Two cases over
+ * the blocker's plane: a light bright enough that the blocker's penumbra is
+ * clipped to white at exposure 0, seen 3 stops darker; and the plane's dim
+ * outskirts, too dark at 0 to show their interpolation, seen 3 stops brighter.
+ * The direct mesh against 4,096-ray Embree at the new exposure (mean ΔE and
+ * points beyond the JND): converged at 0, the cache is off there (measured 104
+ * and 60 of 1,000 points beyond the JND, mean ΔE 0.73 and 0.52; required above
+ * 50, so the check can fail); once told the exposure it is tested again (right
+ * after the change every leaf is untested: the estimate claims nothing) and
+ * converges within the bounds test_blocker asks at exposure 0 (measured 17 and
+ * 2 points, mean ΔE 0.35 and 0.30). */
+static void exposure_case(float le, float exposure)
+{
+    char light[256], name[64];
+    snprintf(light, sizeof light,
+             "{\"type\": \"quad\", \"corner\": [-0.5, 1, -0.5], \"edge1\": [1, 0, 0], \"edge2\": [0, 0, 1],"
+             " \"radiance\": [%g, %g, %g]}",
+             le, le, le);
+    snprintf(name, sizeof name, "cache_exposure_%g.json", exposure);
+    scene *s = load_lights(name, 1, light);
+    run u;
+    /* 1,000 pixels a triangle: a small view, where the JND rather than the
+     * pixels' size bounds the leaves (at 40,000 both exposures refine to the
+     * pixels, and neither shows the other's error). */
+    if (!s || !start(&u, s, 1000, 0)) return;
+    lm_error err;
+    cache_refine_result tot;
+    CHECK(converge(&u, 400, &tot) == LM_OK);
+    int n0 = 0, above0 = 0, n1 = 0, above1 = 0;
+    const double de0 = against_embree_at(&u, s, le, exposure, 1, &n0, &above0) / fmax(n0, 1);
+    cache_stats st0, st1;
+    cache_get_stats(u.c, &st0);
+    CHECK(cache_set_exposure(u.c, exposure, &err) == LM_OK);
+    CHECK(cache_get_exposure(u.c) == exposure);
+    cache_estimate est;
+    CHECK(cache_estimate_error(u.c, u.pixels, &est, &err) == LM_OK);
+    CHECK_MSG(est.exposure == exposure && est.untested > 0.99, "after the change: exposure %g, %.3f untested",
+              (double)est.exposure, est.untested);
+    cache_refine_result tot1;
+    CHECK(converge(&u, 400, &tot1) == LM_OK);
+    const double de1 = against_embree_at(&u, s, le, exposure, 1, &n1, &above1) / fmax(n1, 1);
+    cache_get_stats(u.c, &st1);
+    CHECK(cache_estimate_error(u.c, u.pixels, &est, &err) == LM_OK);
+    printf("exposure %+g (light %g): converged at 0, at %+g mean ΔE %.3f, %d of %d beyond the JND (%u direct leaves); "
+           "refined for it: %.3f, %d (%u leaves, %u tested again); estimate %.3f, %.3f untested\n",
+           (double)exposure, (double)le, (double)exposure, de0, above0, n0, st0.direct.mesh.leaves, de1, above1,
+           st1.direct.mesh.leaves, tot1.tested, est.mean, est.untested);
+    CHECK_MSG(above0 > n0 / 20, "converged at 0, only %d of %d points beyond the JND at %+g: the case shows nothing",
+              above0, n0, (double)exposure);
+    CHECK_MSG(above1 <= n1 / 50 && de1 <= 0.5, "refined for %+g: %d of %d beyond the JND, mean ΔE %.3f",
+              (double)exposure, above1, n1, de1);
+    CHECK(tot1.remaining == 0 && est.untested < 0.01);
+    /* Back to the exposure it has: nothing changes. */
+    CHECK(cache_set_exposure(u.c, exposure, &err) == LM_OK);
+    CHECK(cache_estimate_error(u.c, u.pixels, &est, &err) == LM_OK && est.untested < 0.01);
+    CHECK(cache_set_exposure(u.c, NAN, &err) == LM_ERR_INVALID_ARG);
+    stop(&u);
+    scene_destroy(s);
+}
+
+static void test_exposure(void)
+{
+    exposure_case(8.0f * LE, -3.0f); /* clipped at 0 */
+    exposure_case(LE, 3.0f);         /* too dark at 0 */
 }
 
 static void test_determinism_and_cap(void)
@@ -1503,6 +1583,7 @@ int main(void)
 {
     test_lone_light();
     test_blocker();
+    test_exposure();
     test_determinism_and_cap();
     test_light_edit();
     test_random_scheduler();

@@ -8,6 +8,7 @@
  *   - a camera move through the worker (set_view): the specular mesh starts again
  *     for the new eye (its values there change), the direct mesh keeps every node;
  *   - debug data switched on and off on a finished worker: published at once;
+ *   - a new exposure: a converged worker refines again for it, and converges there;
  *   - AUTO: refinement starts with Embree and the calibration waits for the first
  *     convergence (with a JND floor), as the snapshots' sampler choice says;
  *   - destroy while refining (a bigger scene): joins cleanly (ASan: nothing leaks).
@@ -221,6 +222,43 @@ static void test_seen_only_first(scene *s, const uint32_t *pixels)
     CHECK(fabs((double)st[1].indirect.samples - (double)st[0].indirect.samples) <= 0.01 * (double)st[0].indirect.samples);
 }
 
+/* A new exposure through the worker (cache_worker_set_exposure): a worker that
+ * converged at the scene's exposure and idles refines again for the colours
+ * shown 3 stops brighter (the plane's dim outskirts come into view: cache_test's
+ * exposure cases), its next snapshots' estimate is at that exposure, and it
+ * converges there with more leaves tested. */
+static void test_set_exposure(const scene *s)
+{
+    uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
+    if (!pixels) return;
+    pixels[0] = pixels[1] = 1000; /* a small view: the JND bounds the leaves (cache_test.c) */
+    lm_error err;
+    cache_worker *w = NULL;
+    samp_desc sd = {.backend = SAMP_BACKEND_EMBREE, .seed = 2, .threads = 1};
+    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = pixels, .step_budget = 256},
+                              &w, &err) == LM_OK);
+    const cache_snapshot *a = w ? test_wait_finished(w, 60.0) : NULL;
+    CHECK(a && a->finished && a->converged && a->estimate.exposure == s->exposure);
+    if (a && a->finished) {
+        const uint64_t tested = a->tested, gen = a->generation;
+        const uint32_t leaves = a->stats.direct.mesh.leaves;
+        CHECK(cache_worker_set_exposure(w, s->exposure + 3.0f, &err) == LM_OK);
+        const cache_snapshot *b = wait_newer(w, gen);
+        double t0 = lm_now_seconds();
+        while (b && !b->finished && lm_now_seconds() - t0 < 60.0) b = wait_newer(w, b->generation);
+        printf("set_exposure +3: %llu leaves tested -> %llu, direct leaves %u -> %u, estimate at %+g: mean ΔE %.3f "
+               "(%s)\n",
+               (unsigned long long)tested, (unsigned long long)(b ? b->tested : 0), leaves,
+               b ? b->stats.direct.mesh.leaves : 0, b ? (double)b->estimate.exposure : 0.0,
+               b ? b->estimate.mean : 0.0, b && b->converged ? "converged" : "not converged");
+        CHECK(b && b->finished && b->converged && b->estimate.exposure == s->exposure + 3.0f);
+        CHECK(b && b->tested > tested && b->stats.direct.mesh.leaves > leaves);
+        CHECK(cache_worker_set_exposure(w, NAN, &err) == LM_ERR_INVALID_ARG);
+    }
+    cache_worker_destroy(w);
+    free(pixels);
+}
+
 int main(void)
 {
     scene *s = load();
@@ -405,6 +443,7 @@ int main(void)
     test_seen_only_first(s, pixels);
     test_set_view(pixels);
     test_auto_deferred(s, pixels);
+    test_set_exposure(s);
     free(buf);
     free(pixels);
     cache_destroy(c);

@@ -61,6 +61,7 @@ lumesh_cli_test(render_png 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/render.p
 lumesh_cli_test(render_residual 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/residual.png --width 32 --height 32
   --seconds 10 OUT "(stopped|converged) after .*; then [0-9]+\\.\\.[0-9]+ path samples a pixel corrected [0-9.]+% of its blocks")
 lumesh_cli_test(render_bad_residual 1 ARGS render -o x.png --residual maybe ERR "--residual takes on or off")
+lumesh_cli_test(render_bad_exposure 1 ARGS render -o x.png --exposure 99 ERR "--exposure")
 lumesh_cli_test(render_exr_samples 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/render.exr --width 48 --height 36 --samples 500
   OUT "48x36, .* after 500 leaves tested")
 # --debug-meshes DIR: leaves and samples of each mesh (the built-in scene has no glossy material).

@@ -582,10 +582,30 @@ lm_result cache_set_jnd(cache *c, float jnd, lm_error *err)
     if (jnd == c->desc.jnd) return LM_OK;
     c->desc.jnd = jnd;
     cache_sched_requeue(&c->sched, CACHE_KINDS);
-    return cache_borrow_jnd_changed(c, err);
+    return cache_borrow_retest(c, c->desc.jnd, err);
 }
 
 float cache_get_jnd(const cache *c) { return c->desc.jnd; }
+
+lm_result cache_set_exposure(cache *c, float exposure, lm_error *err)
+{
+    if (!c || !isfinite(exposure) || fabsf(exposure) > 64.0f)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_set_exposure: the exposure must be stops in [-64, 64], not %g",
+                       (double)exposure);
+    const float tm_exposure = exposure + c->desc.exposure_offset;
+    if (tm_exposure == c->tm.exposure) return LM_OK;
+    c->tm.exposure = tm_exposure;
+    /* The ΔE kept from earlier tests (each leaf's, each borrowed span's) were of
+     * the old colours: forgotten, and every leaf and span tested again. The
+     * importance of the source's nodes (ΔE per unit radiance, recorded by the
+     * gathers) is kept as a guide: the next gathers record it anew. */
+    for (int k = 0; k < CACHE_KINDS; ++k) cache_sched_forget(&c->sched, (cache_kind)k);
+    cache_sched_requeue(&c->sched, CACHE_KINDS);
+    cache_bounces_touch(c); /* auto: the bounce count is judged at the new exposure */
+    return cache_borrow_retest(c, -1.0f, err);
+}
+
+float cache_get_exposure(const cache *c) { return c->tm.exposure - c->desc.exposure_offset; }
 
 /* ---- refinement (cache_refine.c) ------------------------------------------------ */
 

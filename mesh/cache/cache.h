@@ -182,6 +182,7 @@ typedef struct cache_estimate {
     double untested;          /* fraction of those pixels in a leaf not tested yet (the worst mesh's):
                                  the estimate means little until this is near 0 */
     float jnd;                /* the JND it was measured against */
+    float exposure;           /* the display's exposure it was measured at (stops: cache_set_exposure) */
 } cache_estimate;
 
 /* Indirect values a rebuilt source moved that one cache_refine call gathers
@@ -264,6 +265,16 @@ lm_result cache_requeue(cache *c, lm_error *err);
  * (cache_worker_desc.jnd_floor: "never plateau", docs/cache.md). */
 lm_result cache_set_jnd(cache *c, float jnd, lm_error *err);
 float cache_get_jnd(const cache *c);
+/* The exposure the picture is shown at from now on (stops, as the scene's
+ * tonemap.exposure, which it is at creation; the viewer's + and −): every ΔE the
+ * cache judges (the edge tests, the borrowed values' tests, auto bounces, the
+ * error estimate) is of the colour at that exposure. What was clipped to white or
+ * too dark to see may now be seen, and what was seen may no longer be: as after
+ * cache_set_jnd every leaf is tested again, and the ΔE its last test left is
+ * forgotten (it was measured at the old exposure), so the estimate does not call
+ * the cache converged until the tests have looked again. No sample is taken here. */
+lm_result cache_set_exposure(cache *c, float exposure, lm_error *err);
+float cache_get_exposure(const cache *c);
 lm_result cache_eval_specular(const cache *c, uint32_t tri, double w1, double w2, float rgb[3], lm_error *err);
 
 /* Changes light `light`'s radiance (area light, W·m⁻²·sr⁻¹) or intensity (point

@@ -361,12 +361,12 @@ lm_result cache_borrow_test(cache *c, const uint32_t *pixels, cache_changed_fn c
     return r;
 }
 
-lm_result cache_borrow_jnd_changed(cache *c, lm_error *err)
+lm_result cache_borrow_retest(cache *c, float above, lm_error *err)
 {
     cache_borrow_state *b = &c->brw;
     lm_result r = LM_OK;
     for (size_t i = 0; r == LM_OK && i < b->accepted_n;) {
-        if (b->accepted[i].de <= c->desc.jnd) {
+        if (b->accepted[i].de <= above) {
             ++i;
             continue;
         }

@@ -158,6 +158,7 @@ lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_est
     if (!c || !out) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_estimate_error: no cache or no result");
     memset(out, 0, sizeof *out);
     out->jnd = c->desc.jnd;
+    out->exposure = cache_get_exposure(c);
     cache_mesh_estimate *per[CACHE_KINDS] = {&out->direct, &out->indirect, &out->specular};
     double sum = 0.0, above = 0.0, untested = 0.0;
     for (uint32_t t = 0; t < c->s->tri_count; ++t) out->pixels += pixels ? (double)pixels[t] : 1e6;

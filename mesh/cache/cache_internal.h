@@ -737,8 +737,9 @@ uint64_t cache_borrow_pending(const cache *c);
  * every triangle a million: every span splits to single corners). */
 lm_result cache_borrow_test(cache *c, const uint32_t *pixels, cache_changed_fn changed, void *user,
                             uint64_t *allowance, lm_error *err);
-/* The JND changed: accepted spans whose ΔE is now above it are tested again. */
-lm_result cache_borrow_jnd_changed(cache *c, lm_error *err);
+/* Accepted spans whose ΔE is above `above` are tested again: the JND changed
+ * (above = the new JND), or the exposure (above < 0: every span). */
+lm_result cache_borrow_retest(cache *c, float above, lm_error *err);
 /* Everything gathered now (a full regather): the spans go. */
 void cache_borrow_free(cache_borrow_state *b);
 size_t cache_borrow_bytes(const cache_borrow_state *b);

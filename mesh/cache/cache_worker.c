@@ -71,6 +71,8 @@ struct cache_worker {
     light_edit edits[MAX_EDITS];
     uint32_t edit_count;
     int new_bounces;                  /* set_bounces: the count waiting (cache_desc.bounces); 0: none */
+    float new_exposure;               /* set_exposure: the display's exposure waiting (stops) ... */
+    int new_exposure_set;             /* ... when this is non-zero */
     uint32_t *new_pixels;             /* set_pixels: a copy waiting for the worker to take it */
     int debug_wanted;                 /* snapshots carry the debug data (desc.publish_debug, then
                                          cache_worker_set_publish_debug) */
@@ -532,7 +534,8 @@ static void *worker_main(void *arg)
             /* Paused or idle, an edit, a new view or a change of the debug data still
              * wakes the worker: it is applied and published without a refinement
              * step (a paused viewer shows it); idle, refinement then goes on for it. */
-            if (((w->paused || idle) && nedit == 0 && !w->new_bounces && !w->new_pixels && !w->republish) ||
+            if (((w->paused || idle) && nedit == 0 && !w->new_bounces && !w->new_exposure_set && !w->new_pixels &&
+                 !w->republish) ||
                 no_pixels) {
                 w->parked = 1;
                 pthread_cond_broadcast(&w->cond);
@@ -554,8 +557,11 @@ static void *worker_main(void *arg)
             break;
         }
         int cancel = w->cancel, paused = w->paused, debug = w->debug_wanted, bounces = w->new_bounces;
+        const int exposure_set = w->new_exposure_set;
+        const float exposure = w->new_exposure;
         w->republish = 0;
         w->new_bounces = 0;
+        w->new_exposure_set = 0;
         if (!cancel && nedit) {
             memcpy(edits, w->edits, nedit * sizeof *edits);
             w->edit_count = 0;
@@ -571,6 +577,12 @@ static void *worker_main(void *arg)
         }
         if (r == LM_OK && bounces) r = cache_set_bounces(c, bounces, &err);
         if (bounces) nedit++; /* an edit like a light's */
+        /* A new exposure: the tests judge the colours shown from now on; like an
+         * edit, refined to the cache's JND first (no sample is taken by it). */
+        if (exposure_set && cache_get_exposure(c) != exposure) {
+            if (r == LM_OK) r = cache_set_exposure(c, exposure, &err);
+            nedit++;
+        }
         int new_view = 0;
         if (r == LM_OK) r = take_pixels(w, c, &new_view, &err);
         if (r != LM_OK) break;
@@ -849,6 +861,19 @@ lm_result cache_worker_set_bounces(cache_worker *w, int bounces, lm_error *err)
                        bounces);
     pthread_mutex_lock(&w->lock);
     w->new_bounces = bounces;
+    pthread_cond_broadcast(&w->cond);
+    pthread_mutex_unlock(&w->lock);
+    return LM_OK;
+}
+
+lm_result cache_worker_set_exposure(cache_worker *w, float exposure, lm_error *err)
+{
+    if (!isfinite(exposure) || fabsf(exposure) > 64.0f)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache_worker_set_exposure: stops in [-64, 64], not %g",
+                       (double)exposure);
+    pthread_mutex_lock(&w->lock);
+    w->new_exposure = exposure;
+    w->new_exposure_set = 1;
     pthread_cond_broadcast(&w->cond);
     pthread_mutex_unlock(&w->lock);
     return LM_OK;

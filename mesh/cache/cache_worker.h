@@ -21,8 +21,8 @@
  *     cache_worker_set_light(w, 0, rgb);                     // applied by the worker, no resampling
  *     cache_worker_destroy(w);                               // cancels and joins
  *
- * Threads: create, acquire, pause, resume, set_light, set_pixels and destroy are
- * for one thread (the display); the worker thread is private. A snapshot returned
+ * Threads: create, acquire, pause, resume, set_light, set_bounces, set_exposure,
+ * set_pixels and destroy are for one thread (the display); the worker thread is private. A snapshot returned
  * by acquire stays valid until the next acquire or destroy, and so do all the
  * arrays it points to (lights, corners), which belong to its slot.
  * Does NOT do: GL drawing (src/render/), choosing a sampler back end (sampling/samp.h),
@@ -107,6 +107,11 @@ lm_result cache_worker_set_light(cache_worker *w, uint32_t light, const float va
 /* Queued like a light edit: the diffuse bounces shown from now on (cache_set_bounces:
  * every indirect value gathered again, no light sample). */
 lm_result cache_worker_set_bounces(cache_worker *w, int bounces, lm_error *err);
+/* Queued like a light edit: the display's exposure from now on (stops; the
+ * viewer's + and −). The worker's tests judge the colours at it (cache_set_exposure:
+ * every leaf tested again, no sample taken by the change itself); an exposure
+ * equal to the cache's changes nothing. */
+lm_result cache_worker_set_exposure(cache_worker *w, float exposure, lm_error *err);
 /* New pixel counts per scene triangle (a new ID pass: the view changed); copied.
  * The worker takes them before its next step and reorders its queues by them. */
 lm_result cache_worker_set_pixels(cache_worker *w, const uint32_t *pixels, lm_error *err);

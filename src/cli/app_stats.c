@@ -133,6 +133,7 @@ cJSON *app_stats_json(const app_stats_desc *d)
     if (est) {
         const cache_estimate *e = &snap->estimate;
         cJSON_AddNumberToObject(est, "jnd", e->jnd);
+        cJSON_AddNumberToObject(est, "exposure", e->exposure);
         cJSON_AddNumberToObject(est, "pixels", e->pixels);
         cJSON_AddNumberToObject(est, "mean_delta_e", e->mean);
         cJSON_AddNumberToObject(est, "fraction_above_jnd", e->above_jnd);

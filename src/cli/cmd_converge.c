@@ -544,7 +544,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
                *stats_path = NULL, *bounces = NULL, *transport = NULL, *residual = "on", *methods = NULL,
                *vpl_clamp = NULL;
     long vpl_paths = 0, vpl_per_sample = 0;
-    double seconds = 0;
+    double seconds = 0, exposure = NAN;
     long supersample = REND_FRAME_SUPERSAMPLE_DEFAULT, accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     long seed = 1; /* not lumesh reference's default 0: the same seed would correlate the two images */
     int vs_pt = 0, single = 0;
@@ -552,6 +552,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         {"--reference", NULL, APP_OPT_STRING, &ref_path},
         {"--seconds", NULL, APP_OPT_DOUBLE, &seconds, 0.001, 1e5},
         {"--out", NULL, APP_OPT_STRING, &dir},
+        {"--exposure", NULL, APP_OPT_DOUBLE, &exposure, -64, 64},
         {"--snapshots", NULL, APP_OPT_STRING, &list},
         {"--vs-path-tracer", NULL, APP_OPT_FLAG, &vs_pt},
         {"--single-mesh", NULL, APP_OPT_FLAG, &single},
@@ -637,6 +638,8 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         img_free(&c.ref);
         return app_report(r, &err);
     }
+    /* The exposure shown and measured at (the cache's tests judge the colours at it). */
+    if (isfinite(exposure)) c.s->exposure = (float)exposure;
     sd.early_gl = early; /* the session's now (a wait for it counts: it is after t0) */
     c.cam = scene_find_camera(c.s, camera);
     c.w = c.ref.width;

@@ -195,7 +195,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
 {
     const char *out = NULL, *camera = NULL, *stats = NULL, *sampler = NULL, *gl_name = NULL, *bounces = NULL, *debug_dir = NULL,
                *components = NULL, *residual_opt = "on";
-    double seconds = 0;
+    double seconds = 0, exposure = NAN;
     long samples = 0, width = 0, height = 0, supersample = REND_FRAME_SUPERSAMPLE_DEFAULT,
          accumulate = REND_SESSION_ACCUMULATE_DEFAULT;
     int deterministic = 0;
@@ -216,6 +216,7 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         {"--accumulate", NULL, APP_OPT_INT, &accumulate, 1, REND_SESSION_ACCUMULATE_MAX},
         {"--components", NULL, APP_OPT_STRING, &components},
         {"--residual", NULL, APP_OPT_STRING, &residual_opt},
+        {"--exposure", NULL, APP_OPT_DOUBLE, &exposure, -64, 64},
     };
     const char *pos[1];
     int npos, rc = app_parse_options(cmd, argc, argv, opts, (int)(sizeof opts / sizeof opts[0]), pos, 1, &npos);
@@ -247,6 +248,9 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
     scene *s = NULL;
     lm_result r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &s, &err);
     if (r != LM_OK) return app_report(r, &err);
+    /* The picture's exposure: the image written and what the cache judges (its JND
+     * test sees the colours at it: cache_set_exposure). */
+    if (isfinite(exposure)) s->exposure = (float)exposure;
     int ci = scene_find_camera(s, camera);
     if (ci < 0) {
         lm_fail(&err, LM_ERR_BAD_INPUT, "%s: no camera named '%s'", s->source, camera);

@@ -4,6 +4,7 @@
  * direct-diffuse and light-mesh sample counts, so a script can check refinement
  * kept going across a camera move (the view-independent caches are kept) and
  * that a light edit took no light sample. */
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -97,7 +98,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     const char *sampler = NULL, *gl_name = NULL, *bounces = NULL, *script = NULL, *stats = NULL, *camera = NULL,
                *residual = "on", *indirect = "cache";
     long width = 0, height = 0;
-    double max_fps = VIEW_APP_DEFAULT_FPS;
+    double max_fps = VIEW_APP_DEFAULT_FPS, exposure = NAN;
     enum { OPT_WIDTH = 6, OPT_HEIGHT = 7 }; /* their places below */
     app_opt opts[] = {
         {"--sampler", NULL, APP_OPT_STRING, &sampler},
@@ -109,6 +110,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
         [OPT_WIDTH] = {"--width", NULL, APP_OPT_INT, &width, 1, 16384},
         [OPT_HEIGHT] = {"--height", NULL, APP_OPT_INT, &height, 1, 16384},
         {"--max-fps", NULL, APP_OPT_DOUBLE, &max_fps, 0, 1000},
+        {"--exposure", NULL, APP_OPT_DOUBLE, &exposure, -64, 64},
         {"--residual", NULL, APP_OPT_STRING, &residual},
         {"--indirect", NULL, APP_OPT_STRING, &indirect},
     };
@@ -138,6 +140,7 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     double t_load_start = lm_now_seconds();
     r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &s, &err);
     double t_scene = lm_now_seconds();
+    if (r == LM_OK && isfinite(exposure)) s->exposure = (float)exposure; /* where + and − start */
     int ci = r == LM_OK ? scene_find_camera(s, camera) : 0;
     if (r == LM_OK && ci < 0) r = lm_fail(&err, LM_ERR_BAD_INPUT, "%s: no camera named '%s'", s->source, camera);
     if (r == LM_OK) {

@@ -14,7 +14,9 @@
     "                      equal error on this machine, measured at start)\n"                \
     "  --gl NAME           GL platform of the gl sampler: egl (default) or osmesa\n"       \
     "  --bounces K|auto    diffuse bounces shown, 1..32, or auto (default): as many as change\n" \
-    "                      the picture by more than the JND where it is seen\n"
+    "                      the picture by more than the JND where it is seen\n"                \
+    "  --exposure E        stops of the picture's exposure (default: the scene's); the cache\n"   \
+    "                      refines for the colours shown at it\n"
 
 static const app_command commands[] = {
     {"info", "print what a scene holds: triangles, materials, lights, cameras, what was dropped",
@@ -32,7 +34,7 @@ static const app_command commands[] = {
      "                     [--width W --height H] [--supersample S] [--accumulate K] [--camera NAME]\n"
      "                     [--stats STATS.json] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
      "                     [--bounces K|auto] [--debug-meshes DIR] [--components LIST]\n"
-     "                     [--residual on|off]\n"
+     "                     [--residual on|off] [--exposure E]\n"
      "\n"
      "Refines the multi-mesh cache of SCENE (headless: EGL, or --gl osmesa) until it\n"
      "has converged at its JND (nothing left to test), T seconds have passed (it\n"
@@ -128,6 +130,7 @@ static const app_command commands[] = {
      "                       [--vpl-clamp F|none] [--camera NAME] [--stats STATS.json] [--supersample S] [--accumulate K]\n"
      "                       [--seed S] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
      "                       [--bounces K|auto] [--transport model|full] [--residual on|off]\n"
+     "                       [--exposure E]\n"
      "\n"
      "Renders SCENE progressively at REF's size for T seconds, counted from the scene\n"
      "loaded. At each snapshot time it draws what the previewer shows, writes it to\n"
@@ -179,6 +182,7 @@ static const app_command commands[] = {
      "usage: lumesh view [SCENE] [--camera NAME] [--width W --height H] [--script FILE]\n"
      "                   [--stats STATS.json] [--max-fps F] [--sampler gl|embree|auto] [--gl egl|osmesa]\n"
      "                   [--bounces K|auto] [--residual on|off] [--indirect cache|vpl|bdir|...]\n"
+     "                   [--exposure E]\n"
      "\n"
      "Opens a window on SCENE (default 1280x720); lighting refines in the background\n"
      "and the image sharpens while you look. Once refinement has nothing left to do\n"

@@ -155,6 +155,8 @@ static lm_result start_session(view_state *v, lm_error *err)
     d.sample_pixels = rend_session_sample_pixels(1, VIEW_ACCUM_SIDE);
     d.publish_debug = v->overlay != 0;
     lm_result r = rend_session_create(&d, &v->rs, err);
+    /* A reloaded scene keeps the exposure the user chose: the cache judges it. */
+    if (r == LM_OK && v->exposure != v->s->exposure) r = cache_worker_set_exposure(worker(v), v->exposure, err);
     /* The first image drawn with both cores: the worker publishes it and waits
      * (cache_worker_request_pause) until frame() has drawn it. */
     if (r == LM_OK && !v->paused) {
@@ -272,8 +274,13 @@ static lm_result apply_action(view_state *v, view_action a, lm_error *err)
         else cache_worker_request_pause(worker(v));
         v->paused = !v->paused;
         break;
-    case VIEW_ACTION_EXPOSURE_UP: v->exposure += k_exposure_step; break;
-    case VIEW_ACTION_EXPOSURE_DOWN: v->exposure -= k_exposure_step; break;
+    case VIEW_ACTION_EXPOSURE_UP:
+    case VIEW_ACTION_EXPOSURE_DOWN:
+        /* The cache refines for the colours shown: what was clipped or too dark to
+         * see may be seen now (cache_set_exposure; docs/viewer.md, "Exposure"). */
+        v->exposure = fmaxf(-64.0f, fminf(64.0f, v->exposure + (a == VIEW_ACTION_EXPOSURE_UP ? k_exposure_step
+                                                                                             : -k_exposure_step)));
+        return cache_worker_set_exposure(worker(v), v->exposure, err);
     case VIEW_ACTION_SCREENSHOT:
         snprintf(v->shot, sizeof v->shot, "lumesh-view-%llu.png", (unsigned long long)++v->screenshots);
         v->shot_exr_too = 1;
