@@ -15,6 +15,8 @@
 # rest.exr) is the mean of all 16 jittered draws; on one not converged, a plain
 # draw (0) (both at 160x120). Ten seconds later the converged mean is corrected by path
 # samples (the residual: at least 32 a pixel).
+# Exposure (key plus twice, paused): the worker judges the new colours (one more
+# snapshot, its estimate at +1).
 # The peers (key i, --indirect; docs/peers.md): the still view rendered by VPLs,
 # then again after an orbit (their picture of the new view), then by BDIR, then
 # both with imperfect shadow maps (vpl-ism, bdir-ism), each shown from a complete
@@ -58,9 +60,14 @@ key 3
 frames 1
 screenshot ${DIR}/noindirect.png
 key 3
-key p
 key plus
+key plus
+next-snapshot 120
+screenshot ${DIR}/brighter.png
 key minus
+key minus
+next-snapshot 120
+key p
 zoom 1.2
 key f
 frames 2
@@ -207,6 +214,27 @@ if(NOT light_onebounce EQUAL light_white)
 endif()
 if(NOT mean_onebounce LESS mean_white)
   message(FATAL_ERROR "one bounce is not darker than auto's: ${mean_white} -> ${mean_onebounce}")
+endif()
+
+# Key plus twice while paused: the exposure (+1 stop) goes to the worker like an
+# edit: one more snapshot, whose estimate was made at the new exposure
+# (cache_set_exposure; docs/viewer.md, "Exposure").
+foreach(f onebounce brighter)
+  if(NOT out MATCHES "screenshot [^\n]*/${f}\\.png: [^\n]*generation ([0-9]+)[^\n]*exposure ([-0-9.e]+), judged at ([-0-9.e]+)")
+    message(FATAL_ERROR "no screenshot line with the exposure for ${f}.png")
+  endif()
+  set(gen_${f} ${CMAKE_MATCH_1})
+  set(shown_${f} ${CMAKE_MATCH_2})
+  set(judged_${f} ${CMAKE_MATCH_3})
+endforeach()
+message("key plus x2: exposure ${shown_onebounce} (judged at ${judged_onebounce}) -> ${shown_brighter} (judged at "
+        "${judged_brighter}), generation ${gen_onebounce} -> ${gen_brighter}")
+if(NOT shown_brighter EQUAL 1 OR NOT judged_brighter EQUAL 1 OR NOT judged_onebounce EQUAL 0)
+  message(FATAL_ERROR "key plus: the cache judged at ${judged_onebounce} -> ${judged_brighter}, the view showed "
+                      "${shown_onebounce} -> ${shown_brighter}")
+endif()
+if(NOT gen_brighter GREATER gen_onebounce)
+  message(FATAL_ERROR "key plus while paused: no new snapshot (generation ${gen_onebounce} -> ${gen_brighter})")
 endif()
 
 # The overlay and the HUD: the window differs from the picture of the same frame.

@@ -56,7 +56,8 @@ void view_app_report_of(const view_state *v, view_app_report *r)
                            .residual_corrected = view_app_showing_residual(v) && !v->peer_on ? v->residual_info.corrected : 0.0,
                            .indirect = view_app_indirect_name(v->indirect, v->indirect_visibility),
                            .peer_spp = view_app_showing_residual(v) && v->peer_on ? v->residual_info.min_samples : 0,
-                           .peer_vpls = view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpls : 0};
+                           .peer_vpls = view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpls : 0,
+                           .exposure = v->exposure};
 }
 
 /* K's colours: multipliers of the scene's, about equal in luminance. */
