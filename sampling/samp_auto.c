@@ -28,6 +28,7 @@
 
 #include "sampling/ref_shading.h"
 #include "sampling/samp_internal.h"
+#include "sampling/samp_record.h"
 #include "src/base/vecmath.h"
 
 enum {
@@ -265,6 +266,9 @@ lm_result samp_auto_choose(const samp_desc *desc, const rt_scene *rt, samp_choic
              desc->indirect_target_error > 0.0f ? "the asked error" : "equal error", gl_ops->name,
              desc->indirect_res, desc->indirect_res, vi.gl_cost * 1e6, 100.0 * vi.gl_error, vi.rays, vi.e_cost * 1e6,
              100.0 * vi.e_error);
+    /* GL's costs kept for the next runs on this machine (samp_record.h): where
+     * even its cheapest cannot win, they need no GL context to find out. */
+    samp_record_note(desc, have_direct ? 1e6 * vd.gl_cost : -1.0, 1e6 * vi.gl_cost);
     /* Last: gl_ops lives inside gl_impl (its name was needed above). */
     if (!vd.gl_wins && !vi.gl_wins) gl_ops->destroy(gl_impl);
     return LM_OK;

@@ -10,7 +10,9 @@
  *   - debug data switched on and off on a finished worker: published at once;
  *   - a new exposure: a converged worker refines again for it, and converges there;
  *   - AUTO: refinement starts with Embree and the calibration waits for the first
- *     convergence (with a JND floor), as the snapshots' sampler choice says;
+ *     convergence (with a JND floor), as the snapshots' sampler choice says; it
+ *     leaves GL's costs in the per-machine record, and a record where GL cannot
+ *     win skips it;
  *   - destroy while refining (a bigger scene): joins cleanly (ASan: nothing leaks).
  */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
@@ -23,6 +25,7 @@
 #include "mesh/cache/cache.h"
 #include "mesh/cache/cache_worker.h"
 #include "sampling/samp.h"
+#include "sampling/samp_record.h"
 #include "tests/test_util.h"
 
 static void sleep_ms(int ms)
@@ -178,6 +181,54 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
     CHECK(refined_before > 0 && wrong_before == 0);
     CHECK_MSG(calibrated, "no calibration after converging: %s", snap ? snap->sampler.choice : "");
     cache_worker_destroy(w);
+}
+
+/* GL's costs kept per machine (sampling/samp_record.h) and the deferred
+ * calibration: with a record whose GL costs no Embree sampler comes near, the
+ * worker converges with Embree and calibrates nothing (its note says why, and no
+ * GL context is made); with none, it calibrates as test_auto_deferred, and the
+ * calibration leaves GL's costs in the record. */
+static int auto_worker_calibrates(const scene *s, const uint32_t *pixels, char *note, size_t size)
+{
+    lm_error err;
+    cache_worker *w = NULL;
+    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .pixels = pixels, .jnd_floor = 1.0f,
+                                                   .sampler = {.backend = SAMP_BACKEND_AUTO, .seed = 2, .threads = 1,
+                                                               .direct_target_error = 0.02f,
+                                                               .indirect_target_error = 0.02f}},
+                              &w, &err) == LM_OK);
+    const cache_snapshot *snap = w ? test_wait_finished(w, 120.0) : NULL;
+    CHECK(snap && snap->finished && !snap->failed);
+    snprintf(note, size, "%s", snap ? snap->sampler.choice : "");
+    int calibrated = snap && strstr(snap->sampler.choice, "calibrated in") != NULL;
+    cache_worker_destroy(w);
+    return calibrated;
+}
+
+static void test_auto_recorded(const scene *s, const uint32_t *pixels)
+{
+    char dir[1024], path[1100], note[512];
+    snprintf(dir, sizeof dir, "%s/cache_worker_record", LUMESH_TMP_DIR);
+    snprintf(path, sizeof path, "%s/gl-costs", dir);
+    remove(path);
+    setenv("LUMESH_CACHE_DIR", dir, 1);
+    const samp_desc key = {.backend = SAMP_BACKEND_AUTO}; /* the worker's platform and resolutions */
+    samp_record rec;
+    CHECK(samp_record_get(&key, &rec) == 0);
+    int calibrated = auto_worker_calibrates(s, pixels, note, sizeof note);
+    int kept = samp_record_get(&key, &rec);
+    printf("auto, no record: %s; then the record holds %.1f / %.1f us\n", calibrated ? "calibrated" : "not calibrated",
+           rec.direct_us, rec.indirect_us);
+    CHECK_MSG(calibrated, "no calibration without a record: %s", note);
+    CHECK(kept == 1 && rec.direct_us > 0.0 && rec.indirect_us > 0.0);
+    /* GL far slower than any Embree sampler: nothing to calibrate. */
+    remove(path);
+    samp_record_note(&key, 1e9, 1e9);
+    calibrated = auto_worker_calibrates(s, pixels, note, sizeof note);
+    printf("auto, GL's cheapest 1e9 us: %s\n", note);
+    CHECK_MSG(!calibrated && strstr(note, "not calibrated") != NULL, "calibrated though GL cannot win: %s", note);
+    remove(path);
+    setenv("LUMESH_CACHE_DIR", "", 1);
 }
 
 /* The first image's call schedules the seen leaves only (cache_refine_desc.
@@ -443,6 +494,7 @@ int main(void)
     test_seen_only_first(s, pixels);
     test_set_view(pixels);
     test_auto_deferred(s, pixels);
+    test_auto_recorded(s, pixels);
     test_set_exposure(s);
     free(buf);
     free(pixels);

@@ -10,6 +10,7 @@
 #include <time.h>
 
 #include "sampling/rt_scene.h"
+#include "sampling/samp_record.h"
 
 enum { MAX_EDITS = 64 };
 
@@ -440,15 +441,42 @@ enum { CHECK_DIRECT_POINTS = 256, CHECK_INDIRECT_POINTS = 64 }; /* what the cali
 
 static double cost_per_point(double seconds, uint64_t points) { return points ? seconds / (double)points : 0.0; }
 
+/* GL's cheapest cost a point on this machine (samp_record.h; < 0: never
+ * measured) against Embree's here (0: no such point sampled yet, nothing to win
+ * there): GL cannot win when it is slower by CHECK_SLOWER, the margin by which
+ * a calibrated choice is taken back (calibrated_check). */
+static int gl_cannot_win(double gl_us, double embree_us)
+{
+    if (!(embree_us > 0.0)) return 1;
+    return gl_us >= 0.0 && gl_us > CHECK_SLOWER * embree_us;
+}
+
 /* The deferred calibration (AUTO, at the first convergence): a calibrated sampler
  * that picks what the running Embree sampler is (both back ends Embree, the same
- * gather rays) is dropped; another replaces it, the Embree one kept as fallback. */
+ * gather rays) is dropped; another replaces it, the Embree one kept as fallback.
+ * None is made where GL's cheapest cost kept on this machine cannot beat what
+ * Embree costs here (samp_record.h): no GL context, no calibration time. */
 static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
 {
     w->calibrate_later = 0;
     samp_desc sd = w->desc.sampler;
     sd.scene = w->s;
     if (!sd.rt) sd.rt = w->rt;
+    samp_stats running;
+    samp_get_stats(*sp, &running);
+    const double embree_us[2] = {1e6 * cost_per_point(running.direct_seconds, running.direct_samples),
+                                 1e6 * cost_per_point(running.indirect_seconds, running.indirect_samples)};
+    samp_record kept;
+    if (samp_record_get(&sd, &kept) && gl_cannot_win(kept.direct_us, embree_us[0]) &&
+        gl_cannot_win(kept.indirect_us, embree_us[1])) {
+        char path[512];
+        samp_record_path(path, sizeof path);
+        snprintf(w->calibration_note, sizeof w->calibration_note,
+                 "auto: Embree at its defaults, not calibrated: GL's cheapest on this machine (%.1f / %.1f us a direct "
+                 "/ indirect point, kept in %.200s) is over %.1fx Embree's here (%.1f / %.1f): kept",
+                 kept.direct_us, kept.indirect_us, path, CHECK_SLOWER, embree_us[0], embree_us[1]);
+        return;
+    }
     samp_sampler *cal = NULL;
     lm_error why;
     if (samp_create(&sd, &cal, &why) != LM_OK) { /* refinement goes on with what it has */
