@@ -10,8 +10,10 @@
 
 /* The sampler options of render, converge and view. */
 #define SAMPLER_HELP                                                                          \
-    "  --sampler NAME      irradiance sampler: gl, embree, or auto (default: the cheaper at\n" \
-    "                      equal error on this machine, measured at start)\n"                \
+    "  --sampler NAME      irradiance sampler: gl, embree, or auto (default: embree, then the\n" \
+    "                      cheaper of the two measured once the cache has converged; GL's\n"  \
+    "                      costs are kept in ~/.cache/lumesh, and a run where GL cannot win\n" \
+    "                      measures nothing; LUMESH_CACHE_DIR= switches that off)\n"           \
     "  --gl NAME           GL platform of the gl sampler: egl (default) or osmesa\n"       \
     "  --bounces K|auto    diffuse bounces shown, 1..32, or auto (default): as many as change\n" \
     "                      the picture by more than the JND where it is seen\n"                \
