@@ -34,8 +34,9 @@
  * Noise alone does not refine: a closed box whose floor has only indirect light
  * (smooth), the floor the only thing seen, gathered with 16 rays (one gather's
  * noise moves the floor's colour by ΔE 8, measured here and required above 2),
- * ends with no more indirect leaves than with 4096 rays, + 8 (measured: 42 and
- * 42; with the edge test blind to noise, NOISE_SIGMAS 0, 234).
+ * ends with at most half as many indirect leaves again as with 4096 rays, + 8
+ * (measured: 51 and 66, 42 and 42 before; with the edge test blind to noise,
+ * CACHE_NOISE_SIGMAS 0: 522, 234 before).
  * Two meshes do not mask each other: an edge test judges its midpoint against the
  * other meshes' darkest value over the edge (cache_edge_background), so a direct
  * difference that their spread interpolation would hide (ΔE 0) shows (ΔE 100), and
@@ -429,7 +430,11 @@ static void test_noise_does_not_refine(void)
     printf("noise: indirect leaves with 16 rays a gather %u, with 4096 %u; one 16-ray gather's noise moves the "
            "floor by dE %.2f (4096: %.2f)\n", few, many, noise_few, noise_many);
     CHECK_MSG(noise_few > 2.0, "16-ray gathers are not noisy enough to test anything: dE %.2f", noise_few);
-    CHECK_MSG(few <= many + 8, "noise refined the mesh: %u leaves with 16 rays against %u with 4096", few, many);
+    /* Half as many again: the schedule's order moves either count by 10-25%
+     * (42 and 42, 51 and 66, 54 and 42 over the sessions), while an edge test
+     * blind to the noise makes eight times as many (522 against 66). */
+    CHECK_MSG(few <= many + many / 2 + 8, "noise refined the mesh: %u leaves with 16 rays against %u with 4096", few,
+              many);
     free(pixels);
     scene_destroy(s);
 }
