@@ -11,6 +11,9 @@
 #   SCENES     scene files (default bench/scenes/cornell-bunny-dragon.json and
 #              ../shared/scenes/cornell-box/CornellBox-Water.obj)
 # Extra `render` options (e.g. --sampler embree) go in LUMESH_RENDER_ARGS.
+# `auto` keeps GL's costs per machine (docs/sampling.md): a `--seconds` run makes
+# its calibration's GL context only where no earlier run showed GL cannot win
+# here. LUMESH_CACHE_DIR= (empty) measures every run as a first run on a machine.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 build=${1:-build/release}
