@@ -6,6 +6,9 @@
  *     only to stay within CACHE_LIGHT_LAG levels of the radiance mesh);
  *   - the same with a blocker: the cache against a 4096-ray Embree G at random
  *     points; light samples only where there is penumbra;
+ *   - the display's exposure (cache_set_exposure): converged at 0, the direct mesh
+ *     is off at ±3 stops (a clipped penumbra, dim outskirts) until told the
+ *     exposure, then within the blocker's bounds there;
  *   - determinism: two caches, same calls, identical statistics;
  *   - the node cap: refinement stops with LM_ERR_NO_MEMORY and a usable cache;
  *   - the built-in Cornell box: the direct value at the floor vertices in front of
