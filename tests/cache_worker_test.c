@@ -147,12 +147,10 @@ static void test_set_view(const uint32_t *pixels)
 
 static scene *load(void) { return load_json("worker.json", "{\"kd\": [0.6, 0.6, 0.6]}"); }
 
-/* AUTO (samp.h) with a JND floor: refinement starts at once with Embree (no
- * snapshot waits for a calibration), the calibration comes after the first
- * convergence, and the snapshots say so in their sampler's choice. */
-static void test_auto_deferred(const scene *s, const uint32_t *pixels)
+/* A worker with AUTO at the cache's 2% and a JND floor of 1 (so that it refines on
+ * past its first convergence, where the deferred calibration comes). */
+static cache_worker *auto_worker(const scene *s, const uint32_t *pixels)
 {
-    static const char before[] = "auto: Embree at its defaults until the first convergence, calibrated then";
     lm_error err;
     cache_worker *w = NULL;
     CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .pixels = pixels, .jnd_floor = 1.0f,
@@ -160,6 +158,16 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
                                                                .direct_target_error = 0.02f,
                                                                .indirect_target_error = 0.02f}},
                               &w, &err) == LM_OK);
+    return w;
+}
+
+/* AUTO (samp.h) with a JND floor: refinement starts at once with Embree (no
+ * snapshot waits for a calibration), the calibration comes after the first
+ * convergence, and the snapshots say so in their sampler's choice. */
+static void test_auto_deferred(const scene *s, const uint32_t *pixels)
+{
+    static const char before[] = "auto: Embree at its defaults until the first convergence, calibrated then";
+    cache_worker *w = auto_worker(s, pixels);
     const cache_snapshot *snap = NULL;
     uint64_t gen = 0, refined_before = 0;
     int wrong_before = 0, calibrated = 0;
@@ -190,13 +198,7 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
  * calibration leaves GL's costs in the record. */
 static int auto_worker_calibrates(const scene *s, const uint32_t *pixels, char *note, size_t size)
 {
-    lm_error err;
-    cache_worker *w = NULL;
-    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .pixels = pixels, .jnd_floor = 1.0f,
-                                                   .sampler = {.backend = SAMP_BACKEND_AUTO, .seed = 2, .threads = 1,
-                                                               .direct_target_error = 0.02f,
-                                                               .indirect_target_error = 0.02f}},
-                              &w, &err) == LM_OK);
+    cache_worker *w = auto_worker(s, pixels);
     const cache_snapshot *snap = w ? test_wait_finished(w, 120.0) : NULL;
     CHECK(snap && snap->finished && !snap->failed);
     snprintf(note, size, "%s", snap ? snap->sampler.choice : "");
