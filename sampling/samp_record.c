@@ -1,7 +1,7 @@
 /* samp_record.c — GL's cheapest costs on this machine, kept between runs
  * (samp_record.h). A few lines of text; every failure leaves things as they
  * would be without the file. */
-#define _POSIX_C_SOURCE 200809L /* gethostname, mkstemp */
+#define _POSIX_C_SOURCE 200809L /* gethostname, strtok_r */
 #include "sampling/samp_record.h"
 
 #include <ctype.h>
@@ -13,11 +13,13 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include "src/base/util.h"
+
 #ifndef PATH_MAX
 #define PATH_MAX 4096
 #endif
 
-enum { RECORD_LINES_MAX = 64, RECORD_HOST_MAX = 64 };
+enum { RECORD_LINES_MAX = 64, RECORD_HOST_MAX = 64, RECORD_FILE_MAX = 16384 };
 
 typedef struct record_line {
     char platform[16];
@@ -70,29 +72,27 @@ void samp_record_path(char *out, size_t size)
     char dir[PATH_MAX];
     if (!size) return;
     out[0] = '\0';
-    if (!record_dir(dir, sizeof dir)) return;
-    int n = snprintf(out, size, "%s/gl-costs", dir);
-    if (n < 0 || (size_t)n >= size) out[0] = '\0';
+    if (!record_dir(dir, sizeof dir) || !lm_path_join(dir, "gl-costs", out, size)) out[0] = '\0';
 }
 
 /* The lines of the file that read as records (others are dropped). */
 static size_t read_lines(const char *path, record_line *lines, size_t cap)
 {
-    FILE *f = fopen(path, "r");
-    if (!f) return 0;
-    char buf[512];
-    size_t n = 0;
-    while (n < cap && fgets(buf, sizeof buf, f)) {
+    char *text = NULL;
+    size_t size = 0, n = 0;
+    if (lm_read_file(path, RECORD_FILE_MAX, &text, &size, NULL) != LM_OK) return 0;
+    char *save = NULL;
+    for (char *line = strtok_r(text, "\n", &save); line && n < cap; line = strtok_r(NULL, "\n", &save)) {
         record_line l;
         char version[8];
         memset(&l, 0, sizeof l);
-        if (sscanf(buf, "%7s %15s %d %d %63s %lf %lf", version, l.platform, &l.direct_res, &l.indirect_res, l.host,
+        if (sscanf(line, "%7s %15s %d %d %63s %lf %lf", version, l.platform, &l.direct_res, &l.indirect_res, l.host,
                    &l.direct_us, &l.indirect_us) == 7 &&
             strcmp(version, "v1") == 0 && l.direct_res > 0 && l.indirect_res > 0 && isfinite(l.direct_us) &&
             isfinite(l.indirect_us))
             lines[n++] = l;
     }
-    fclose(f);
+    free(text);
     return n;
 }
 
@@ -133,36 +133,30 @@ static int make_dirs(const char *dir)
     return mkdir(p, 0755) == 0 || access(p, F_OK) == 0;
 }
 
-/* The whole file written to a temporary one beside it, then moved into place. */
-static void write_lines(const char *dir, const char *path, const record_line *lines, size_t n)
+/* The whole file, replaced at once (lm_write_file); nothing if it does not fit. */
+static void write_lines(const char *path, const record_line *lines, size_t n)
 {
-    char tmp[PATH_MAX];
-    int len = snprintf(tmp, sizeof tmp, "%s/.gl-costs.XXXXXX", dir);
-    if (len <= 0 || (size_t)len >= sizeof tmp) return;
-    int fd = mkstemp(tmp);
-    if (fd < 0) return;
-    FILE *f = fdopen(fd, "w");
-    if (!f) {
-        close(fd);
-        unlink(tmp);
-        return;
+    char *text = malloc(RECORD_FILE_MAX);
+    if (!text) return;
+    int len = snprintf(text, RECORD_FILE_MAX,
+                       "# lumesh: the GL back end's cheapest cost a point measured on this machine "
+                       "(microseconds; docs/sampling.md)\n");
+    for (size_t i = 0; i < n && len > 0 && len < RECORD_FILE_MAX; ++i) {
+        int k = snprintf(text + len, (size_t)(RECORD_FILE_MAX - len), "v1 %s %d %d %s %.6g %.6g\n",
+                         lines[i].platform, lines[i].direct_res, lines[i].indirect_res, lines[i].host,
+                         lines[i].direct_us, lines[i].indirect_us);
+        len = k < 0 ? -1 : len + k;
     }
-    int ok = fprintf(f, "# lumesh: the GL back end's cheapest cost a point measured on this machine "
-                        "(microseconds; docs/sampling.md)\n") > 0;
-    for (size_t i = 0; ok && i < n; ++i)
-        ok = fprintf(f, "v1 %s %d %d %s %.6g %.6g\n", lines[i].platform, lines[i].direct_res, lines[i].indirect_res,
-                     lines[i].host, lines[i].direct_us, lines[i].indirect_us) > 0;
-    ok = fclose(f) == 0 && ok;
-    if (!ok || rename(tmp, path) != 0) unlink(tmp);
+    if (len > 0 && len < RECORD_FILE_MAX) (void)lm_write_file(path, "txt", text, (size_t)len, NULL);
+    free(text);
 }
 
 void samp_record_note(const samp_desc *desc, double direct_us, double indirect_us)
 {
     if (!desc || !(direct_us >= 0.0 || indirect_us >= 0.0)) return;
     char dir[PATH_MAX], path[PATH_MAX];
-    if (!record_dir(dir, sizeof dir)) return;
-    samp_record_path(path, sizeof path);
-    if (!path[0] || !make_dirs(dir)) return;
+    if (!record_dir(dir, sizeof dir) || !lm_path_join(dir, "gl-costs", path, sizeof path) || !make_dirs(dir))
+        return;
     record_line *lines = malloc((RECORD_LINES_MAX + 1) * sizeof *lines);
     if (!lines) return;
     record_line key;
@@ -178,6 +172,6 @@ void samp_record_note(const samp_desc *desc, double direct_us, double indirect_u
         l->direct_us = direct_us;
     if (isfinite(indirect_us) && indirect_us >= 0.0 && (l->indirect_us < 0.0 || indirect_us < l->indirect_us))
         l->indirect_us = indirect_us;
-    write_lines(dir, path, lines, n);
+    write_lines(path, lines, n);
     free(lines);
 }

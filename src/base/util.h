@@ -52,6 +52,14 @@ void lm_sleep_seconds(double seconds);
 lm_result lm_read_file(const char *path, size_t max_bytes, char **out_data, size_t *out_size,
                        lm_error *err);
 
+/* Writes data[0..size) as the file target, whole or not at all: into a new
+ * temporary file beside it ("<name>.tmp-<pid>-<n>.<ext>", made with O_EXCL so
+ * that concurrent writers never share one), flushed to storage, then renamed
+ * over it; on any error the target is as it was and the temporary file is gone.
+ * The project's outputs go through it (images, statistics, CSV, the GL costs of
+ * sampling/samp_record.h): never a partial file. */
+lm_result lm_write_file(const char *target, const char *ext, const void *data, size_t size, lm_error *err);
+
 /* Directory part of a path ("a/b/c.obj" -> "a/b", "c.obj" -> "."), into out. */
 void lm_path_dir(const char *path, char *out, size_t out_size);
 /* Joins dir and rel unless rel is absolute. Returns 0 if it did not fit. */

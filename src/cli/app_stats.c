@@ -240,17 +240,9 @@ cJSON *app_stats_json(const app_stats_desc *d)
 
 lm_result app_write_text(const char *path, const char *text, size_t len, lm_error *err)
 {
-    size_t n = strlen(path) + 8;
-    char *tmp = malloc(n);
-    if (!tmp) return lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory", path);
-    snprintf(tmp, n, "%s.tmp", path);
-    FILE *f = fopen(tmp, "wb");
-    int ok = f && fwrite(text, 1, len, f) == len;
-    if (f) ok = (fclose(f) == 0) && ok;
-    ok = ok && rename(tmp, path) == 0;
-    if (!ok) remove(tmp);
-    free(tmp);
-    return ok ? LM_OK : lm_fail(err, LM_ERR_IO, "%s: cannot write the file", path);
+    char ext[16];
+    lm_path_ext(path, ext, sizeof ext);
+    return lm_write_file(path, ext[0] ? ext : "tmp", text, len, err);
 }
 
 lm_result app_write_json(const char *path, const cJSON *j, lm_error *err)

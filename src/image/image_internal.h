@@ -34,11 +34,6 @@ lm_result img_check_png(const char *path, lm_error *err);
  * channel names; sets *fmt and *count (values in the image). */
 lm_result img_write_check(const img_write_desc *d, img_format *fmt, size_t *count, lm_error *err);
 
-/* Writes data[0..size) as the file target, atomically: into a new temporary
- * file beside it (".tmp-<pid>-<n>.<ext>"), flushed, then renamed over it; on any
- * error the target is as it was and the temporary file is gone (image_write.c). */
-lm_result img_write_file(const char *target, const char *ext, const unsigned char *data, size_t size,
-                         lm_error *err);
 
 /* A checked descriptor of format IMG_FORMAT_PNG8 with count values, written by
  * the program (image_png_write.c; not in the module). */

@@ -3,8 +3,8 @@
  *
  * Writing (EXR only; the program writes PNGs itself, image_png_write.c): the
  * descriptor is checked (img_write_check), OpenImageIO encodes the file into
- * memory and img_write_file writes it beside the target and renames it onto
- * it, so an existing file survives any failure intact (image_write.c). EXR
+ * memory and lm_write_file (src/base/util.h) writes it beside the target and
+ * renames it onto it, so an existing file survives any failure intact. EXR
  * files carry the caller's channel order in a header attribute.
  *
  * Reading: anything OpenImageIO reads, subimage 0, MIP level 0, converted to
@@ -113,7 +113,7 @@ lm_result write_impl(const img_write_desc *d, lm_error *err)
     spec.attribute("compression", "zip");
     for (const char *const *a = d->attributes; a && a[0] && a[1]; a += 2) spec.attribute(a[0], a[1]);
 
-    /* The file is encoded into memory and written out by img_write_file, not by
+    /* The file is encoded into memory and written out by lm_write_file, not by
      * the plugin: every write is checked and nothing touches the disk unless
      * encoding succeeded (OpenImageIO 2.4's PNG writer ignored failed writes). */
     std::vector<unsigned char> encoded;
@@ -133,7 +133,7 @@ lm_result write_impl(const img_write_desc *d, lm_error *err)
     out.reset();
     if (encoded.empty()) return lm_fail(err, LM_ERR_IO, "%s: OpenImageIO produced an empty EXR file", path);
     (void)count;
-    return img_write_file(path, "exr", encoded.data(), encoded.size(), err);
+    return lm_write_file(path, "exr", encoded.data(), encoded.size(), err);
 }
 
 void copy_name(char *dst, const std::string &src)

@@ -7,7 +7,7 @@
  * "PNG without the module"). EXR still goes through the module.
  * Same contract as img_write for PNG: the descriptor checked by
  * img_write_check, floats clamped to [0, 1] and rounded, the file encoded in
- * memory and then replaced atomically (img_write_file). */
+ * memory and then replaced atomically (lm_write_file). */
 #include <stdlib.h>
 #include <string.h>
 
@@ -75,7 +75,7 @@ lm_result img_png_write(const img_write_desc *d, size_t count, lm_error *err)
         r = lm_fail(err, LM_ERR_IO, "%s: cannot encode PNG (%dx%d, %d channels)", d->path, d->width, d->height,
                     d->channels);
     else
-        r = img_write_file(d->path, "png", b.data, b.size, err);
+        r = lm_write_file(d->path, "png", b.data, b.size, err);
     free(b.data);
     return r;
 }

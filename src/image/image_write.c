@@ -1,17 +1,14 @@
 /* image_write.c — what every image write does whatever encodes it: the
- * descriptor's checks and the file's atomic replacement (image_internal.h).
+ * descriptor's checks (image_internal.h; the file's atomic replacement is
+ * lm_write_file, src/base/util.h).
  * Compiled into the program and into the OpenImageIO module, so that both
  * encoders (PNG in the program, EXR in the module) check and write alike. */
 #define _POSIX_C_SOURCE 200809L /* fsync, O_CLOEXEC, PATH_MAX and NAME_MAX through limits.h */
-#include <errno.h>
-#include <fcntl.h>
 #include <limits.h>
-#include <stdatomic.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <unistd.h>
 
 #include "src/image/image_internal.h"
 
@@ -95,85 +92,4 @@ lm_result img_write_check(const img_write_desc *d, img_format *fmt, size_t *coun
     *fmt = f;
     *count = w * h * c;
     return LM_OK;
-}
-
-/* Per-process counter for temporary names; with the pid and O_EXCL it makes
- * concurrent writers (threads or processes) pick distinct names. */
-static atomic_ulong temp_counter;
-
-/* Creates (O_EXCL) an empty "<dir>/<base>.tmp-<pid>-<n>.<ext>" beside target,
- * open for writing, its name in name[PATH_MAX]. A long base name is shortened
- * so that the temporary name stays within NAME_MAX even when the target's name
- * is itself near the limit. */
-static lm_result make_temp(const char *target, const char *ext, char name[PATH_MAX], int *fd_out, lm_error *err)
-{
-    *fd_out = -1;
-    name[0] = '\0';
-    const char *slash = strrchr(target, '/');
-    size_t dir_len = slash ? (size_t)(slash - target) + 1 : 0;
-    const char *base = target + dir_len;
-    int last_errno = 0;
-    for (int attempt = 0; attempt < 64; ++attempt) {
-        char suffix[96];
-        unsigned long n = atomic_fetch_add(&temp_counter, 1);
-        snprintf(suffix, sizeof suffix, ".tmp-%ld-%lu.%s", (long)getpid(), n, ext);
-        size_t room = (size_t)NAME_MAX - strlen(suffix), cut = strlen(base);
-        if (cut > room) {
-            cut = room;
-            while (cut > 0 && ((unsigned char)base[cut] & 0xC0) == 0x80) --cut; /* not inside a UTF-8 sequence */
-        }
-        if (dir_len + cut + strlen(suffix) >= PATH_MAX)
-            return lm_fail(err, LM_ERR_IO, "%s: the path is too long for a temporary file beside it", target);
-        memcpy(name, target, dir_len + cut);
-        strcpy(name + dir_len + cut, suffix);
-        int fd = open(name, O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC, 0666);
-        if (fd >= 0) {
-            *fd_out = fd;
-            return LM_OK;
-        }
-        last_errno = errno;
-        if (last_errno != EEXIST) break;
-    }
-    return lm_fail(err, LM_ERR_IO, "%s: cannot create temporary file %s: %s", target, name, strerror(last_errno));
-}
-
-/* Writes the whole buffer, then flushes it to stable storage and closes, so
- * that every error (short write, EFBIG, ENOSPC, EIO on writeback) is seen
- * before the file replaces the target. Closes fd in every case. */
-static lm_result write_all(const char *target, const char *tmp, int fd, const unsigned char *data, size_t size,
-                           lm_error *err)
-{
-    size_t done = 0;
-    while (done < size) {
-        ssize_t n = write(fd, data + done, size - done);
-        if (n < 0 && errno == EINTR) continue;
-        if (n <= 0) {
-            lm_result r = lm_fail(err, LM_ERR_IO, "%s: cannot write temporary file %s: %s", target, tmp,
-                                  n < 0 ? strerror(errno) : "no progress");
-            close(fd);
-            return r;
-        }
-        done += (size_t)n;
-    }
-    if (fsync(fd) != 0 && errno != EINVAL && errno != EROFS) { /* EINVAL: cannot sync */
-        lm_result r = lm_fail(err, LM_ERR_IO, "%s: cannot flush temporary file %s: %s", target, tmp, strerror(errno));
-        close(fd);
-        return r;
-    }
-    if (close(fd) != 0)
-        return lm_fail(err, LM_ERR_IO, "%s: cannot close temporary file %s: %s", target, tmp, strerror(errno));
-    return LM_OK;
-}
-
-lm_result img_write_file(const char *target, const char *ext, const unsigned char *data, size_t size, lm_error *err)
-{
-    char tmp[PATH_MAX];
-    int fd = -1;
-    lm_result r = make_temp(target, ext, tmp, &fd, err);
-    if (r != LM_OK) return r;
-    r = write_all(target, tmp, fd, data, size, err);
-    if (r == LM_OK && rename(tmp, target) != 0)
-        r = lm_fail(err, LM_ERR_IO, "%s: cannot move %s into place: %s", target, tmp, strerror(errno));
-    if (r != LM_OK) unlink(tmp);
-    return r;
 }
