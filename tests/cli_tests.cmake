@@ -152,6 +152,17 @@ foreach(fault crash hang)
            -DEXPECT_EXIT=2 "-DEXPECT_ERR=cornell-box.obj: the file reader \\(Assimp\\) ${want}"
            -DONE_ERR_LINE=1 -P ${RUN_CLI})
 endforeach()
+# A child that sleeps for good (a lock the fork copied while another thread held
+# it: view's reload under ASan): noticed after LUMESH_READER_STALL_SECONDS without
+# CPU time or output, forked again; asleep every time, one line and exit 3; asleep
+# the first time only, the scene loads (its camera is listed).
+add_test(NAME cli_reader_sleep COMMAND ${CMAKE_COMMAND} -E env LUMESH_FAULT_INJECT=reader-sleep
+         LUMESH_READER_STALL_SECONDS=0.5 ${CMAKE_COMMAND} "-DCMD=${LUMESH_EXE}|info" -DEXPECT_EXIT=3
+         "-DEXPECT_ERR=cornell-box.obj: the file reader's process \\(Assimp\\) slept for 0.5 s without using the CPU or sending anything, 3 times in a row"
+         -DONE_ERR_LINE=1 -P ${RUN_CLI})
+add_test(NAME cli_reader_sleep_once COMMAND ${CMAKE_COMMAND} -E env LUMESH_FAULT_INJECT=reader-sleep-once
+         LUMESH_READER_STALL_SECONDS=0.5 ${CMAKE_COMMAND} "-DCMD=${LUMESH_EXE}|info" -DEXPECT_EXIT=0
+         "-DEXPECT_OUT=cornell +from \\[278, 273, -800\\]" -P ${RUN_CLI})
 
 # --sampler and --gl: fixed spellings, checked before the scene is read.
 lumesh_cli_test(render_bad_sampler 1 ARGS render -o x.png --sampler cuda ERR "--sampler must be gl, embree or auto, not 'cuda'")

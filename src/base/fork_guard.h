@@ -11,7 +11,8 @@
  * `converge` makes its GL context on a helper thread while the scene loads
  * (rend_session_early_gl), scene_isolate forks Assimp's child meanwhile, and the
  * child hung in __cxa_atexit (tests/converge_cli.cmake, 1 run in 40 on a loaded
- * machine; docs/renderer.md). A CPU-time limit cannot catch a child that sleeps.
+ * machine; docs/renderer.md). A CPU-time limit cannot catch a child that sleeps
+ * (scene_isolate watches for one: no CPU time and nothing sent, then a new fork).
  *
  * Threads: enter/leave on any thread, nested across threads (a reader-writer
  * lock: many starters at once); lm_fork_guarded waits until no thread is inside
@@ -21,8 +22,10 @@
  *
  * Does NOT do: guard libraries' own threads (idle pools waiting on a condition
  * hold no C library lock; a library whose threads work during a fork is not
- * ours to fork beside), or make the child's code fork-safe: the child still
- * runs only the reader and plain C library calls (scene_isolate.c).
+ * ours to fork beside), guard the allocator (glibc's malloc is fork-safe,
+ * ASan's is not: a thread of ours allocating at the fork can leave the child
+ * asleep), or make the child's code fork-safe: the child still runs only the
+ * reader and plain C library calls (scene_isolate.c).
  */
 #ifndef LUMESH_BASE_FORK_GUARD_H
 #define LUMESH_BASE_FORK_GUARD_H

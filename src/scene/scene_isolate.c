@@ -7,7 +7,9 @@
  * runs in a forked child: it fills an empty builder, sends it through a pipe and
  * exits. Whatever the reader does wrong dies with the child and comes back as
  * one line: a crash (by its signal), a hang (a CPU-time limit, SIGXCPU), a
- * failed allocation. What it leaks is the child's. Assimp's scene graph also
+ * failed allocation. A child that sleeps for good (a lock copied held by the
+ * fork) is noticed by the parent (no CPU time and nothing sent for 10 s),
+ * killed and forked again (run_child). What it leaks is the child's. Assimp's scene graph also
  * lives only in the child, so the parent's peak memory is the builder's.
  *
  * The child runs only the reader and plain C library calls (no threads, no GL,
@@ -26,6 +28,7 @@
  */
 #define _POSIX_C_SOURCE 200809L /* fork, pipe, setrlimit, kill */
 #include <errno.h>
+#include <poll.h>
 #include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -211,20 +214,57 @@ static lm_result child_failure(int status, const char *what, const char *detail,
                    what, WIFEXITED(status) ? WEXITSTATUS(status) : -1, sep, detail);
 }
 
-lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
-                        void *user, lm_error *err)
+/* The child's CPU time so far, in clock ticks (utime + stime, fields 14 and 15
+ * of /proc/PID/stat, counted after the command name's closing parenthesis); -1
+ * when it cannot be read (no /proc: no stall is ever declared). */
+static long long child_cpu_ticks(pid_t pid)
 {
-    const char *inproc = getenv("LUMESH_IMPORT_IN_PROCESS");
+    char path[64], line[1024];
+    snprintf(path, sizeof path, "/proc/%ld/stat", (long)pid);
+    FILE *f = fopen(path, "r");
+    if (!f) return -1;
+    size_t n = fread(line, 1, sizeof line - 1, f);
+    fclose(f);
+    line[n] = '\0';
+    const char *p = strrchr(line, ')');
+    long long utime = 0, stime = 0;
+    if (!p || sscanf(p + 1, " %*c %*d %*d %*d %*d %*d %*u %*u %*u %*u %*u %lld %lld", &utime, &stime) != 2) return -1;
+    return utime + stime;
+}
+
+/* Wall seconds a child may sit with no CPU time and nothing sent before it is
+ * taken for stalled. LUMESH_READER_STALL_SECONDS overrides it (the tests). */
+static double stall_limit_seconds(void)
+{
+    const char *env = getenv("LUMESH_READER_STALL_SECONDS");
+    double s = env ? atof(env) : 0.0;
+    return s > 0.0 ? s : 10.0;
+}
+
+enum { READER_TRIES = 3 }; /* a stalled child is forked again this many times in all */
+
+typedef enum { CHILD_DONE, CHILD_STALLED, CHILD_NOT_FORKED } child_outcome;
+
+/* One child: forks it, reads all it sends into *buf, reaps it. CHILD_STALLED:
+ * it sat asleep (no CPU time, nothing sent) for the stall limit and was killed.
+ * Why a child sleeps for good: fork() copies every lock as it was, and a lock
+ * held at that moment by another thread (an allocator's: glibc's malloc is
+ * fork-safe, ASan's in Debian 12's GCC is not; it happened to `view`'s reload
+ * while the worker refined) is never released in the child. The CPU-time limit
+ * ends a reader that loops, not one that sleeps. */
+static child_outcome run_child(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
+                               void *user, int attempt, char **buf, size_t *len, size_t *cap, int *status,
+                               FILE **child_err, lm_result *r, lm_error *err)
+{
     int fds[2];
-    if ((inproc && inproc[0] == '1') || pipe(fds) != 0) return fill(b, user, material_override, err);
+    if (pipe(fds) != 0) return CHILD_NOT_FORKED;
     fflush(NULL); /* nothing buffered may be written twice */
-    FILE *child_err = tmpfile(); /* what the reader prints (Assimp's assertions): the message's detail */
+    *child_err = tmpfile(); /* what the reader prints (Assimp's assertions): the message's detail */
     pid_t pid = lm_fork_guarded(); /* not while another thread starts a library */
     if (pid < 0) {
         close(fds[0]);
         close(fds[1]);
-        if (child_err) fclose(child_err);
-        return fill(b, user, material_override, err);
+        return CHILD_NOT_FORKED;
     }
     if (pid == 0) { /* the child: fill an empty builder (material 0: the override), send it, leave */
         close(fds[0]);
@@ -232,12 +272,13 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
          * sanitizer's, libFuzzer's, the command line's): the parent reads it. */
         static const int crashes[] = {SIGSEGV, SIGBUS, SIGILL, SIGFPE, SIGABRT, SIGXCPU, SIGINT};
         for (size_t i = 0; i < sizeof crashes / sizeof crashes[0]; ++i) signal(crashes[i], SIG_DFL);
-        if (child_err) dup2(fileno(child_err), STDERR_FILENO); /* the user sees one line, from the parent */
+        if (*child_err) dup2(fileno(*child_err), STDERR_FILENO); /* the user sees one line, from the parent */
         const rlim_t seconds = cpu_limit_seconds(what);
         struct rlimit cpu = {seconds, seconds + 5};
         setrlimit(RLIMIT_CPU, &cpu);
         /* Fault injection for the tests (tests/cli_tests.cmake): a reader that
-         * crashes, or one that never returns. */
+         * crashes, one that never returns, one that sleeps for good (every
+         * time, or only the first: the next child loads). */
         const char *fault = getenv("LUMESH_FAULT_INJECT");
         if (fault && strcmp(fault, "reader-crash") == 0) raise(SIGSEGV);
         if (fault && strcmp(fault, "reader-hang") == 0) {
@@ -246,38 +287,87 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
             for (volatile unsigned long spin = 0;; ++spin) {
             }
         }
+        if (fault && (strcmp(fault, "reader-sleep") == 0 || (strcmp(fault, "reader-sleep-once") == 0 && attempt == 0)))
+            for (;;) pause();
         scene_builder cb;
         memset(&cb, 0, sizeof cb);
         cb.source = b->source;
         lm_error cerr;
         memset(&cerr, 0, sizeof cerr);
-        lm_result r = LM_OK;
+        lm_result cr = LM_OK;
         uint32_t zero;
-        if (material_override >= 0) r = scene_builder_add_material(&cb, &b->mats[material_override], &zero, &cerr);
-        if (r == LM_OK) r = fill(&cb, user, material_override >= 0 ? 0 : -1, &cerr);
-        int ok = put_builder(fds[1], r, &cerr, &cb);
+        if (material_override >= 0) cr = scene_builder_add_material(&cb, &b->mats[material_override], &zero, &cerr);
+        if (cr == LM_OK) cr = fill(&cb, user, material_override >= 0 ? 0 : -1, &cerr);
+        int ok = put_builder(fds[1], cr, &cerr, &cb);
         close(fds[1]);
         _exit(ok ? 0 : 3); /* no atexit handlers, no leak check: the child's memory goes with it */
     }
     close(fds[1]);
-    char *buf = NULL;
-    size_t len = 0, cap = 0;
-    lm_result r = LM_OK;
+    const double stall = stall_limit_seconds();
+    long long ticks = child_cpu_ticks(pid);
+    double quiet_since = lm_now_seconds();
+    child_outcome out = CHILD_DONE;
+    *len = 0;
     for (;;) {
-        if (len == cap && !LM_GROW(buf, cap, len + (1 << 16))) {
-            r = lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory reading the file's triangles", what);
+        if (*len == *cap && !LM_GROW(*buf, *cap, *len + (1 << 16))) {
+            *r = lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory reading the file's triangles", what);
             kill(pid, SIGKILL);
             break;
         }
-        ssize_t got = read(fds[0], buf + len, cap - len);
+        struct pollfd pfd = {.fd = fds[0], .events = POLLIN};
+        int ready = poll(&pfd, 1, 250);
+        if (ready < 0 && errno == EINTR) continue;
+        if (ready == 0) { /* nothing sent: is the child working? */
+            long long now_ticks = child_cpu_ticks(pid);
+            if (now_ticks < 0 || now_ticks != ticks) {
+                ticks = now_ticks;
+                quiet_since = lm_now_seconds();
+            } else if (lm_now_seconds() - quiet_since >= stall) {
+                kill(pid, SIGKILL);
+                out = CHILD_STALLED;
+                break;
+            }
+            continue;
+        }
+        ssize_t got = read(fds[0], *buf + *len, *cap - *len);
         if (got < 0 && errno == EINTR) continue;
         if (got <= 0) break;
-        len += (size_t)got;
+        *len += (size_t)got;
+        quiet_since = lm_now_seconds();
     }
     close(fds[0]);
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    while (waitpid(pid, status, 0) < 0 && errno == EINTR) {
     }
+    return out;
+}
+
+lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
+                        void *user, lm_error *err)
+{
+    const char *inproc = getenv("LUMESH_IMPORT_IN_PROCESS");
+    if (inproc && inproc[0] == '1') return fill(b, user, material_override, err);
+    char *buf = NULL;
+    size_t len = 0, cap = 0;
+    lm_result r = LM_OK;
+    int status = 0, attempt = 0;
+    FILE *child_err = NULL;
+    child_outcome out = CHILD_STALLED;
+    for (; r == LM_OK && out == CHILD_STALLED && attempt < READER_TRIES; ++attempt) {
+        if (child_err) fclose(child_err);
+        child_err = NULL;
+        out = run_child(b, what, material_override, fill, user, attempt, &buf, &len, &cap, &status, &child_err, &r,
+                        err);
+    }
+    if (out == CHILD_NOT_FORKED) { /* no pipe or no fork: the reader in the process */
+        free(buf);
+        if (child_err) fclose(child_err);
+        return fill(b, user, material_override, err);
+    }
+    if (r == LM_OK && out == CHILD_STALLED)
+        r = lm_fail(err, LM_ERR_RUNTIME,
+                    "%s: the file reader's process (Assimp) slept for %g s without using the CPU or sending "
+                    "anything, %d times in a row; try again, or set LUMESH_IMPORT_IN_PROCESS=1",
+                    what, stall_limit_seconds(), attempt);
     if (r == LM_OK) {
         if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0)) {
             /* Any other exit status is not the reader's: a sanitizer's report on our
