@@ -77,7 +77,6 @@ struct rend_frame {
     GLuint out_fbo, out_tex;
     GLuint empty_vao;
     term_state term[TERMS];          /* L_dd, E_i, L_ds */
-    float *readback;                 /* width·height·4 */
     /* Change detection: a hash table of the old triangles (index + 1, 0 = empty)
      * and the new triangles' hashes. */
     uint64_t *hash_key;
@@ -145,7 +144,6 @@ void rend_frame_destroy(rend_frame *f)
     free(f->hash_key);
     free(f->hash_tri);
     free(f->seen);
-    free(f->readback);
     free(f);
 }
 
@@ -240,11 +238,9 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     int w = desc->width, h = desc->height;
     f->sw = w * ss;
     f->sh = h * ss;
-    f->readback = malloc((size_t)w * (size_t)h * 4 * sizeof *f->readback);
     char defines[64];
     snprintf(defines, sizeof defines, "#define SS %d\n", ss);
-    lm_result r = f->readback ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
-    if (r == LM_OK) r = glprog_build(gl, "renderer", material_names, "", &f->prog_material, err);
+    lm_result r = glprog_build(gl, "renderer", material_names, "", &f->prog_material, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, "", &f->prog_value, err);
     if (r == LM_OK && ss > 1) r = glprog_build(gl, "renderer", resolve_names, defines, &f->prog_resolve, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", composite_names, defines, &f->prog_composite, err);
@@ -567,8 +563,41 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
     return LM_OK;
 }
 
-lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb,
-                          lm_error *err)
+/* The output texture into rgb (top row first), or added to it: a band of rows
+ * at a time through a small buffer, not a second output-sized image (an
+ * RGBA copy of the output was 16 bytes a pixel, and render's accumulated draws
+ * a third image: docs/memory.md, "Twenty-first session"). */
+static lm_result read_output(rend_frame *f, float *rgb, int add, lm_error *err)
+{
+    enum { READ_ROWS = 32 };
+    const GladGLContext *gl = f->gl;
+    const int w = f->desc.width, h = f->desc.height;
+    const size_t row = (size_t)w * 3;
+    float *band = malloc(row * READ_ROWS * sizeof *band);
+    if (!band) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory reading a %dx%d picture", w, h);
+    GLint pack = 4;
+    gl->GetIntegerv(GL_PACK_ALIGNMENT, &pack);
+    gl->PixelStorei(GL_PACK_ALIGNMENT, 4); /* rows of floats: never padded */
+    for (int y0 = 0; y0 < h; y0 += READ_ROWS) { /* GL rows run from the bottom */
+        const int rows = h - y0 < READ_ROWS ? h - y0 : READ_ROWS;
+        gl->GetTextureSubImage(f->out_tex, 0, 0, y0, 0, w, rows, 1, GL_RGB, GL_FLOAT,
+                               (GLsizei)(row * (size_t)rows * sizeof *band), band);
+        for (int j = 0; j < rows; ++j) {
+            float *dst = rgb + (size_t)(h - 1 - (y0 + j)) * row;
+            const float *src = band + (size_t)j * row;
+            if (add)
+                for (size_t i = 0; i < row; ++i) dst[i] += src[i];
+            else
+                memcpy(dst, src, row * sizeof *dst);
+        }
+    }
+    gl->PixelStorei(GL_PACK_ALIGNMENT, pack);
+    free(band);
+    return LM_OK;
+}
+
+static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb, int add,
+                      lm_error *err)
 {
     if (!f || !cam) return lm_fail(err, LM_ERR_INVALID_ARG, "renderer: missing arguments");
     const GladGLContext *gl = f->gl;
@@ -750,12 +779,8 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
     tt->composite = lap(gl, &t0);
 
     if (rgb) {
-        gl->GetTextureImage(f->out_tex, 0, GL_RGBA, GL_FLOAT, (GLsizei)((size_t)w * (size_t)h * 4 * sizeof(float)),
-                            f->readback);
-        for (int row = 0; row < h; ++row) /* GL rows run from the bottom */
-            for (int x = 0; x < w; ++x)
-                memcpy(rgb + 3 * ((size_t)row * (size_t)w + (size_t)x),
-                       f->readback + 4 * ((size_t)(h - 1 - row) * (size_t)w + (size_t)x), 3 * sizeof(float));
+        r = read_output(f, rgb, add, err);
+        if (r != LM_OK) return r;
         tt->readback = lm_now_seconds() - t0;
     }
     tt->total = lm_now_seconds() - start;
@@ -764,6 +789,19 @@ lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_sn
         return lm_fail(err, LM_ERR_RUNTIME, "renderer: a GL error occurred");
     }
     return LM_OK;
+}
+
+lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb,
+                          lm_error *err)
+{
+    return draw(f, cam, snap, rgb, 0, err);
+}
+
+lm_result rend_frame_draw_adding(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb,
+                                 lm_error *err)
+{
+    if (!rgb) return lm_fail(err, LM_ERR_INVALID_ARG, "renderer: no picture to add to");
+    return draw(f, cam, snap, rgb, 1, err);
 }
 
 void rend_frame_get_times(const rend_frame *f, rend_frame_times *out) { *out = f->times; }

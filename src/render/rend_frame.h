@@ -157,6 +157,10 @@ void rend_frame_warm_up(const GladGLContext *gl);
  * blending off and all colour and depth writes on (GL's defaults). */
 lm_result rend_frame_draw(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb,
                           lm_error *err);
+/* As rend_frame_draw, but the picture is added to rgb (which must not be NULL):
+ * jittered draws are summed without an image of their own. */
+lm_result rend_frame_draw_adding(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb,
+                                 lm_error *err);
 void rend_frame_get_times(const rend_frame *f, rend_frame_times *out);
 void rend_frame_get_output(const rend_frame *f, rend_frame_output *out);
 

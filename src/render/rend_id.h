@@ -72,6 +72,15 @@ lm_result rend_id_render(rend_id *ip, const scene_camera *cam, rend_id_result *o
 /* The id image of the last render, width·height values, top row first. */
 lm_result rend_id_read_image(rend_id *ip, uint32_t *ids, lm_error *err);
 
+/* The counts without GL: Embree's primary ray through each pixel centre (the
+ * triangle the GL pass names in all but edge pixels, tests/rend_id_test.c),
+ * counted into pixels (tri_count entries) on two threads. It builds an Embree
+ * scene of its own (the 116k-triangle box: 62 ms in all at 640×480, the GL
+ * pass 70 ms with its context). For a client that must not make a GL context
+ * before it draws (render: docs/memory.md). */
+lm_result rend_id_count_rays(const scene *s, const scene_camera *cam, int width, int height, uint32_t *pixels,
+                             lm_error *err);
+
 #ifdef __cplusplus
 }
 #endif

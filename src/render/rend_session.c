@@ -199,6 +199,20 @@ static lm_result id_pass(rend_session *rs, const scene_camera *cam, rend_id_resu
     return r;
 }
 
+/* The ID pass's counts by rays (desc.ids_by_rays): as id_pass records it. */
+static lm_result ray_id_pass(rend_session *rs, const scene_camera *cam, uint32_t *pixels, lm_error *err)
+{
+    const double t0 = lm_now_seconds();
+    lm_result r = rend_id_count_rays(rs->d.scene, cam, rs->info.width, rs->info.height, pixels, err);
+    if (r == LM_OK) {
+        rs->info.id_passes++;
+        rs->info.id_seconds = lm_now_seconds() - t0;
+        rs->id_cam = *cam;
+        rs->id_done = 1; /* rend_session_read_ids makes the GL pass when asked (no rs->ip) */
+    }
+    return r;
+}
+
 lm_result rend_session_create(const rend_session_desc *desc, rend_session **out, lm_error *err)
 {
     rend_session_early_gl *early = desc ? desc->early_gl : NULL; /* ours, whatever happens */
@@ -224,7 +238,13 @@ lm_result rend_session_create(const rend_session_desc *desc, rend_session **out,
     }
     rs->info.width = d.width;
     rs->info.height = d.height;
-    if (d.order == REND_SESSION_ID_FIRST) {
+    if (d.order == REND_SESSION_ID_FIRST && d.ids_by_rays) {
+        uint32_t *pixels = malloc((d.scene->tri_count ? d.scene->tri_count : 1) * sizeof *pixels);
+        r = pixels ? ray_id_pass(rs, &rs->cam, pixels, err)
+                   : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory counting pixels");
+        if (r == LM_OK) r = make_worker(rs, pixels, 0, err);
+        free(pixels);
+    } else if (d.order == REND_SESSION_ID_FIRST) {
         rend_id_result ids;
         r = make_context(rs, err);
         if (r == LM_OK) r = id_pass(rs, &rs->cam, &ids, err);
@@ -391,17 +411,23 @@ void rend_session_drop_renderer(rend_session *rs, rend_session_renderer_kind kin
     rs->frame[kind] = NULL;
 }
 
-lm_result rend_session_draw(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam, float *rgb,
-                            lm_error *err)
+static lm_result session_draw(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam, float *rgb,
+                              int add, lm_error *err)
 {
     if (!cam) return lm_fail(err, LM_ERR_INVALID_ARG, "rend_session_draw: no camera");
     rend_frame *f;
     lm_result r = rend_session_renderer(rs, kind, &f, err);
     if (r != LM_OK) return r;
-    r = rend_frame_draw(f, cam, rs->snap, rgb, err);
+    r = add ? rend_frame_draw_adding(f, cam, rs->snap, rgb, err) : rend_frame_draw(f, cam, rs->snap, rgb, err);
     rend_frame_get_times(f, &rs->info.times[kind]);
     rs->info.draws[kind]++;
     return r;
+}
+
+lm_result rend_session_draw(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam, float *rgb,
+                            lm_error *err)
+{
+    return session_draw(rs, kind, cam, rgb, 0, err);
 }
 
 lm_result rend_session_draw_accumulated(rend_session *rs, rend_session_renderer_kind kind, const scene_camera *cam,
@@ -414,23 +440,19 @@ lm_result rend_session_draw_accumulated(rend_session *rs, rend_session_renderer_
     lm_result r = rend_session_renderer(rs, kind, &f, err);
     if (r != LM_OK) return r;
     size_t n = (size_t)rs->info.width * (size_t)rs->info.height * 3;
-    float *one = malloc(n * sizeof *one);
-    if (!one) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", rs->info.width, rs->info.height);
     const int s = rend_frame_get_supersample(f);
     double sum_seconds = 0.0;
-    for (int i = 0; r == LM_OK && i < k * k; ++i) {
+    for (int i = 0; r == LM_OK && i < k * k; ++i) { /* each draw added to rgb as it is read */
         float jx, jy;
         rend_frame_jitter_pattern(i, k, s, &jx, &jy);
         rend_frame_set_jitter(f, jx, jy);
-        r = rend_session_draw(rs, kind, cam, i == 0 ? rgb : one, err);
+        r = session_draw(rs, kind, cam, rgb, i > 0, err);
         sum_seconds += rs->info.times[kind].total;
-        for (size_t j = 0; r == LM_OK && i > 0 && j < n; ++j) rgb[j] += one[j];
     }
     rend_frame_set_jitter(f, 0.0f, 0.0f);
     const float scale = 1.0f / (float)(k * k);
     for (size_t j = 0; r == LM_OK && j < n; ++j) rgb[j] *= scale;
     rs->info.times[kind].total = sum_seconds;
-    free(one);
     return r;
 }
 

@@ -129,6 +129,11 @@ typedef struct rend_session_desc {
                                       smallest leaf the cache tests (cache_desc.sample_pixels);
                                       0 = 1/supersample²; drawn accumulated k×k, 1/(k·supersample)² */
     uint64_t max_tested;           /* the worker stops after this many leaf tests; 0 = no limit */
+    int ids_by_rays;               /* ID_FIRST: the first ID pass by Embree's primary rays through the
+                                      pixel centres (the triangles the GL pass finds, rend_id.h), so no
+                                      GL context is made before the first draw: a client that draws only
+                                      at the end (render) refines without the GL driver resident (LLVM
+                                      and llvmpipe, ~60 MB; docs/memory.md) */
     int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
     int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */
     uint32_t first_budget;         /* WORKER_FIRST with a camera and a size: leaves the worker tests before
