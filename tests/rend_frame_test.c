@@ -12,7 +12,10 @@
  *     1.45 (measured 0.98 / 1.33);
  *   - while the worker refines, every new snapshot drawn incrementally (only
  *     where its meshes changed) gives the same image, bit for bit, as a full
- *     redraw;
+ *     redraw; so does a renderer that keeps no CPU copy of the snapshot
+ *     (no_snapshot_copy, render's final one), which reuses a snapshot drawn
+ *     again; a picture added to itself as read (rend_frame_draw_adding) is
+ *     exactly twice it;
  *   - the composite averages per-sample values exactly: on a flat-coloured view
  *     (a plane facing the camera, constant values) every s gives the s = 1 image
  *     bit for bit;
@@ -76,16 +79,20 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
     if (wk) cache_worker_pause(wk);
     /* In bands of three pixel rows (rend_frame_desc.band_samples): a partial
      * redraw's rectangle crosses several; `whole` draws the image as one band. */
-    rend_frame *inc = NULL, *full = NULL, *whole = NULL;
+    rend_frame *inc = NULL, *full = NULL, *whole = NULL, *nocopy = NULL;
     const rend_frame_desc banded = {.scene = s, .width = w, .height = h, .supersample = 2, .band_samples = 2 * w * 6};
     CHECK(rend_frame_create(gl, &banded, &inc, &err) == LM_OK);
     CHECK(rend_frame_create(gl, &banded, &full, &err) == LM_OK);
+    rend_frame_desc one = banded;
+    one.no_snapshot_copy = 1; /* render's final renderer: each new snapshot drawn whole */
+    CHECK(rend_frame_create(gl, &one, &nocopy, &err) == LM_OK);
     CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = 2}, &whole,
                             &err) == LM_OK);
     float *a = malloc((size_t)w * h * 3 * sizeof *a), *b = malloc((size_t)w * h * 3 * sizeof *b);
+    float *c = malloc((size_t)w * h * 3 * sizeof *c);
     const cache_snapshot *snap = NULL;
     uint64_t last = 0;
-    int draws = 0, partial = 0, skipped = 0, differ = 0;
+    int draws = 0, partial = 0, skipped = 0, differ = 0, nocopy_differ = 0, nocopy_again = 0;
     double t0 = lm_now_seconds();
     while (wk && inc && full && lm_now_seconds() - t0 < 60.0) {
         snap = cache_worker_acquire(wk);
@@ -101,6 +108,14 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
             partial += t.radiance_redrawn > 0.0 && t.radiance_redrawn < 1.0;
             skipped += t.radiance_reused;
             differ += !same_floats(a, b, (size_t)w * h * 3);
+            if (nocopy && c) {
+                CHECK(rend_frame_draw(nocopy, &s->cameras[0], snap, c, &err) == LM_OK);
+                nocopy_differ += !same_floats(c, b, (size_t)w * h * 3);
+                /* The same snapshot again: nothing redrawn, the same picture. */
+                CHECK(rend_frame_draw(nocopy, &s->cameras[0], snap, c, &err) == LM_OK);
+                rend_frame_get_times(nocopy, &t);
+                nocopy_again += t.radiance_reused && same_floats(c, b, (size_t)w * h * 3);
+            }
         }
         if (snap && (snap->converged || snap->failed)) break;
         /* A step or so at a time: paused, the worker publishes its last step, so
@@ -115,6 +130,21 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
            draws, partial, skipped, differ);
     CHECK(draws > 1);
     CHECK_MSG(differ == 0, "%d of %d incremental draws differ from a full redraw", differ, draws);
+    printf("  without the snapshot's CPU copy: %d of %d draws differ from a full redraw, %d redraws of the same "
+           "snapshot reused\n",
+           nocopy_differ, draws, nocopy_again);
+    CHECK(nocopy_differ == 0 && nocopy_again == draws);
+    /* Added as read (rend_frame_draw_adding, render's accumulated draws): the
+     * picture plus itself, exactly twice it. */
+    if (snap && nocopy && c) {
+        CHECK(rend_frame_draw(nocopy, &s->cameras[0], snap, c, &err) == LM_OK);
+        memcpy(b, c, (size_t)w * h * 3 * sizeof *b);
+        CHECK(rend_frame_draw_adding(nocopy, &s->cameras[0], snap, c, &err) == LM_OK);
+        int doubled = 1;
+        for (size_t i = 0; i < 3 * (size_t)w * h; ++i) doubled &= c[i] == 2.0f * b[i];
+        CHECK_MSG(doubled, "a picture added to itself is not twice it");
+        CHECK(rend_frame_draw_adding(nocopy, &s->cameras[0], snap, NULL, &err) == LM_ERR_INVALID_ARG);
+    }
     /* Bands against one band: the same projection with the viewport moved by
      * whole rows; only rounding in the viewport transform may differ. */
     if (snap && whole) {
@@ -142,9 +172,11 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
     }
     free(a);
     free(b);
+    free(c);
     rend_frame_destroy(inc);
     rend_frame_destroy(full);
     rend_frame_destroy(whole);
+    rend_frame_destroy(nocopy);
     cache_worker_destroy(wk);
 }
 

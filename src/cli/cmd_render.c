@@ -234,8 +234,10 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
                                     "emission, not '%s'", components);
     /* With --seconds the cache keeps sharpening past its JND until the time is up
      * (rend_session_desc.jnd_floor); otherwise it stops there, as --samples does. */
-    /* ids_by_rays: no GL context (nor the driver's ~60 MB) until the final draw. */
+    /* ids_by_rays: no GL context (nor the driver's ~60 MB) until the final draw,
+     * which keeps no copy of the one snapshot it draws (docs/memory.md). */
     rend_session_desc sd = {.supersample = (int)supersample, .max_tested = (uint64_t)samples, .ids_by_rays = 1,
+                            .final_one_snapshot = 1,
                             .publish_debug = debug_dir != NULL, .jnd_floor = opts[1].seen ? 0.0f : -1.0f,
                             .sample_pixels = rend_session_sample_pixels((int)supersample, (int)accumulate)};
     if ((rc = app_session_options(cmd, sampler, gl_name, bounces, &sd)) != APP_EXIT_OK) return rc;

@@ -466,7 +466,8 @@ static int same_mesh(const cache_snapshot_mesh *a, const cache_snapshot_mesh *b)
                                    memcmp(a->vertices, b->vertices, (size_t)a->vertex_count * sizeof *a->vertices) == 0));
 }
 
-/* Copies snapshot mesh m to the term's buffers (grown when needed) and its CPU copy. */
+/* Copies snapshot mesh m to the term's buffers (grown when needed) and its CPU
+ * copy (not with desc.no_snapshot_copy). */
 static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m, lm_error *err)
 {
     const GladGLContext *gl = f->gl;
@@ -475,7 +476,8 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
     ts->copy = (cache_snapshot_mesh){0};
     ts->hash_valid = 0;
     if (!n) return LM_OK;
-    if (n > ts->copy_cap) {
+    const int keep = !f->desc.no_snapshot_copy;
+    if (keep && n > ts->copy_cap) {
         uint32_t *x = realloc(ts->copy_i, 3 * (size_t)n * sizeof *x);
         if (x) ts->copy_i = x;
         uint64_t *h = realloc(ts->hash, (size_t)n * sizeof *h);
@@ -483,7 +485,7 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
         if (!x || !h) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u triangles", n);
         ts->copy_cap = n;
     }
-    if (nv > ts->copy_vcap) {
+    if (keep && nv > ts->copy_vcap) {
         cache_snapshot_vertex *v = realloc(ts->copy_v, (size_t)nv * sizeof *v);
         if (!v) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u vertices", nv);
         ts->copy_v = v;
@@ -502,6 +504,10 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
     if (ensure_buffer(gl, &ts->ibo, &ts->ibo_cap, ibytes)) gl->VertexArrayElementBuffer(ts->vao, ts->ibo);
     gl->NamedBufferSubData(ts->vbo, 0, (GLsizeiptr)vbytes, m->vertices);
     gl->NamedBufferSubData(ts->ibo, 0, (GLsizeiptr)ibytes, m->index);
+    if (!keep) { /* the counts only: what is drawn */
+        ts->copy = (cache_snapshot_mesh){.triangle_count = n, .vertex_count = nv};
+        return LM_OK;
+    }
     memcpy(ts->copy_v, m->vertices, vbytes);
     memcpy(ts->copy_i, m->index, ibytes);
     ts->copy = (cache_snapshot_mesh){.vertices = ts->copy_v, .index = ts->copy_i, .triangle_count = n,
@@ -537,7 +543,8 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
          * per worker: rend_frame.h), else the same bytes. */
         int same = f->snap_valid && generation == f->snap_generation && (m ? m->vertices : NULL) == ts->src &&
                    n == ts->copy.triangle_count;
-        if (!same && n == ts->copy.triangle_count) same = n == 0 || same_mesh(&ts->copy, m);
+        if (!same && n == ts->copy.triangle_count && !f->desc.no_snapshot_copy)
+            same = n == 0 || same_mesh(&ts->copy, m);
         if (same) {
             ts->src = m ? m->vertices : NULL;
             dirty[t] = reusable ? (rect){0, 0, 0, 0} : full;
@@ -546,7 +553,7 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
         dirty[t] = full;
         lm_result r = LM_OK;
         int hashed = 0;
-        if (reusable && n) r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
+        if (reusable && n && !f->desc.no_snapshot_copy) r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
         if (r == LM_OK) r = upload_mesh(f, ts, m, err);
         if (r == LM_OK && hashed) { /* the new triangles' hashes serve the next comparison */
             memcpy(ts->hash, f->new_hash, (size_t)n * sizeof *ts->hash);

@@ -106,6 +106,10 @@ typedef struct rend_frame_desc {
     int band_samples;     /* s > 1: the passes draw bands of whole pixel rows of at most this many samples
                              (at least one row), so the depth and radiance images hold a band, not the
                              image; 0 = REND_FRAME_BAND_SAMPLES (tests ask for small bands) */
+    int no_snapshot_copy; /* keep no CPU copy of the meshes drawn (~32 bytes a leaf triangle), for a
+                             renderer of one snapshot (render's final picture): a snapshot other than
+                             the last drawn (another array or generation) is then drawn whole, not
+                             compared with it for the parts that changed */
 } rend_frame_desc;
 
 /* Wall-clock seconds of the last rend_frame_draw, each pass finished (glFinish)

@@ -395,9 +395,11 @@ lm_result rend_session_renderer(rend_session *rs, rend_session_renderer_kind kin
         int s = kind == REND_SESSION_FINAL ? rs->d.supersample : 1;
         lm_result r = make_context(rs, err);
         if (r != LM_OK) return r;
+        const int one = kind == REND_SESSION_FINAL && rs->d.final_one_snapshot;
         r = rend_frame_create(rs->gl, &(rend_frame_desc){.scene = rs->d.scene, .width = rs->info.width,
-                                                                   .height = rs->info.height, .supersample = s},
-                                        &rs->frame[kind], err);
+                                                         .height = rs->info.height, .supersample = s,
+                                                         .no_snapshot_copy = one},
+                              &rs->frame[kind], err);
         if (r != LM_OK) return r;
     }
     if (out) *out = rs->frame[kind];
