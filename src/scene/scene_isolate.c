@@ -9,8 +9,9 @@
  * one line: a crash (by its signal), a hang (a CPU-time limit, SIGXCPU), a
  * failed allocation. A child that sleeps for good (a lock copied held by the
  * fork) is noticed by the parent (no CPU time and nothing sent for 10 s),
- * killed and forked again (run_child). What it leaks is the child's. Assimp's scene graph also
- * lives only in the child, so the parent's peak memory is the builder's.
+ * killed and forked again (run_child). What it leaks is the child's. Assimp's
+ * scene graph also lives only in the child, so the parent's peak memory is the
+ * builder's.
  *
  * The child runs only the reader and plain C library calls (no threads, no GL,
  * no Embree), which is what fork() in a threaded process allows in practice with
