@@ -136,7 +136,7 @@ static void check_scene(const GladGLContext *gl, const char *name)
     uint32_t *by_rays = malloc(s->tri_count * sizeof *by_rays);
     CHECK(by_rays != NULL);
     if (by_rays) {
-        CHECK(rend_id_count_rays(s, cam, W, H, by_rays, &err) == LM_OK);
+        CHECK(rend_id_count_rays(s, NULL, cam, W, H, by_rays, &err) == LM_OK);
         uint64_t moved = 0, rays_covered = 0;
         for (uint32_t t = 0; t < s->tri_count; ++t) {
             moved += by_rays[t] > rc.pixels[t] ? by_rays[t] - rc.pixels[t] : rc.pixels[t] - by_rays[t];
@@ -151,7 +151,12 @@ static void check_scene(const GladGLContext *gl, const char *name)
                   (unsigned long long)moved);
         CHECK_MSG(covered_diff <= 0.005 * W * H, "%s: %llu covered by rays, %llu by GL", name,
                   (unsigned long long)rays_covered, (unsigned long long)rc.covered);
-        CHECK(rend_id_count_rays(NULL, cam, W, H, by_rays, &err) == LM_ERR_INVALID_ARG);
+        CHECK(rend_id_count_rays(NULL, NULL, cam, W, H, by_rays, &err) == LM_ERR_INVALID_ARG);
+        /* In an Embree scene given (render's, which its worker then samples): the same counts. */
+        uint32_t *again = malloc(s->tri_count * sizeof *again);
+        CHECK(again && rend_id_count_rays(s, rt, cam, W, H, again, &err) == LM_OK);
+        if (again) CHECK(memcmp(again, by_rays, s->tri_count * sizeof *again) == 0);
+        free(again);
         free(by_rays);
     }
 

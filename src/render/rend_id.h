@@ -74,12 +74,13 @@ lm_result rend_id_read_image(rend_id *ip, uint32_t *ids, lm_error *err);
 
 /* The counts without GL: Embree's primary ray through each pixel centre (the
  * triangle the GL pass names in all but edge pixels, tests/rend_id_test.c),
- * counted into pixels (tri_count entries) on two threads. It builds an Embree
- * scene of its own (the 116k-triangle box: 62 ms in all at 640×480, the GL
- * pass 70 ms with its context). For a client that must not make a GL context
- * before it draws (render: docs/memory.md). */
-lm_result rend_id_count_rays(const scene *s, const scene_camera *cam, int width, int height, uint32_t *pixels,
-                             lm_error *err);
+ * counted into pixels (tri_count entries) on two threads, in rt (an Embree scene
+ * of s, rt_scene.h) or, when rt is NULL, in one it builds and destroys. For a
+ * client that must not make a GL context before it draws (render:
+ * docs/memory.md). */
+struct rt_scene;
+lm_result rend_id_count_rays(const scene *s, const struct rt_scene *rt, const scene_camera *cam, int width,
+                             int height, uint32_t *pixels, lm_error *err);
 
 #ifdef __cplusplus
 }

@@ -33,14 +33,15 @@ static void *count_rows(void *arg)
     return NULL;
 }
 
-lm_result rend_id_count_rays(const scene *s, const scene_camera *cam, int width, int height, uint32_t *pixels,
-                             lm_error *err)
+lm_result rend_id_count_rays(const scene *s, const rt_scene *given, const scene_camera *cam, int width, int height,
+                             uint32_t *pixels, lm_error *err)
 {
     if (!s || !cam || !pixels || width < 1 || height < 1)
         return lm_fail(err, LM_ERR_INVALID_ARG, "rend_id_count_rays: a scene, a camera, a size and counts needed");
-    rt_scene *rt = NULL;
-    lm_result r = rt_scene_create(&(rt_scene_desc){.scene = s}, &rt, err);
+    rt_scene *own = NULL;
+    lm_result r = given ? LM_OK : rt_scene_create(&(rt_scene_desc){.scene = s}, &own, err);
     if (r != LM_OK) return r;
+    const rt_scene *rt = given ? given : own;
     const size_t n = s->tri_count ? s->tri_count : 1;
     memset(pixels, 0, s->tri_count * sizeof *pixels);
     ray_rows t[RAY_THREADS];
@@ -61,6 +62,6 @@ lm_result rend_id_count_rays(const scene *s, const scene_camera *cam, int width,
         }
     }
     for (int i = 1; i < RAY_THREADS; ++i) free(t[i].pixels);
-    rt_scene_destroy(rt);
+    rt_scene_destroy(own);
     return r;
 }

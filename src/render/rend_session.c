@@ -9,6 +9,7 @@
 
 #include "src/base/fork_guard.h"
 #include "src/gpu/gl_context.h"
+#include "sampling/rt_scene.h"
 #include "src/render/rend_id.h"
 #include "src/scene/camera.h"
 
@@ -19,6 +20,8 @@ struct rend_session {
     rend_session_early_gl *early_gl;  /* d.early_gl until make_context takes it */
     const GladGLContext *gl;
     rend_id *ip;
+    rt_scene *rt;                     /* ids_by_rays: the ray ID pass's Embree scene, then the worker's
+                                         samplers' (samp_desc.rt); freed once the worker is gone */
     scene_camera id_cam;              /* the last ID pass's camera (id_done): made again after release_gl */
     int id_done;
     cache_worker *wk;
@@ -170,7 +173,9 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t 
         cd.eye_set = 1;
         memcpy(cd.eye, d->camera->position, sizeof cd.eye);
     }
-    return cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = d->sampler, .pixels = pixels,
+    samp_desc sampler = d->sampler;
+    if (rs->rt && !sampler.rt) sampler.rt = rs->rt; /* the ray ID pass's: not built twice */
+    return cache_worker_create(&(cache_worker_desc){.scene = d->scene, .sampler = sampler, .pixels = pixels,
                                                     .pixels_later = pixels == NULL, .max_tested = d->max_tested,
                                                     .first_budget = first_budget,
                                                     .publish_debug = d->publish_debug, .cache = cd,
@@ -203,7 +208,8 @@ static lm_result id_pass(rend_session *rs, const scene_camera *cam, rend_id_resu
 static lm_result ray_id_pass(rend_session *rs, const scene_camera *cam, uint32_t *pixels, lm_error *err)
 {
     const double t0 = lm_now_seconds();
-    lm_result r = rend_id_count_rays(rs->d.scene, cam, rs->info.width, rs->info.height, pixels, err);
+    lm_result r = rs->rt ? LM_OK : rt_scene_create(&(rt_scene_desc){.scene = rs->d.scene}, &rs->rt, err);
+    if (r == LM_OK) r = rend_id_count_rays(rs->d.scene, rs->rt, cam, rs->info.width, rs->info.height, pixels, err);
     if (r == LM_OK) {
         rs->info.id_passes++;
         rs->info.id_seconds = lm_now_seconds() - t0;
@@ -285,6 +291,7 @@ void rend_session_destroy(rend_session *rs)
 {
     if (!rs) return;
     cache_worker_destroy(rs->wk); /* cancels and joins: nothing refers to the snapshots after this */
+    rt_scene_destroy(rs->rt);      /* after the worker's samplers */
     drop_gl_objects(rs);
     glctx_destroy(rs->ctx);
     rend_session_early_gl_end(rs->early_gl); /* never taken: the session failed before its context */
@@ -302,7 +309,10 @@ void rend_session_release_gl(rend_session *rs)
 
 void rend_session_retire_worker(rend_session *rs)
 {
-    if (rs) cache_worker_retire(rs->wk);
+    if (!rs) return;
+    cache_worker_retire(rs->wk);
+    rt_scene_destroy(rs->rt); /* the worker's samplers are gone with it */
+    rs->rt = NULL;
 }
 
 lm_result rend_session_resize(rend_session *rs, int width, int height, lm_error *err)
