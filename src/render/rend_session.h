@@ -5,7 +5,9 @@
  * What it owns, and in which order it makes it:
  *   - the GL context: made headless on desc.gl_platform (gl_context.h), or the
  *     caller's (desc.gl: the viewer's window), borrowed, never destroyed;
- *   - the ID pass (rend_id.h) at width × height, made at the first view;
+ *   - the ID pass (rend_id.h) at width × height, made at the first view; with
+ *     desc.ids_by_rays the first one by Embree's rays, in an Embree scene that
+ *     the worker's samplers then use, freed once the worker is retired;
  *   - the refinement worker (cache_worker.h) with desc's sampler and limits;
  *   - two renderers (rend_frame.h) at width × height, each made at its first use:
  *     REND_SESSION_FINAL with desc.supersample samples a pixel (the offline
@@ -13,7 +15,8 @@
  * desc.order says what comes first:
  *   REND_SESSION_ID_FIRST      the context, the ID pass at *desc.camera, then the
  *                              worker with its pixel counts: refinement follows
- *                              the view from its first step (render);
+ *                              the view from its first step (render, by rays:
+ *                              no context until the first draw);
  *   REND_SESSION_WORKER_FIRST  the worker first (cache_worker_desc.pixels_later):
  *                              it makes the coarse cache while this thread makes
  *                              the context and a renderer; the ID pass waits for
