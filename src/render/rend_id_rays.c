@@ -52,7 +52,8 @@ lm_result rend_id_count_rays(const scene *s, const rt_scene *given, const scene_
     }
     pthread_t tid[RAY_THREADS];
     int started[RAY_THREADS] = {0};
-    for (int i = 1; r == LM_OK && i < RAY_THREADS; ++i) started[i] = pthread_create(&tid[i], NULL, count_rows, &t[i]) == 0;
+    for (int i = 1; r == LM_OK && i < RAY_THREADS; ++i)
+        started[i] = pthread_create(&tid[i], NULL, count_rows, &t[i]) == 0;
     if (r == LM_OK) {
         count_rows(&t[0]);
         for (int i = 1; i < RAY_THREADS; ++i) {

@@ -7,9 +7,9 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "sampling/rt_scene.h"
 #include "src/base/fork_guard.h"
 #include "src/gpu/gl_context.h"
-#include "sampling/rt_scene.h"
 #include "src/render/rend_id.h"
 #include "src/scene/camera.h"
 
