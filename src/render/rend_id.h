@@ -74,7 +74,7 @@ lm_result rend_id_read_image(rend_id *ip, uint32_t *ids, lm_error *err);
 
 /* The counts without GL: Embree's primary ray through each pixel centre (the
  * triangle the GL pass names in all but edge pixels, tests/rend_id_test.c),
- * counted into pixels (tri_count entries) on two threads, in rt (an Embree scene
+ * counted into pixels (tri_count entries) on every core, in rt (an Embree scene
  * of s, rt_scene.h) or, when rt is NULL, in one it builds and destroys. For a
  * client that must not make a GL context before it draws (render:
  * docs/memory.md). */
