@@ -155,8 +155,8 @@ void samp_record_note(const samp_desc *desc, double direct_us, double indirect_u
 {
     if (!desc || !(direct_us >= 0.0 || indirect_us >= 0.0)) return;
     char dir[PATH_MAX], path[PATH_MAX];
-    if (!record_dir(dir, sizeof dir) || !lm_path_join(dir, "gl-costs", path, sizeof path) || !make_dirs(dir))
-        return;
+    samp_record_path(path, sizeof path);
+    if (!path[0] || !record_dir(dir, sizeof dir) || !make_dirs(dir)) return;
     record_line *lines = malloc((RECORD_LINES_MAX + 1) * sizeof *lines);
     if (!lines) return;
     record_line key;
