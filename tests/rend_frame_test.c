@@ -22,6 +22,8 @@
  *   - a draw without read-back leaves the same image in the output texture;
  *   - components: indirect hidden equals a snapshot without indirect triangles;
  *     rend_frame_set_emission adds the edited Le, hidden emission removes it;
+ *   - a renderer made ahead of its scene (rend_frame_set_scene, rend_frame_resize)
+ *     draws what one made with them draws, bit for bit;
  *   - with no snapshot only emission is drawn; bad arguments are refused.
  */
 #include <math.h>
@@ -69,6 +71,49 @@ static void render_reference(const scene *s, int w, int h, int spp, uint32_t see
 /* Refines until converged; every new snapshot on the way is drawn incrementally
  * by `inc` and in full by `full` (invalidated first), and the images must agree
  * bit for bit. */
+/* A renderer made ahead of its scene (as rend_session_early_gl makes the
+ * preview's: at 3×3, a stand-in drawn) and then given its size and scene draws
+ * what a renderer made with them draws, bit for bit; so does one whose scene is
+ * given again after drawing, and one resized away and back. */
+static void made_ahead(const GladGLContext *gl, const scene *s, const cache_snapshot *snap, int w, int h)
+{
+    lm_error err;
+    rend_frame *ahead = NULL, *plain = NULL;
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.width = 3, .height = 3, .supersample = 1}, &ahead, &err) ==
+          LM_OK);
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = 1}, &plain,
+                            &err) == LM_OK);
+    float *a = malloc((size_t)w * h * 3 * sizeof *a), *b = malloc((size_t)w * h * 3 * sizeof *b);
+    if (!ahead || !plain || !a || !b) goto done;
+    CHECK(rend_frame_draw(ahead, &s->cameras[0], snap, NULL, &err) == LM_ERR_INVALID_ARG); /* no scene yet */
+    CHECK(rend_frame_resize(ahead, 0, h, &err) == LM_ERR_INVALID_ARG);
+    CHECK(rend_frame_resize(ahead, w, h, &err) == LM_OK);
+    CHECK(rend_frame_set_scene(ahead, s, &err) == LM_OK);
+    CHECK(rend_frame_draw(plain, &s->cameras[0], snap, b, &err) == LM_OK);
+    CHECK(rend_frame_draw(ahead, &s->cameras[0], snap, a, &err) == LM_OK);
+    const size_t n = (size_t)w * h * 3;
+    const int same_made_ahead = same_floats(a, b, n);
+    CHECK(rend_frame_set_scene(ahead, s, &err) == LM_OK); /* forgets what it drew: drawn whole again */
+    CHECK(rend_frame_draw(ahead, &s->cameras[0], snap, a, &err) == LM_OK);
+    rend_frame_times t;
+    rend_frame_get_times(ahead, &t);
+    const int same_scene_again = same_floats(a, b, n) && !t.material_reused && t.radiance_redrawn == 1.0;
+    CHECK(rend_frame_resize(ahead, w / 2 + 1, h + 3, &err) == LM_OK);
+    CHECK(rend_frame_draw(ahead, &s->cameras[0], snap, NULL, &err) == LM_OK);
+    CHECK(rend_frame_resize(ahead, w, h, &err) == LM_OK);
+    CHECK(rend_frame_draw(ahead, &s->cameras[0], snap, a, &err) == LM_OK);
+    const int same_resized = same_floats(a, b, n);
+    printf("  made ahead of its scene at 3x3, then sized and given it: the same picture %s; its scene given again: "
+           "%s; resized away and back: %s\n",
+           same_made_ahead ? "yes" : "no", same_scene_again ? "yes" : "no", same_resized ? "yes" : "no");
+    CHECK(same_made_ahead && same_scene_again && same_resized);
+done:
+    free(a);
+    free(b);
+    rend_frame_destroy(ahead);
+    rend_frame_destroy(plain);
+}
+
 static void refine_and_compare(const GladGLContext *gl, const scene *s, const uint32_t *pixels, int w, int h)
 {
     lm_error err;
@@ -170,6 +215,7 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
                sum > 0.0 ? diff / sum : 0.0, off, w * h);
         CHECK(sum > 0.0 && diff / sum < 1e-5 && off <= (size_t)(w * h) / 200);
     }
+    if (snap) made_ahead(gl, s, snap, w, h);
     free(a);
     free(b);
     free(c);

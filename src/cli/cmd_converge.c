@@ -621,6 +621,7 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
     if (rend_session_early_gl_start(sd.gl_platform, &early, &err) != LM_OK) early = NULL;
     lm_result r = img_read(ref_path, &c.ref, &err);
     c.load[0] = lm_now_seconds() - t_start;
+    if (r == LM_OK) rend_session_early_gl_size(early, c.ref.width, c.ref.height); /* the first image's size */
     if (r != LM_OK) {
         rend_session_early_gl_end(early);
         return app_report(r, &err);

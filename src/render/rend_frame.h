@@ -97,7 +97,8 @@ enum {
 };
 
 typedef struct rend_frame_desc {
-    const scene *scene;   /* must outlive the renderer */
+    const scene *scene;   /* must outlive the renderer (or its rend_frame_set_scene); NULL: the renderer
+                             is made ahead of its scene (below) */
     int width, height;    /* output pixels, 1..16384; s·width and s·height at most 16384 and GL's limit */
     int supersample;      /* s: s×s samples per pixel on a regular grid (the centres of s×s sub-pixels),
                              box-filtered, 1..REND_FRAME_SUPERSAMPLE_MAX; 1 = pixel centres only (the
@@ -147,11 +148,22 @@ typedef struct rend_frame rend_frame;
 lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc, rend_frame **out, lm_error *err);
 void rend_frame_destroy(rend_frame *f); /* NULL is a no-op; needs gl's context current */
 
-/* Compiles and links the renderer's programs once and deletes them: what a
- * thread that makes a context early does (rend_session_early_gl), so that the
- * GLSL compiler's own start (its built-in functions) is not paid by the first
- * renderer. Failures are left to rend_frame_create. Needs gl's context current. */
-void rend_frame_warm_up(const GladGLContext *gl);
+/* A renderer made ahead of its scene (desc.scene NULL), e.g. while the scene
+ * loads, by a thread that has the context before the client's
+ * (rend_session_early_gl): its programs and images are made, and a stand-in is
+ * drawn through every pass so that the driver compiles its shader variants
+ * then (llvmpipe compiles them at a program's first draw); it draws nothing
+ * until rend_frame_set_scene gives it its scene. rend_frame_set_scene also
+ * replaces the scene of any renderer (the images and mesh copies are
+ * forgotten: the next draw is whole). On failure the renderer has no scene.
+ * Needs gl's context current. */
+lm_result rend_frame_set_scene(rend_frame *f, const scene *s, lm_error *err);
+
+/* New images for width × height output pixels (the same s), as made at
+ * creation; what they held is forgotten. A size out of range leaves the images
+ * as they were; a GL failure leaves none (every draw then fails until a resize
+ * succeeds). Needs gl's context current. */
+lm_result rend_frame_resize(rend_frame *f, int width, int height, lm_error *err);
 
 /* Draws the snapshot seen from cam into the output texture and, when rgb is not
  * NULL, reads it into rgb (width·height·3 floats, linear, top row first). A NULL

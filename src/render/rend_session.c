@@ -4,6 +4,7 @@
 
 #include <math.h>
 #include <pthread.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -26,6 +27,8 @@ struct rend_session {
     int id_done;
     cache_worker *wk;
     rend_frame *frame[REND_SESSION_RENDERER_COUNT];
+    rend_frame *ahead;                /* the early context's preview renderer, made before the scene
+                                         (rend_frame_set_scene), until the preview takes it */
     const cache_snapshot *snap;       /* the last acquired */
     rend_session_info info;
 };
@@ -67,28 +70,64 @@ static lm_result check_desc(const rend_session_desc *d, lm_error *err)
     return LM_OK;
 }
 
-/* Shared with the helper thread: it writes ctx and r until it is joined;
- * the client's thread (start, the session's create, end) reads them after the
- * join only, and owns the rest. */
+/* Shared with the helper thread. It writes ctx, frame and r until it is
+ * joined; the client's thread (start, size, the session's create, end) reads
+ * them after the join only. width, height and closed are the client's, read by
+ * the helper under lock. */
 struct rend_session_early_gl {
     glctx_platform platform;
     pthread_t thread;
+    pthread_mutex_t lock;
+    pthread_cond_t cond;
+    int width, height;  /* rend_session_early_gl_size; 0 = not given yet */
+    int closed;         /* no size will come: the client takes the context or ends it */
+    int context_tried;  /* the helper's: glctx_create has returned (start waits for it) */
     int joined;
     glctx *ctx;
+    rend_frame *frame;  /* the preview renderer made ahead of the scene (rend_frame_set_scene), or NULL */
     lm_result r; /* its error is not kept: a failed start makes the session try once more, and report that */
 };
+
+/* Before the size is known the renderer is made at 3×3: llvmpipe's shader
+ * variants depend on whether a texture's sides are powers of two (its sampler
+ * state), not on its size, and a window or reference is rarely a power of two
+ * (a size that is still works, its first draw compiles its own variants). */
+enum { EARLY_STAND_IN_SIDE = 3 };
 
 static void *early_gl_main(void *user)
 {
     rend_session_early_gl *e = user;
     lm_error err;
     e->r = glctx_create(&(glctx_desc){.platform = e->platform}, &e->ctx, &err);
-    /* The compiler started here too, inside the fork guard: Mesa's and LLVM's C++
-     * statics register exit functions the first time they are used (fork_guard.h). */
+    /* The preview renderer made here, inside the fork guard: Mesa's and LLVM's
+     * C++ statics register exit functions the first time they are used (the
+     * GLSL compiler's, and LLVM's at the first shader variant compiled:
+     * fork_guard.h). Its programs cost the compiler's own start (~22 ms, its
+     * built-in functions) and its first draw the variants (~40 ms): both are
+     * paid here, while the client loads. */
+    pthread_mutex_lock(&e->lock);
+    e->context_tried = 1;
+    pthread_cond_broadcast(&e->cond);
+    pthread_mutex_unlock(&e->lock);
     if (e->r == LM_OK) {
         lm_fork_guard_enter();
-        rend_frame_warm_up(glctx_gl(e->ctx));
+        if (rend_frame_create(glctx_gl(e->ctx),
+                              &(rend_frame_desc){.width = EARLY_STAND_IN_SIDE, .height = EARLY_STAND_IN_SIDE,
+                                                 .supersample = 1},
+                              &e->frame, &err) != LM_OK)
+            e->frame = NULL; /* the session makes its own, and reports what fails then */
         lm_fork_guard_leave();
+    }
+    /* Its images at the size the client gives, if it gives one before it takes
+     * the context: llvmpipe zeroes an image as it makes it (~40 ms for the
+     * preview's at 640×480 here), outside the guard (no library is loaded). */
+    pthread_mutex_lock(&e->lock);
+    while (e->frame && !e->width && !e->closed) pthread_cond_wait(&e->cond, &e->lock);
+    const int w = e->width, h = e->height;
+    pthread_mutex_unlock(&e->lock);
+    if (e->frame && w > 0 && rend_frame_resize(e->frame, w, h, &err) != LM_OK) {
+        rend_frame_destroy(e->frame);
+        e->frame = NULL;
     }
     if (e->r == LM_OK) glctx_release(e->ctx); /* for the session's thread to take */
     return NULL;
@@ -101,25 +140,66 @@ lm_result rend_session_early_gl_start(glctx_platform platform, rend_session_earl
     if (!e) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory starting the GL context");
     e->platform = platform;
     e->r = LM_ERR_RUNTIME;
+    pthread_mutex_init(&e->lock, NULL);
+    pthread_cond_init(&e->cond, NULL);
     if (pthread_create(&e->thread, NULL, early_gl_main, e) != 0) {
+        pthread_cond_destroy(&e->cond);
+        pthread_mutex_destroy(&e->lock);
         free(e);
         return lm_fail(err, LM_ERR_RUNTIME, "cannot start a thread for the GL context");
     }
+    /* The driver's libraries are loaded before the client goes on: a library
+     * the client loads meanwhile (the image module, for a reference) would
+     * hold the dynamic loader's lock for its whole load, and the context
+     * would wait for it (converge: the context 0.09 s alone, 0.64-0.69 s
+     * beside the reference's read). The renderer is made after this, beside
+     * the client. */
+    pthread_mutex_lock(&e->lock);
+    while (!e->context_tried) pthread_cond_wait(&e->cond, &e->lock);
+    pthread_mutex_unlock(&e->lock);
     *out = e;
     return LM_OK;
 }
 
-/* Waits for the helper; its context, current on this thread, or NULL. */
-static glctx *early_gl_take(rend_session_early_gl *e)
+void rend_session_early_gl_size(rend_session_early_gl *e, int width, int height)
 {
-    if (!e->joined) pthread_join(e->thread, NULL);
+    if (!e || width < 1 || height < 1) return;
+    pthread_mutex_lock(&e->lock);
+    if (!e->closed) {
+        e->width = width;
+        e->height = height;
+        pthread_cond_broadcast(&e->cond);
+    }
+    pthread_mutex_unlock(&e->lock);
+}
+
+static void early_gl_join(rend_session_early_gl *e)
+{
+    if (e->joined) return;
+    pthread_mutex_lock(&e->lock);
+    e->closed = 1;
+    pthread_cond_broadcast(&e->cond);
+    pthread_mutex_unlock(&e->lock);
+    pthread_join(e->thread, NULL);
     e->joined = 1;
+}
+
+/* Waits for the helper; its context, current on this thread, or NULL; *frame
+ * the renderer made ahead (NULL without a context). */
+static glctx *early_gl_take(rend_session_early_gl *e, rend_frame **frame)
+{
+    early_gl_join(e);
     lm_error err;
     glctx *ctx = e->ctx;
+    *frame = e->frame;
     e->ctx = NULL;
+    e->frame = NULL;
     if (ctx && (e->r != LM_OK || glctx_make_current(ctx, &err) != LM_OK)) {
+        /* The renderer goes with its context: objects of a context that is not
+         * current cannot be deleted, and glctx_destroy frees them all. */
         glctx_destroy(ctx);
         ctx = NULL;
+        *frame = NULL;
     }
     return ctx;
 }
@@ -127,8 +207,11 @@ static glctx *early_gl_take(rend_session_early_gl *e)
 void rend_session_early_gl_end(rend_session_early_gl *e)
 {
     if (!e) return;
-    if (!e->joined) pthread_join(e->thread, NULL);
+    early_gl_join(e);
+    if (e->frame && e->ctx && glctx_make_current(e->ctx, &(lm_error){{0}}) == LM_OK) rend_frame_destroy(e->frame);
     glctx_destroy(e->ctx);
+    pthread_cond_destroy(&e->cond);
+    pthread_mutex_destroy(&e->lock);
     free(e);
 }
 
@@ -140,7 +223,7 @@ static lm_result make_context(rend_session *rs, lm_error *err)
         return LM_OK;
     }
     if (rs->early_gl) {
-        rs->ctx = early_gl_take(rs->early_gl);
+        rs->ctx = early_gl_take(rs->early_gl, &rs->ahead);
         rend_session_early_gl_end(rs->early_gl);
         rs->early_gl = NULL;
         if (rs->ctx) {
@@ -279,6 +362,8 @@ lm_result rend_session_create(const rend_session_desc *desc, rend_session **out,
 
 static void drop_gl_objects(rend_session *rs)
 {
+    rend_frame_destroy(rs->ahead);
+    rs->ahead = NULL;
     for (int k = 0; k < REND_SESSION_RENDERER_COUNT; ++k) {
         rend_frame_destroy(rs->frame[k]);
         rs->frame[k] = NULL;
@@ -405,6 +490,18 @@ lm_result rend_session_renderer(rend_session *rs, rend_session_renderer_kind kin
         int s = kind == REND_SESSION_FINAL ? rs->d.supersample : 1;
         lm_result r = make_context(rs, err);
         if (r != LM_OK) return r;
+        if (kind == REND_SESSION_PREVIEW && rs->ahead) { /* made while the scene loaded */
+            rend_frame *f = rs->ahead;
+            rs->ahead = NULL;
+            lm_error ignored;
+            if (rend_frame_resize(f, rs->info.width, rs->info.height, &ignored) == LM_OK &&
+                rend_frame_set_scene(f, rs->d.scene, &ignored) == LM_OK) {
+                rs->frame[kind] = f;
+                if (out) *out = f;
+                return LM_OK;
+            }
+            rend_frame_destroy(f); /* made again below, whose error is reported */
+        }
         const int one = kind == REND_SESSION_FINAL && rs->d.final_one_snapshot;
         r = rend_frame_create(rs->gl, &(rend_frame_desc){.scene = rs->d.scene, .width = rs->info.width,
                                                          .height = rs->info.height, .supersample = s,

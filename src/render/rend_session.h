@@ -97,12 +97,13 @@ typedef enum rend_session_renderer_kind {
 } rend_session_renderer_kind;
 
 /* A GL context being made on a helper thread, for a client that loads its scene
- * meanwhile (as a viewer opens its window while it loads): the driver's start
- * (about 80 ms of llvmpipe's on a 2-core machine) and the GLSL compiler's
- * (rend_frame_warm_up, ~22 ms) then overlap the loading instead of delaying the
- * first image (`converge`: CornellBox-Original's first image 0.20-0.25 s ->
- * 0.14-0.18 s, and with the warm-up and huge pages 0.082-0.093 s;
- * docs/renderer.md). Started before the load;
+ * meanwhile (as a viewer opens its window while it loads), with the session's
+ * preview renderer made ahead of the scene (rend_frame_set_scene): the driver's
+ * start (about 80 ms of llvmpipe's on a 2-core machine), the GLSL compiler's
+ * (~22 ms), the renderer's shader variants (~40 ms) and, once the client gives
+ * the size, its images (~40 ms at 640×480) then overlap the loading instead of
+ * delaying the first image (docs/renderer.md, "The renderer made ahead").
+ * Started before the load;
  * handed to rend_session_create (rend_session_desc.early_gl), which waits for it,
  * makes it current on its own thread and owns it from then on, as a context of
  * its own; a client that makes no session ends it (rend_session_early_gl_end).
@@ -111,6 +112,10 @@ typedef enum rend_session_renderer_kind {
 typedef struct rend_session_early_gl rend_session_early_gl;
 lm_result rend_session_early_gl_start(glctx_platform platform, rend_session_early_gl **out, lm_error *err);
 void rend_session_early_gl_end(rend_session_early_gl *e); /* NULL is a no-op */
+/* The size the session's preview renderer (REND_SESSION_PREVIEW) will have, as
+ * soon as the client knows it: the helper makes that renderer's images at it
+ * while the client loads. Without it they are made at the first draw. */
+void rend_session_early_gl_size(rend_session_early_gl *e, int width, int height);
 
 /* Zero fields mean "default" (rend_session_desc_defaults says which). */
 typedef struct rend_session_desc {
