@@ -43,10 +43,10 @@ extern "C" {
 
 enum {
     CACHE_WORKER_QUICK_RAYS = 64, /* gather rays per coarse vertex for the first snapshot (then gathered again) */
-    CACHE_WORKER_FIRST_GATHERS = 512, /* most indirect gathers before the first snapshot (cache_desc.coarse_gathers;
-                                         1,024 before: docs/cache.md has both measured) */
-    CACHE_WORKER_FIRST_LIGHT_CORNERS = 4096 /* most corners sampled for light before it (cache_desc.coarse_lights;
-                                               8,192 before) */
+    CACHE_WORKER_FIRST_GATHERS = 128, /* most indirect gathers before the first snapshot (cache_desc.coarse_gathers;
+                                         1,024, then 512 before: docs/cache.md has each measured) */
+    CACHE_WORKER_FIRST_LIGHT_CORNERS = 1024 /* most corners sampled for light before it (cache_desc.coarse_lights;
+                                               8,192, then 4,096 before) */
 };
 
 typedef struct cache_worker_desc {
