@@ -61,8 +61,12 @@ struct cache_worker {
     uint32_t *pixels;                 /* owned copy; the worker's (set_pixels hands over a new one) */
     pthread_t thread;
     int started, joined;            /* the display's: the thread was made; joined (retire, destroy) */
-    atomic_int stop_now;              /* set by the display when cancelling (stop_thread), read by the
-                                         worker's refine calls between batches (cache_refine_desc.stop) */
+    atomic_int stop_now;              /* set by the display when cancelling (stop_thread): the worker
+                                         then leaves without a snapshot of its cut-short step */
+    atomic_int interrupt;             /* set by the display when cancelling or pausing, cleared when it
+                                         resumes; read by the worker's refine calls between batches and
+                                         rounds (cache_refine_desc.stop): a pause does not wait for a
+                                         whole step (docs/renderer.md, "The first rows on time") */
 
     pthread_mutex_t lock;             /* guards every field below */
     pthread_cond_t cond;              /* signalled on any change of them */
@@ -632,7 +636,7 @@ static void *worker_main(void *arg)
         if (budget)
             r = cache_refine(c,
                              &(cache_refine_desc){.pixels = w->pixels, .budget = budget,
-                                                  .regather = CACHE_REGATHER_PER_LEAF * step, .stop = &w->stop_now},
+                                                  .regather = CACHE_REGATHER_PER_LEAF * step, .stop = &w->interrupt},
                              &res, &err);
         if (r != LM_OK || atomic_load(&w->stop_now)) break; /* cancelled: no snapshot of a cut-short step */
         if (budget) owed = res.outdated;
@@ -738,7 +742,8 @@ static void store_free(snapshot_store *st)
 static void stop_thread(cache_worker *w)
 {
     if (!w->started || w->joined) return;
-    atomic_store(&w->stop_now, 1); /* the step in flight returns after its batch */
+    atomic_store(&w->stop_now, 1);
+    atomic_store(&w->interrupt, 1); /* the step in flight returns after its batch */
     pthread_mutex_lock(&w->lock);
     w->cancel = 1;
     pthread_cond_broadcast(&w->cond);
@@ -783,6 +788,7 @@ lm_result cache_worker_create(const cache_worker_desc *desc, cache_worker **out,
     if (!w) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the refinement worker");
     w->desc = *desc;
     atomic_init(&w->stop_now, 0);
+    atomic_init(&w->interrupt, 0);
     w->debug_wanted = desc->publish_debug != 0;
     w->s = desc->scene;
     w->front = calloc(1, sizeof *w->front);
@@ -827,6 +833,7 @@ void cache_worker_pause(cache_worker *w)
 {
     pthread_mutex_lock(&w->lock);
     w->paused = 1;
+    atomic_store(&w->interrupt, 1); /* the step in flight ends after its batch or round, and is published */
     pthread_cond_broadcast(&w->cond);
     while (!w->parked && !w->finished) pthread_cond_wait(&w->cond, &w->lock);
     pthread_mutex_unlock(&w->lock);
@@ -847,6 +854,7 @@ void cache_worker_request_pause(cache_worker *w)
 {
     pthread_mutex_lock(&w->lock);
     w->paused = 1;
+    atomic_store(&w->interrupt, 1);
     pthread_cond_broadcast(&w->cond);
     pthread_mutex_unlock(&w->lock);
 }
@@ -855,6 +863,7 @@ void cache_worker_resume(cache_worker *w)
 {
     pthread_mutex_lock(&w->lock);
     w->paused = 0;
+    if (!atomic_load(&w->stop_now)) atomic_store(&w->interrupt, 0);
     pthread_cond_broadcast(&w->cond);
     pthread_mutex_unlock(&w->lock);
 }

@@ -91,15 +91,19 @@ void cache_worker_retire(cache_worker *w);
 /* The latest committed snapshot, or NULL before the first commit. */
 const cache_snapshot *cache_worker_acquire(cache_worker *w);
 
-/* pause returns once the worker is between steps and waiting. While paused it
- * refines nothing, but a light edit (set_light) is still applied and published
- * as one new snapshot (no refinement step, not converged). */
+/* pause returns once the worker is between steps and waiting. The step in
+ * flight does not run to its end: it stops after its batch of gathers or round
+ * of leaf tests (nothing is lost: the rest stays queued) and is published, so a
+ * pause waits milliseconds, not a step (Water's first steps take ~0.25 s).
+ * While paused it refines nothing, but a light edit (set_light) is still
+ * applied and published as one new snapshot (no refinement step, not
+ * converged). */
 void cache_worker_pause(cache_worker *w);
 /* Snapshots from now on carry the debug data or not (cache_worker_desc.publish_debug);
  * a change is published at once, even by a worker that is idle or paused. */
 void cache_worker_set_publish_debug(cache_worker *w, int on);
-/* The same without waiting: the step in flight may still commit one snapshot (a
- * display thread that must not block uses this). */
+/* The same without waiting: the step in flight, cut short as above, may still
+ * commit one snapshot (a display thread that must not block uses this). */
 void cache_worker_request_pause(cache_worker *w);
 void cache_worker_resume(cache_worker *w);
 /* Queued; the worker applies it before its next step (cache_set_light: no resampling). */
