@@ -3,7 +3,8 @@
  *     the same refinement done synchronously, and its last snapshot holds as many
  *     triangles as the synchronous cache's leaves give;
  *   - pause: no commit while paused; resume: refinement goes on; a pause asked
- *     before the first snapshot holds the worker right after publishing it;
+ *     before the first snapshot holds the worker right after publishing it; a
+ *     pause within a step cuts it short and publishes what it did;
  *   - a light edit through the worker: new values, no new light sample;
  *   - a camera move through the worker (set_view): the specular mesh starts again
  *     for the new eye (its values there change), the direct mesh keeps every node;
@@ -462,6 +463,41 @@ int main(void)
                (unsigned long long)g0, (unsigned long long)t_first, (unsigned long long)g1, (unsigned long long)g2);
         CHECK(g0 == 1 && g1 == g0);
         CHECK(g2 > g1);
+        cache_worker_destroy(w);
+    }
+    /* A pause within a step cuts it short: with one step of any length (a budget
+     * no refinement here reaches) the pause does not wait for it to end, and
+     * the part done is published, not converged; refinement then goes on. */
+    w = NULL;
+    CHECK(cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = pixels,
+                                                   .step_budget = 1u << 30},
+                              &w, &err) == LM_OK);
+    if (w) {
+        const cache_snapshot *first = NULL;
+        double t0 = lm_now_seconds();
+        while (!(first = cache_worker_acquire(w)) && lm_now_seconds() - t0 < 30.0) sleep_ms(1);
+        const uint64_t t_first = first ? first->tested : 0, g_first = first ? first->generation : 0;
+        cache_worker_pause(w);
+        const cache_snapshot *cut = cache_worker_acquire(w);
+        const uint64_t g_cut = cut ? cut->generation : 0, t_cut = cut ? cut->tested : 0;
+        const int cut_converged = cut ? cut->converged : 1;
+        cache_worker_resume(w);
+        uint64_t t_later = t_cut;
+        t0 = lm_now_seconds();
+        while (t_later == t_cut && lm_now_seconds() - t0 < 10.0) {
+            sleep_ms(5);
+            cache_worker_request_pause(w); /* each cut step is published ... */
+            cache_worker_resume(w);        /* ... and the next goes on from it */
+            t_later = cache_worker_acquire(w)->tested;
+        }
+        printf("a pause within one unbounded step: %llu leaves tested at the first snapshot, %llu when the pause "
+               "returned (generation %llu -> %llu, %s), %llu later\n",
+               (unsigned long long)t_first, (unsigned long long)t_cut, (unsigned long long)g_first,
+               (unsigned long long)g_cut, cut_converged ? "converged" : "not converged", (unsigned long long)t_later);
+        /* The synchronous cache above needs more than `budget` leaves: a step
+         * that ran to its end would have tested them all. */
+        CHECK(g_cut > g_first && !cut_converged && t_cut < t_first + budget / 2);
+        CHECK(t_later > t_cut);
         cache_worker_destroy(w);
     }
     /* Retired mid-refinement: the snapshot held keeps its bytes (ASan would see a
