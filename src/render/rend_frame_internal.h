@@ -1,0 +1,92 @@
+/* rend_frame_internal.h — the renderer's state, shared by its passes
+ * (rend_frame.c: drawing, change detection) and its making (rend_frame_make.c:
+ * programs, images, scene, the stand-in draw). Only for src/render/rend_frame*.c.
+ * Threads: a renderer is used on the thread its GL context is current on. */
+#ifndef LUMESH_RENDER_REND_FRAME_INTERNAL_H
+#define LUMESH_RENDER_REND_FRAME_INTERNAL_H
+#include "src/render/rend_frame.h"
+
+enum { TERMS = 3 }; /* direct, indirect, specular */
+
+/* One material in the composite's table (std430: three vec4). */
+typedef struct material_entry {
+    float kd[4], ks[4], le[4];
+} material_entry;
+
+/* A scene triangle's corner for the material pass. */
+typedef struct material_vertex {
+    float position[3];
+    uint32_t code; /* 2·(material + 1); the fragment shader adds the facing bit */
+} material_vertex;
+
+/* A rectangle of the sample images, GL rows (bottom up), half-open; empty when x0 >= x1. */
+typedef struct rect {
+    int x0, y0, x1, y1;
+} rect;
+
+/* One radiance term: its snapshot mesh on the GPU, a CPU copy of it (to find
+ * what the next snapshot changed) and its image for the composite, output-sized:
+ * at s = 1 its radiance image, drawn into directly (with the shared depth); at
+ * s > 1 its resolved image (coef·L box-filtered over each pixel's samples,
+ * rend_resolve.frag), the radiance drawn into the shared val_tex first. */
+typedef struct term_state {
+    GLuint vbo, ibo, vao, fbo, tex; /* vbo: the mesh's vertices; ibo: its index */
+    size_t vbo_cap, ibo_cap;       /* bytes allocated in vbo and ibo */
+    cache_snapshot_mesh copy;      /* what vbo and ibo hold (vertices, index; no tri, no corners) */
+    cache_snapshot_vertex *copy_v; /* copy's arrays, owned */
+    uint32_t *copy_i;
+    uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
+    uint32_t copy_cap, copy_vcap;  /* allocated: triangles in copy_i and hash; vertices in copy_v */
+    int hash_valid;
+    const cache_snapshot_vertex *src; /* the snapshot array it came from */
+    int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
+} term_state;
+
+struct rend_frame {
+    rend_frame_desc desc;            /* supersample resolved */
+    const GladGLContext *gl;
+    int sw, sh;                      /* sample images: s·width × s·height */
+    GLuint prog_material, prog_value, prog_resolve, prog_composite;
+    GLint loc_mat_vp, loc_val_vp, loc_res_term, loc_res_band, loc_comp_terms;
+    GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
+    GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
+    unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
+    float jitter[2];                 /* rend_frame_set_jitter: output pixels, right and down */
+    int comp_valid;                  /* the output holds the composite of the current inputs ... */
+    unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
+    /* Sample images (s·width × s·height). Only the material codes are kept
+     * between draws, whole; the depth is every pass's (each clears it where it
+     * draws) and, at s > 1, the radiance image each term's in turn, resolved
+     * before the next term is drawn into it (docs/memory.md). At s > 1 the
+     * passes draw in bands of `band` rows (the viewport moved down by the band's
+     * first row, the same projection): the depth and the radiance image hold one
+     * band, the material pass draws its codes into a band image and copies them
+     * into the whole one: 4 bytes a sample, 24 a sample of a band and 64 a pixel
+     * (were 24 a sample: a 1920×1080 render took 450 MB of images). At s = 1 a
+     * resolved image would be as large as the radiance image and cost a pass:
+     * each term keeps its own (56 bytes a pixel), one band. */
+    int band;                        /* rows of samples a band (a multiple of s; sh at s = 1) */
+    GLuint mat_fbo, mat_tex;         /* R32UI material codes (whole); s = 1: mat_fbo draws them, with depth */
+    GLuint band_tex;                 /* s > 1: a band's codes, drawn by mat_fbo (with depth), copied to mat_tex */
+    GLuint val_fbo, val_tex;         /* s > 1: RGBA32F radiance of a band of the term being drawn, with depth */
+    GLuint depth;                    /* DEPTH_COMPONENT32F of a band, attached to all that draw */
+    GLuint out_fbo, out_tex;
+    GLuint empty_vao;
+    term_state term[TERMS];          /* L_dd, E_i, L_ds */
+    /* Change detection: a hash table of the old triangles (index + 1, 0 = empty)
+     * and the new triangles' hashes. */
+    uint64_t *hash_key;
+    uint32_t *hash_tri;
+    uint8_t *seen;
+    size_t hash_cap;                 /* slots, a power of two */
+    uint64_t *new_hash;
+    uint32_t new_hash_cap;           /* entries allocated in new_hash */
+    /* What the images hold (rend_frame_invalidate clears it). */
+    int mat_valid, val_valid, snap_valid;
+    int images_ok;                   /* the images above exist (make_images; a failed resize leaves none) */
+    float mat_vp[16], val_vp[16];    /* camera of the material / radiance images */
+    uint64_t snap_generation;        /* snapshot the copies came from, when snap_valid */
+    rend_frame_times times;
+};
+
+#endif
