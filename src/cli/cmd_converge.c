@@ -221,7 +221,6 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
          * late: Water's 0.1 and 0.25 s rows at 0.39 s, against the path tracer
          * at 0.1 and 0.25 s (docs/renderer.md, "The first rows on time"). */
         if (r == LM_OK) r = rend_session_renderer(rs, REND_SESSION_FINAL, NULL, err);
-        c->have_final_renderer = r == LM_OK;
         c->stopped += lm_now_seconds() - begun;
     }
     cache_worker_resume(rend_session_worker(rs)); /* drawn, or none came: refinement goes on */
@@ -274,7 +273,6 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
     float *rgb = malloc((size_t)c->w * (size_t)c->h * 3 * sizeof *rgb);
     lm_result r = rgb ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for a %dx%d image", c->w, c->h);
     const scene_camera *cam = &c->s->cameras[c->cam];
-    c->have_final_renderer = 0; /* this session's, made with its first image */
     /* The worker starts first: it makes the coarse cache while this thread makes the
      * GL context and the renderer; the ID pass, whose pixel counts the worker needs
      * only to refine, follows the first image. */
@@ -288,7 +286,7 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
     c->id_seconds = in.id_seconds;
     /* The measured images: the offline renderer, made with the first image
      * (first_image); when no snapshot came, here, with the clock standing still. */
-    if (r == LM_OK && !c->have_final_renderer) {
+    if (r == LM_OK && c->first_image < 0) {
         const double begun = measuring_begin(rs);
         r = rend_session_renderer(rs, REND_SESSION_FINAL, NULL, err);
         measuring_end(c, rs, begun);

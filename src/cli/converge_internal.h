@@ -76,7 +76,6 @@ typedef struct conv_ctx {
     int tty;
     uint32_t light_count;     /* mesh columns: light_count + 3 */
     double first_image;       /* seconds from the scene loaded; < 0 until drawn */
-    int have_final_renderer;  /* the measurement's renderer was made with the first image */
     /* Where that time went (first_image_phases in the JSON), seconds from the
      * scene loaded; < 0 until reached: the session made (worker started, GL
      * context taken), the preview renderer made, the first snapshot taken. */

@@ -99,16 +99,16 @@ static void *early_gl_main(void *user)
     rend_session_early_gl *e = user;
     lm_error err;
     e->r = glctx_create(&(glctx_desc){.platform = e->platform}, &e->ctx, &err);
+    pthread_mutex_lock(&e->lock); /* the client goes on (rend_session_early_gl_start) */
+    e->context_tried = 1;
+    pthread_cond_broadcast(&e->cond);
+    pthread_mutex_unlock(&e->lock);
     /* The preview renderer made here, inside the fork guard: Mesa's and LLVM's
      * C++ statics register exit functions the first time they are used (the
      * GLSL compiler's, and LLVM's at the first shader variant compiled:
      * fork_guard.h). Its programs cost the compiler's own start (~22 ms, its
      * built-in functions) and its first draw the variants (~40 ms): both are
      * paid here, while the client loads. */
-    pthread_mutex_lock(&e->lock);
-    e->context_tried = 1;
-    pthread_cond_broadcast(&e->cond);
-    pthread_mutex_unlock(&e->lock);
     if (e->r == LM_OK) {
         lm_fork_guard_enter();
         if (rend_frame_create(glctx_gl(e->ctx),
