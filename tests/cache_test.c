@@ -926,7 +926,7 @@ static void test_specular_outline(void)
                 CHECK(cache_set_camera(u.c, eye, &err) == LM_OK);
                 double wo[3] = {eye[0] - x[0], eye[1] - x[1], eye[2] - x[2]};
                 float rgb[3];
-                cache_specular_from_visibility(u.c, vid, V1, rgb);
+                CHECK(cache_specular_from_visibility(u.c, vid, V1, rgb, &err) == LM_OK);
                 double want = 4.0 * phong_brute_light(s, 0, x, nx, wo, 300.0, 48);
                 worst = fmax(worst, fabs(rgb[0] - want) / (want + 1e-3));
                 lit += want > 0.1;

@@ -108,6 +108,7 @@ void cache_destroy(cache *c)
     cache_source_free(&c->src);
     cache_borrow_free(&c->brw);
     cache_glossy_free(&c->gls);
+    free(c->spec_visible);
     cache_sched_free(&c->sched);
     free(c->active);
     free(c->reach_traced);
@@ -510,6 +511,12 @@ void cache_get_stats(cache *c, cache_stats *out)
 const mesh_qmesh *cache_direct_mesh(const cache *c) { return c->direct; }
 const mesh_qmesh *cache_indirect_mesh(const cache *c) { return c->indirect; }
 const mesh_qmesh *cache_specular_mesh(const cache *c) { return c->specular; }
+
+void cache_get_light_radiance(const cache *c, uint32_t light, float out[3])
+{
+    if (light < c->light_count) memcpy(out, c->light_le + 3 * (size_t)light, 3 * sizeof *out);
+    else memset(out, 0, 3 * sizeof *out);
+}
 const mesh_vtable *cache_vtable(const cache *c) { return c->vt; }
 const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light)
 {

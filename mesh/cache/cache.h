@@ -418,6 +418,41 @@ lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_est
 #define CACHE_CONVERGED_ABOVE_JND 0.02
 int cache_estimate_converged(const cache_estimate *e);
 
+/* The area lights' outlines, for the specular integral (eq. 5: the cache's
+ * values; the renderer's highlights per pixel): loop k is xyz[3·loop[k] ..
+ * 3·loop[k+1]) (counter-clockwise seen from the light's front; loop_sign[k] −1
+ * for a hole, stored reversed), light l (area lights first, as cache_stats.lights)
+ * owns loops light_loop[l] .. light_loop[l+1]; a point light owns none. Built from
+ * the scene alone (the lights' triangles welded by position); 0 when memory runs
+ * out (o untouched). */
+typedef struct cache_outlines {
+    double *xyz;
+    uint32_t *loop, *light_loop;
+    int8_t *loop_sign;
+    size_t bytes;
+} cache_outlines;
+int cache_build_outlines(cache_outlines *o, const scene *s, uint32_t light_count);
+void cache_outlines_free(cache_outlines *o);
+
+/* What a renderer needs to evaluate the lights' part of a specular vertex's value
+ * per pixel (eq. 5 at the pixel's own point and view; docs/renderer.md, "Highlights
+ * per pixel"): the value is direct + the glossy part, and at a point inside a leaf
+ * the lights' part is visible·Σ_ℓ L_ℓ·S_ℓ there, the visible fraction interpolated
+ * (a shadow's edge is the mesh's to find) and the lobe integral exact. */
+typedef struct cache_lobe {
+    float normal[3];  /* unit shading normal */
+    float exponent;   /* Phong n of the vertex's material (its first triangle's) */
+    float direct[3];  /* the lights' part of the value, Σ_ℓ V_ℓ·L_ℓ·S_ℓ (RGB per unit ks) */
+    float visible;    /* the lights' visible fraction V_ℓ, combined over the lights by their share
+                         lum(L_ℓ)·S_ℓ of the unshadowed value (by their power where the lobe sees
+                         none of them): exact with one light */
+} cache_lobe;
+/* The lobe data of specular vertex vid (a vertex of cache_specular_mesh). */
+void cache_get_lobe(const cache *c, uint32_t vid, cache_lobe *out);
+/* Light `light`'s radiance (area) or intensity (point) as the cache uses it now
+ * (the scene's, or the last cache_set_light). */
+void cache_get_light_radiance(const cache *c, uint32_t light, float out[3]);
+
 /* The meshes themselves, read-only, for tests and the renderer. */
 const mesh_qmesh *cache_direct_mesh(const cache *c);
 const mesh_qmesh *cache_indirect_mesh(const cache *c);

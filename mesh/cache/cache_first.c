@@ -348,8 +348,8 @@ lm_result cache_first_light(cache *c, const uint32_t *v, uint32_t n, int *done, 
         r = cache_direct_from_visibility(c, vid, V, rgb, err);
         if (r == LM_OK) r = mesh_qmesh_set_value(c->direct, vid, rgb, err);
         if (r == LM_OK && c->specular && mesh_qmesh_vertex_use(c->specular, vid)) {
-            cache_specular_from_visibility(c, vid, V, rgb);
-            r = mesh_qmesh_set_value(c->specular, vid, rgb, err);
+            r = cache_specular_from_visibility(c, vid, V, rgb, err);
+            if (r == LM_OK) r = mesh_qmesh_set_value(c->specular, vid, rgb, err);
             if (r == LM_OK) r = cache_glossy_forget(c, vid, err); /* its glossy part comes with the sweep */
         }
         borrowed[vid] = 1;

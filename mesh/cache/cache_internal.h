@@ -115,17 +115,6 @@ typedef struct cache_light_state {
     size_t wanted_cap;
 } cache_light_state;
 
-/* The area lights' outlines for the specular integral (written by cache_specular.c,
- * once, at creation; only with a specular mesh): loop k is
- * xyz[3·loop[k] .. 3·loop[k+1]) (counter-clockwise seen from the light's front;
- * loop_sign[k] −1 for a hole, stored reversed), light l owns loops
- * light_loop[l] .. light_loop[l+1]. */
-typedef struct cache_outlines {
-    double *xyz;
-    uint32_t *loop, *light_loop;
-    int8_t *loop_sign;
-    size_t bytes;
-} cache_outlines;
 
 /* The glossy reflection of the indirect source (written by cache_glossy.c). A
  * specular value is its direct part (eq. 5, the lights) plus a glossy part: the
@@ -404,6 +393,10 @@ struct cache {
     cache_bounce_state bnc;
     cache_borrow_state brw;
     cache_glossy_state gls;
+    /* Per vertex id of the specular mesh: the lights' visible fraction, combined
+     * (cache_get_lobe; written by cache_specular.c with each value). */
+    float *spec_visible;
+    size_t spec_visible_cap;
 };
 
 /* Does scene triangle t take part (struct cache.active)? */
@@ -476,15 +469,12 @@ float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, 
 
 /* ---- cache_specular.c: outlines and specular values --------------------------------- */
 
-/* The area lights' boundary loops for the specular integral; 0 when memory runs
- * out (o untouched). */
-int cache_build_outlines(cache_outlines *o, const scene *s, uint32_t light_count);
-void cache_outlines_free(cache_outlines *o);
 /* L_ds (RGB per unit ks) at vertex vid, seen from c->eye, from visible fractions
  * V[0..light_count): Σ_ℓ V_ℓ·L_ℓ·S_ℓ, S_ℓ the Phong lobe integrated over the
  * area light (eq. 5 with V_ℓ constant over the light; samp_polygon_phong), and
  * for a point light the point's exact lobe·G. */
-void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3]);
+/* It also records the lights' combined visible fraction at vid (cache_get_lobe). */
+lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err);
 
 /* ---- cache_first.c: the first image from a budget of samples --------------------- */
 

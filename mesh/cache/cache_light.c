@@ -355,7 +355,7 @@ static lm_result light_values(cache *c, cache_kind kind, const cache_site *sites
         if (kind == CACHE_KIND_DIRECT)
             r = cache_direct_from_visibility(c, sites[i].vid, Vi, rgb + 3 * (size_t)i, err);
         else
-            cache_specular_from_visibility(c, sites[i].vid, Vi, rgb + 3 * (size_t)i);
+            r = cache_specular_from_visibility(c, sites[i].vid, Vi, rgb + 3 * (size_t)i, err);
     }
     free(V);
     if (r == LM_OK && kind == CACHE_KIND_SPECULAR && cache_glossy_on(c)) {

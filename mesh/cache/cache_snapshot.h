@@ -58,6 +58,8 @@ typedef struct cache_snapshot_mesh {
     const uint32_t *index;       /* 3 per triangle: its corners, into vertices (counter-clockwise) */
     const uint32_t *tri;         /* scene triangle of each triangle (its material) */
     const cache_snapshot_corner *corners;  /* 3 per triangle with publish_debug; else NULL */
+    const cache_lobe *lobes;     /* the specular mesh: per vertex, parallel to vertices, what its
+                                    highlights per pixel need (cache_get_lobe); else NULL */
     uint32_t triangle_count, vertex_count;
 } cache_snapshot_mesh;
 
@@ -76,6 +78,8 @@ typedef struct cache_snapshot {
     uint32_t light_mesh_count;   /* publish_debug: the scene's lights (a light nothing can see: an
                                     empty mesh); else 0 */
     cache_stats stats;           /* stats.lights points into the snapshot */
+    const float *light_radiance; /* stats.light_count × RGB: each light's radiance (area) or intensity
+                                    (point) as the cache uses it (cache_get_light_radiance) */
     cache_estimate estimate;     /* the cache's estimate of its error over the worker's pixel counts */
     samp_stats sampler;          /* the worker's sampler when it was made: back ends, samples, seconds */
     samp_stats quick_sampler;    /* the quick start's sampler (the coarse cache); zero without one */

@@ -242,7 +242,10 @@ static double light_phong(const cache *c, uint32_t l, const double x[3], const d
     return sum > 0.0 ? sum : 0.0; /* a hole's round-off cannot make light negative */
 }
 
-void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V, float rgb[3])
+/* Luminance weights of the channels (Rec. 709), for combining lights. */
+static double lum3(const float *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+
+lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err)
 {
     const scene *s = c->s;
     const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
@@ -252,12 +255,46 @@ void cache_specular_from_visibility(const cache *c, uint32_t vid, const float *V
     const double x[3] = {mv->position[0], mv->position[1], mv->position[2]},
                  nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]},
                  wo[3] = {c->eye[0] - x[0], c->eye[1] - x[1], c->eye[2] - x[2]};
-    double e[3] = {0, 0, 0};
+    double e[3] = {0, 0, 0}, seen = 0.0, all = 0.0, pseen = 0.0, pall = 0.0;
     for (uint32_t l = 0; l < c->light_count; ++l) {
-        if (!(V[l] > 0.0f)) continue;
+        const float *le = c->light_le + 3 * (size_t)l;
+        const double v = V[l] > 0.0f ? V[l] : 0.0, power = lum3(le) * (l < s->area_light_count ? s->area_lights[l].area : 1.0f);
+        pseen += v * power;
+        pall += power;
         double S = light_phong(c, l, x, nx, wo, n);
         if (!(S > 0.0)) continue;
-        for (int k = 0; k < 3; ++k) e[k] += (double)V[l] * c->light_le[3 * l + (uint32_t)k] * S;
+        seen += v * lum3(le) * S;
+        all += lum3(le) * S;
+        if (!(v > 0.0)) continue;
+        for (int k = 0; k < 3; ++k) e[k] += v * le[k] * S;
     }
     for (int k = 0; k < 3; ++k) rgb[k] = e[k] < 3e38 ? (float)e[k] : 3e38f;
+    /* The combined visible fraction (cache_lobe.visible): the lights weighed by
+     * what each sends through the lobe here, or by their power where it sends
+     * nothing (a vertex beside a highlight whose pixels may reach it). */
+    if (vid >= c->spec_visible_cap) {
+        size_t cap = lm_grow_capacity(c->spec_visible_cap, (size_t)vid + 1, 1024, SIZE_MAX / sizeof *c->spec_visible);
+        if (!cap || !lm_realloc_array(&c->spec_visible, c->spec_visible_cap, cap, sizeof *c->spec_visible))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the specular values");
+        for (size_t i = c->spec_visible_cap; i < cap; ++i) c->spec_visible[i] = 1.0f;
+        c->spec_visible_cap = cap;
+    }
+    c->spec_visible[vid] = (float)(all > 0.0 ? seen / all : pall > 0.0 ? pseen / pall : 1.0);
+    return LM_OK;
+}
+
+void cache_get_lobe(const cache *c, uint32_t vid, cache_lobe *out)
+{
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);
+    memcpy(out->normal, mv->normal, sizeof out->normal);
+    out->exponent = c->s->materials[c->s->tris[mv->tri].material].n;
+    float v[3] = {0, 0, 0};
+    if (!c->specular || mesh_qmesh_get_value(c->specular, vid, v) < 0) memset(v, 0, sizeof v);
+    /* The value is the lights' part plus the glossy part (cache_glossy.c). */
+    const float *g = cache_glossy_on(c) && vid < c->gls.cap ? c->gls.rgb + 3 * (size_t)vid : NULL;
+    for (int k = 0; k < 3; ++k) {
+        float d = g ? v[k] - g[k] : v[k];
+        out->direct[k] = d > 0.0f ? d : 0.0f;
+    }
+    out->visible = vid < c->spec_visible_cap ? c->spec_visible[vid] : 1.0f;
 }

@@ -24,7 +24,8 @@ typedef struct mesh_store {
     cache_snapshot_vertex *verts;
     uint32_t *index, *tris;
     cache_snapshot_corner *corners;   /* publish_debug only */
-    size_t verts_cap, index_cap, tris_cap, corners_cap;
+    cache_lobe *lobes;                /* the specular mesh only: parallel to verts */
+    size_t verts_cap, index_cap, tris_cap, corners_cap, lobes_cap;
     mesh_qmesh_version filled;        /* the mesh and its version the arrays hold ({0, 0}: none) */
     int filled_debug;                 /* with the debug corners */
 } mesh_store;
@@ -52,6 +53,7 @@ typedef struct snapshot_store {
     cache_snapshot_mesh *light_snap;  /* ... and what snap.lights points to */
     uint32_t light_mesh_cap;
     cache_mesh_stats *lights;
+    float *light_radiance;            /* lights_cap × RGB: what snap.light_radiance points to */
     size_t lights_cap;
 } snapshot_store;
 
@@ -144,6 +146,9 @@ static lm_result append_piece(mesh_store *ms, publish_scratch *ps, int debug, co
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
     const mesh_vtable *vt = cache_vtable(c);
     const int pad = mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
+    const int lobes = m == cache_specular_mesh(c);
+    if (lobes && !LM_GROW(ms->lobes, ms->lobes_cap, most))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
     for (size_t i = 0; i < 3 * got; ++i) {
         uint32_t id = ps->buf[i / 3].v[i % 3];
         if (ps->local[id] == UINT32_MAX) {
@@ -151,6 +156,7 @@ static lm_result append_piece(mesh_store *ms, publish_scratch *ps, int debug, co
             memcpy(out->position, mesh_vtable_vertex(vt, id)->position, sizeof out->position);
             if (pad) memset(out->value, 0, sizeof out->value);
             if (mesh_qmesh_get_value(m, id, out->value) < 0) memset(out->value, 0, sizeof out->value);
+            if (lobes) cache_get_lobe(c, id, &ms->lobes[*nv]);
             ps->ids[*nv] = id;
             ps->local[id] = (*nv)++;
         }
@@ -219,8 +225,11 @@ static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, c
     fit_array((void **)&ms->tris, &ms->tris_cap, count, sizeof *ms->tris);
     if (debug) fit_array((void **)&ms->corners, &ms->corners_cap, 3 * count, sizeof *ms->corners);
     fit_array((void **)&ms->verts, &ms->verts_cap, nv, sizeof *ms->verts);
+    const int lobes = m == cache_specular_mesh(c) && nv;
+    if (lobes) fit_array((void **)&ms->lobes, &ms->lobes_cap, nv, sizeof *ms->lobes);
     *sm = (cache_snapshot_mesh){.vertices = ms->verts, .index = ms->index, .tri = ms->tris,
                                 .corners = debug && count ? ms->corners : NULL,
+                                .lobes = lobes ? ms->lobes : NULL,
                                 .triangle_count = (uint32_t)count, .vertex_count = nv};
     ms->filled = now;
     ms->filled_debug = debug;
@@ -279,10 +288,14 @@ static lm_result fill_snapshot(cache_worker *w, cache *c, const cache_estimate *
     if (r != LM_OK) return r;
     if (st->snap.stats.light_count > st->lights_cap) {
         cache_mesh_stats *l = realloc(st->lights, st->snap.stats.light_count * sizeof *l);
-        if (!l) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
-        st->lights = l;
+        if (l) st->lights = l;
+        float *le = l ? realloc(st->light_radiance, 3 * sizeof *le * st->snap.stats.light_count) : NULL;
+        if (le) st->light_radiance = le;
+        if (!l || !le) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
         st->lights_cap = st->snap.stats.light_count;
     }
+    for (uint32_t l = 0; l < st->snap.stats.light_count; ++l) cache_get_light_radiance(c, l, st->light_radiance + 3 * (size_t)l);
+    st->snap.light_radiance = st->light_radiance;
     if (st->snap.stats.light_count)
         memcpy(st->lights, st->snap.stats.lights, st->snap.stats.light_count * sizeof *st->lights);
     st->snap.stats.lights = st->lights;
@@ -731,10 +744,12 @@ static void store_free(snapshot_store *st)
         free(ms->index);
         free(ms->tris);
         free(ms->corners);
+        free(ms->lobes);
     }
     free(st->light_mesh);
     free(st->light_snap);
     free(st->lights);
+    free(st->light_radiance);
     free(st);
 }
 

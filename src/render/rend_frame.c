@@ -13,13 +13,23 @@
 /* ---- Change detection ---------------------------------------------------- */
 
 /* A triangle is what the radiance pass draws of it: its three corners'
- * positions and values, whatever their indices. */
-static void tri_corners(const cache_snapshot_mesh *m, uint32_t t, cache_snapshot_vertex out[3])
+ * positions and values, and their lobes when the mesh has them, whatever their
+ * indices. */
+typedef struct corner_data {
+    cache_snapshot_vertex v;
+    cache_lobe lobe; /* zero without lobes */
+} corner_data;
+
+static void tri_corners(const cache_snapshot_mesh *m, uint32_t t, corner_data out[3])
 {
-    for (int k = 0; k < 3; ++k) out[k] = *cache_snapshot_corner_vertex(m, t, k);
+    memset(out, 0, 3 * sizeof *out);
+    for (int k = 0; k < 3; ++k) {
+        out[k].v = *cache_snapshot_corner_vertex(m, t, k);
+        if (m->lobes) out[k].lobe = m->lobes[m->index[3 * (size_t)t + (size_t)k]];
+    }
 }
 
-static uint64_t tri_hash(const cache_snapshot_vertex v[3])
+static uint64_t tri_hash(const corner_data v[3])
 {
     uint32_t w[3 * sizeof *v / sizeof(uint32_t)];
     memcpy(w, v, sizeof w);
@@ -101,7 +111,7 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
     }
     if (!ts->hash_valid)
         for (uint32_t i = 0; i < old_n; ++i) {
-            cache_snapshot_vertex v[3];
+            corner_data v[3];
             tri_corners(&ts->copy, i, v);
             ts->hash[i] = tri_hash(v);
         }
@@ -116,7 +126,7 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
         f->hash_tri[j] = i + 1;
     }
     for (uint32_t i = 0; i < m->triangle_count; ++i) {
-        cache_snapshot_vertex v[3], o_v[3];
+        corner_data v[3], o_v[3];
         tri_corners(m, i, v);
         uint64_t hk = f->new_hash[i] = tri_hash(v);
         int found = 0;
@@ -159,8 +169,10 @@ static int ensure_buffer(const GladGLContext *gl, GLuint *buf, size_t *cap, size
 static int same_mesh(const cache_snapshot_mesh *a, const cache_snapshot_mesh *b)
 {
     return a->triangle_count == b->triangle_count && a->vertex_count == b->vertex_count &&
+           !a->lobes == !b->lobes &&
            (!a->triangle_count || (memcmp(a->index, b->index, 3 * (size_t)a->triangle_count * sizeof *a->index) == 0 &&
-                                   memcmp(a->vertices, b->vertices, (size_t)a->vertex_count * sizeof *a->vertices) == 0));
+                                   memcmp(a->vertices, b->vertices, (size_t)a->vertex_count * sizeof *a->vertices) == 0 &&
+                                   (!a->lobes || memcmp(a->lobes, b->lobes, (size_t)a->vertex_count * sizeof *a->lobes) == 0)));
 }
 
 /* Copies snapshot mesh m to the term's buffers (grown when needed) and its CPU
@@ -188,6 +200,28 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
         ts->copy_v = v;
         ts->copy_vcap = nv;
     }
+    if (keep && m->lobes && nv > ts->copy_lcap) {
+        cache_lobe *l = realloc(ts->copy_lobes, (size_t)nv * sizeof *l);
+        if (!l) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u vertices", nv);
+        ts->copy_lobes = l;
+        ts->copy_lcap = nv;
+    }
+    ts->lobes = m->lobes != NULL;
+    if (m->lobes) {
+        /* Binding 1: normal and exponent, the lights' part and their visible
+         * fraction (rend_value.vert, HIGHLIGHT). */
+        size_t lbytes = (size_t)nv * sizeof *m->lobes;
+        if (ensure_buffer(gl, &ts->lobe_vbo, &ts->lobe_vbo_cap, lbytes)) {
+            gl->VertexArrayVertexBuffer(ts->vao, 1, ts->lobe_vbo, 0, sizeof(cache_lobe));
+            for (GLuint a = 2; a < 4; ++a) {
+                gl->EnableVertexArrayAttrib(ts->vao, a);
+                gl->VertexArrayAttribFormat(ts->vao, a, 4, GL_FLOAT, GL_FALSE,
+                                            a == 2 ? (GLuint)offsetof(cache_lobe, normal) : (GLuint)offsetof(cache_lobe, direct));
+                gl->VertexArrayAttribBinding(ts->vao, a, 1);
+            }
+        }
+        gl->NamedBufferSubData(ts->lobe_vbo, 0, (GLsizeiptr)lbytes, m->lobes);
+    }
     size_t vbytes = (size_t)nv * sizeof *m->vertices, ibytes = 3 * (size_t)n * sizeof *m->index;
     if (ensure_buffer(gl, &ts->vbo, &ts->vbo_cap, vbytes)) {
         gl->VertexArrayVertexBuffer(ts->vao, 0, ts->vbo, 0, sizeof(cache_snapshot_vertex));
@@ -207,7 +241,9 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
     }
     memcpy(ts->copy_v, m->vertices, vbytes);
     memcpy(ts->copy_i, m->index, ibytes);
-    ts->copy = (cache_snapshot_mesh){.vertices = ts->copy_v, .index = ts->copy_i, .triangle_count = n,
+    if (m->lobes) memcpy(ts->copy_lobes, m->lobes, (size_t)nv * sizeof *m->lobes);
+    ts->copy = (cache_snapshot_mesh){.vertices = ts->copy_v, .index = ts->copy_i,
+                                     .lobes = m->lobes ? ts->copy_lobes : NULL, .triangle_count = n,
                                      .vertex_count = nv};
     return LM_OK;
 }
@@ -231,6 +267,17 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
                                                 snap ? &snap->specular : NULL};
     const rect full = {0, 0, f->sw, f->sh};
     uint64_t generation = snap ? snap->generation : 0;
+    /* The lights' radiance the highlights are drawn with: the snapshot's (a light
+     * edit reaches the specular values and the highlights together). */
+    int relit = 0;
+    if (snap && snap->light_radiance && snap->stats.light_count == f->hl_light_count && f->hl_light_count &&
+        memcmp(snap->light_radiance, f->hl_radiance, 3 * sizeof(float) * f->hl_light_count) != 0) {
+        memcpy(f->hl_radiance, snap->light_radiance, 3 * sizeof(float) * f->hl_light_count);
+        for (uint32_t l = 0; l < f->hl_light_count; ++l)
+            f->gl->NamedBufferSubData(f->hl_ssbo[0], (GLintptr)(l * 12 * sizeof(float)), 3 * sizeof(float),
+                                      f->hl_radiance + 3 * (size_t)l);
+        relit = 1;
+    }
     for (int t = 0; t < TERMS; ++t) {
         term_state *ts = &f->term[t];
         const cache_snapshot_mesh *m = meshes[t];
@@ -244,13 +291,14 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
             same = n == 0 || same_mesh(&ts->copy, m);
         if (same) {
             ts->src = m ? m->vertices : NULL;
-            dirty[t] = reusable ? (rect){0, 0, 0, 0} : full;
+            dirty[t] = reusable && !(relit && ts->lobes) ? (rect){0, 0, 0, 0} : full;
             continue;
         }
         dirty[t] = full;
         lm_result r = LM_OK;
         int hashed = 0;
-        if (reusable && n && !f->desc.no_snapshot_copy) r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
+        if (reusable && n && !f->desc.no_snapshot_copy && !m->lobes == !ts->lobes)
+            r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
         if (r == LM_OK) r = upload_mesh(f, ts, m, err);
         if (r == LM_OK && hashed) { /* the new triangles' hashes serve the next comparison */
             memcpy(ts->hash, f->new_hash, (size_t)n * sizeof *ts->hash);
@@ -417,10 +465,20 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
             gl->ClearNamedFramebufferfv(target, GL_COLOR, 0, zero);
             gl->ClearNamedFramebufferfv(target, GL_DEPTH, 0, &far_depth);
             gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
-            gl->UseProgram(f->prog_value);
-            gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
+            if (ts->lobes) {
+                gl->UseProgram(f->prog_highlight);
+                gl->UniformMatrix4fv(f->loc_hl_vp, 1, GL_FALSE, vp);
+                gl->Uniform3fv(f->loc_hl_eye, 1, cam->position);
+                gl->Uniform1ui(f->loc_hl_count, f->hl_light_count);
+                for (GLuint b = 0; b < 3; ++b) gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1 + b, f->hl_ssbo[b]);
+            } else {
+                gl->UseProgram(f->prog_value);
+                gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
+            }
             gl->BindVertexArray(ts->vao);
             gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * ts->copy.triangle_count), GL_UNSIGNED_INT, NULL);
+            if (ts->lobes)
+                for (GLuint b = 0; b < 3; ++b) gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1 + b, 0);
             if (!f->val_fbo) {
                 if (part) gl->Disable(GL_SCISSOR_TEST);
                 continue;

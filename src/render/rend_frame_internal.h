@@ -39,6 +39,13 @@ typedef struct term_state {
     uint32_t copy_cap, copy_vcap;  /* allocated: triangles in copy_i and hash; vertices in copy_v */
     int hash_valid;
     const cache_snapshot_vertex *src; /* the snapshot array it came from */
+    /* The specular term's lobes (cache_snapshot_mesh.lobes), for its highlights
+     * per pixel: binding 1 of vao; their CPU copy, as copy_v's. */
+    GLuint lobe_vbo;
+    size_t lobe_vbo_cap;
+    cache_lobe *copy_lobes;
+    uint32_t copy_lcap;
+    int lobes;                     /* the mesh drawn came with lobes: drawn by prog_highlight */
     int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
 } term_state;
 
@@ -48,6 +55,13 @@ struct rend_frame {
     int sw, sh;                      /* sample images: s·width × s·height */
     GLuint prog_material, prog_value, prog_resolve, prog_composite;
     GLint loc_mat_vp, loc_val_vp, loc_res_term, loc_res_band, loc_comp_terms;
+    /* Highlights per pixel (rend_value.frag, HIGHLIGHT): the program, and the
+     * lights' outlines (cache_build_outlines of the scene) and radiance. */
+    GLuint prog_highlight;
+    GLint loc_hl_vp, loc_hl_eye, loc_hl_count;
+    GLuint hl_ssbo[3];               /* lights, loops, points */
+    uint32_t hl_light_count;
+    float *hl_radiance;              /* hl_light_count × RGB in the lights' buffer */
     GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
     GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
     unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */

@@ -4,6 +4,7 @@
  * its shader variants then. The passes are in rend_frame.c. */
 #include "src/render/rend_frame_internal.h"
 
+#include <math.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -15,6 +16,11 @@ static const char *const material_names[] = {"rend_material.vert", "rend_materia
 static const char *const value_names[] = {"rend_value.vert", "rend_value.frag", NULL};
 static const char *const resolve_names[] = {"rend_composite.vert", "rend_resolve.frag", NULL};
 static const char *const composite_names[] = {"rend_composite.vert", "rend_composite.frag", NULL};
+/* Materials with a Phong exponent below this keep the specular mesh's interpolated
+ * value (rend_value.frag): a lobe that broad varies little across a leaf, and
+ * its per-pixel integral would cost a pass over the light's outline in every
+ * pixel of it (the door's copper, n ≈ 1). */
+#define HIGHLIGHT_MIN_N "8.0"
 
 static void free_images(rend_frame *f);
 
@@ -24,20 +30,24 @@ void rend_frame_destroy(rend_frame *f)
     const GladGLContext *gl = f->gl;
     if (gl) {
         free_images(f);
-        GLuint progs[4] = {f->prog_material, f->prog_value, f->prog_resolve, f->prog_composite};
-        for (int i = 0; i < 4; ++i)
+        GLuint progs[5] = {f->prog_material, f->prog_value, f->prog_resolve, f->prog_composite, f->prog_highlight};
+        for (int i = 0; i < 5; ++i)
             if (progs[i]) gl->DeleteProgram(progs[i]);
         GLuint bufs[2] = {f->scene_vbo, f->material_ssbo}, vaos[2] = {f->scene_vao, f->empty_vao};
         gl->DeleteBuffers(2, bufs);
+        gl->DeleteBuffers(3, f->hl_ssbo);
         gl->DeleteVertexArrays(2, vaos);
         for (int t = 0; t < TERMS; ++t) {
             term_state *ts = &f->term[t];
             gl->DeleteBuffers(1, &ts->vbo);
             gl->DeleteBuffers(1, &ts->ibo);
+            gl->DeleteBuffers(1, &ts->lobe_vbo);
             gl->DeleteVertexArrays(1, &ts->vao);
         }
     }
+    free(f->hl_radiance);
     for (int t = 0; t < TERMS; ++t) {
+        free(f->term[t].copy_lobes);
         free(f->term[t].copy_v);
         free(f->term[t].copy_i);
         free(f->term[t].hash);
@@ -66,6 +76,74 @@ static GLuint depth_target(const GladGLContext *gl, int w, int h)
     gl->CreateRenderbuffers(1, &rb);
     gl->NamedRenderbufferStorage(rb, GL_DEPTH_COMPONENT32F, w, h);
     return rb;
+}
+
+/* One light of the highlights' table (rend_value.frag, hl_light; std430). */
+typedef struct hl_light {
+    float le[4];     /* radiance (area) or intensity (point); the snapshot's replaces it */
+    float sphere[4]; /* area: bounding sphere, centre and radius; point: position */
+    uint32_t loops[4]; /* first loop, loops, 1 for a point light */
+} hl_light;
+
+/* The lights' outlines (cache_build_outlines: the cache's own, so that a pixel
+ * integrates what its vertices did) and radiance, for the highlights per pixel. */
+static lm_result upload_lights(rend_frame *f, const scene *s, lm_error *err)
+{
+    const GladGLContext *gl = f->gl;
+    const uint32_t nl = s->area_light_count + s->point_light_count;
+    cache_outlines o = {0};
+    if (nl && !cache_build_outlines(&o, s, nl)) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
+    const uint32_t loops = nl ? o.light_loop[nl] : 0, points = loops ? o.loop[loops] : 0;
+    hl_light *lights = calloc(nl ? nl : 1, sizeof *lights);
+    int32_t *lp = calloc(4 * (size_t)(loops ? loops : 1), sizeof *lp);
+    float *pts = calloc(4 * (size_t)(points ? points : 1), sizeof *pts), *rad = calloc(3 * (size_t)(nl ? nl : 1), sizeof *rad);
+    lm_result r = lights && lp && pts && rad ? LM_OK : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the renderer");
+    for (uint32_t i = 0; r == LM_OK && i < points; ++i)
+        for (int k = 0; k < 3; ++k) pts[4 * (size_t)i + (size_t)k] = (float)o.xyz[3 * (size_t)i + (size_t)k];
+    for (uint32_t k = 0; r == LM_OK && k < loops; ++k) {
+        lp[4 * (size_t)k] = (int32_t)o.loop[k];
+        lp[4 * (size_t)k + 1] = (int32_t)(o.loop[k + 1] - o.loop[k]);
+        lp[4 * (size_t)k + 2] = o.loop_sign[k];
+    }
+    for (uint32_t l = 0; r == LM_OK && l < nl; ++l) {
+        hl_light *L = &lights[l];
+        if (l < s->area_light_count) {
+            const scene_area_light *a = &s->area_lights[l];
+            memcpy(L->le, a->le, 3 * sizeof(float));
+            float r2 = 0.0f;
+            for (int k = 0; k < 3; ++k) {
+                L->sphere[k] = 0.5f * (a->bounds_min[k] + a->bounds_max[k]);
+                float h = 0.5f * (a->bounds_max[k] - a->bounds_min[k]);
+                r2 += h * h;
+            }
+            L->sphere[3] = 1.001f * sqrtf(r2);
+            L->loops[0] = o.light_loop[l];
+            L->loops[1] = o.light_loop[l + 1] - o.light_loop[l];
+        } else {
+            const scene_point_light *p = &s->point_lights[l - s->area_light_count];
+            memcpy(L->le, p->intensity, 3 * sizeof(float));
+            memcpy(L->sphere, p->position, 3 * sizeof(float));
+            L->loops[2] = 1;
+        }
+        memcpy(rad + 3 * (size_t)l, L->le, 3 * sizeof(float));
+    }
+    if (r == LM_OK) {
+        gl->DeleteBuffers(3, f->hl_ssbo);
+        gl->CreateBuffers(3, f->hl_ssbo);
+        gl->NamedBufferStorage(f->hl_ssbo[0], (GLsizeiptr)((nl ? nl : 1) * sizeof *lights), lights, GL_DYNAMIC_STORAGE_BIT);
+        gl->NamedBufferStorage(f->hl_ssbo[1], (GLsizeiptr)(4 * (size_t)(loops ? loops : 1) * sizeof *lp), lp, 0);
+        gl->NamedBufferStorage(f->hl_ssbo[2], (GLsizeiptr)(4 * (size_t)(points ? points : 1) * sizeof *pts), pts, 0);
+        free(f->hl_radiance);
+        f->hl_radiance = rad;
+        rad = NULL;
+        f->hl_light_count = nl;
+    }
+    if (nl) cache_outlines_free(&o);
+    free(lights);
+    free(lp);
+    free(pts);
+    free(rad);
+    return r;
 }
 
 /* The scene's triangles (unwelded, with their material codes) and material
@@ -104,7 +182,7 @@ static lm_result upload_scene(rend_frame *f, const scene *s, lm_error *err)
     free(mats);
     gl->VertexArrayVertexBuffer(f->scene_vao, 0, f->scene_vbo, 0, sizeof(material_vertex));
     f->desc.scene = s;
-    return LM_OK;
+    return upload_lights(f, s, err);
 }
 
 static void make_scene_vao(rend_frame *f)
@@ -145,7 +223,11 @@ static lm_result prime(rend_frame *f, lm_error *err)
     }
     const uint32_t index[3] = {0, 1, 2};
     const cache_snapshot_mesh one = {.vertices = v, .index = index, .triangle_count = 1, .vertex_count = 3};
-    const cache_snapshot snap = {.generation = 1, .direct = one, .indirect = one, .specular = one};
+    cache_snapshot_mesh spec = one;
+    const cache_lobe lobe = {.normal = {0.0f, 0.0f, 1.0f}, .exponent = 10.0f, .visible = 1.0f};
+    const cache_lobe lobes[3] = {lobe, lobe, lobe};
+    spec.lobes = lobes;
+    const cache_snapshot snap = {.generation = 1, .direct = one, .indirect = one, .specular = spec};
     lm_result r = upload_scene(f, &stand_in, err);
     if (r == LM_OK) r = rend_frame_draw(f, &cam, &snap, NULL, err);
     f->desc.scene = NULL;
@@ -268,6 +350,9 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, "", &f->prog_value, err);
     if (r == LM_OK && ss > 1) r = glprog_build(gl, "renderer", resolve_names, defines, &f->prog_resolve, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", composite_names, defines, &f->prog_composite, err);
+    if (r == LM_OK)
+        r = glprog_build(gl, "renderer", value_names, "#define HIGHLIGHT 1\n#define HIGHLIGHT_MIN_N " HIGHLIGHT_MIN_N "\n",
+                         &f->prog_highlight, err);
     if (r != LM_OK) {
         rend_frame_destroy(f);
         return r;
@@ -275,6 +360,9 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     make_scene_vao(f);
     f->loc_mat_vp = gl->GetUniformLocation(f->prog_material, "u_viewproj");
     f->loc_val_vp = gl->GetUniformLocation(f->prog_value, "u_viewproj");
+    f->loc_hl_vp = gl->GetUniformLocation(f->prog_highlight, "u_viewproj");
+    f->loc_hl_eye = gl->GetUniformLocation(f->prog_highlight, "u_eye");
+    f->loc_hl_count = gl->GetUniformLocation(f->prog_highlight, "u_light_count");
     if (ss > 1) f->loc_res_term = gl->GetUniformLocation(f->prog_resolve, "u_term");
     if (ss > 1) f->loc_res_band = gl->GetUniformLocation(f->prog_resolve, "u_band_y0");
     f->loc_comp_terms = gl->GetUniformLocation(f->prog_composite, "u_terms");
