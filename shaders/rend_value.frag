@@ -32,7 +32,7 @@ uniform vec3 u_eye;
 const float PI = 3.14159265358979;
 const float CORE = 5.0;         // the lobe's core, in widths 1/√n (analytic.c: PHONG_CORE)
 const float SKIP_LOG = -12.5;   // −CORE²/2
-const float SKIP_CORE = 4.0;    // a light further than this many widths from the lobe's axis is skipped
+const float CLIPPED = -1e30;    // loop_phong: a loop it does not integrate (a sum rounds to slightly below 0)
 const vec2 GAUSS[4] = vec2[](vec2(0.96028985649753623, 0.10122853629037626), vec2(0.79666647741362674, 0.22238103445337447),
                              vec2(0.52553240991632899, 0.31370664587788729), vec2(0.18343464249564980, 0.36268378337836198));
 
@@ -95,7 +95,7 @@ void edge(vec3 ua, vec3 ub, vec3 r, vec3 ns, float n, inout float A, inout float
 
 // ∫ (n+2)/(2π)·cosⁿα·cosθ_x dω over one loop, relative to x: analytic.c's
 // samp_polygon_phong for a loop wholly above x's horizon and in the lobe's
-// hemisphere. One that crosses either is not clipped here: −1, and the pixel
+// hemisphere. One that crosses either is not clipped here: CLIPPED, and the pixel
 // keeps the interpolated value (clipping needs arrays, which llvmpipe keeps in
 // memory per pixel: they doubled the pass's cost, docs/renderer.md).
 float loop_phong(int first, int count, vec3 x, vec3 ns, vec3 r, float n)
@@ -119,7 +119,7 @@ float loop_phong(int first, int count, vec3 x, vec3 ns, vec3 r, float n)
     }
     float area2 = length(nrm);
     if (!(area2 > 0.0) || !(-dot(nrm, mean) / (float(count) * area2) > 1e-6)) return 0.0;
-    if (!inside) return -1.0;
+    if (!inside) return CLIPPED;
     float A = 0.0, B = 0.0;
     vec3 ua = normalize(u_points[first + count - 1].xyz - x);
     for (int i = 0; i < count; i++) {
@@ -133,7 +133,7 @@ float loop_phong(int first, int count, vec3 x, vec3 ns, vec3 r, float n)
 vec3 highlights(vec3 x, vec3 ns, vec3 wo, float n)
 {
     vec3 r = normalize(2.0 * dot(wo, ns) * ns - wo), sum = vec3(0.0);
-    float core = SKIP_CORE / sqrt(n);
+    float core = SKIP_CORE / sqrt(n); // a light further than this from the lobe's axis is skipped
     for (uint l = 0u; l < u_light_count; ++l) {
         hl_light L = u_lights[l];
         float S = 0.0;
@@ -155,7 +155,7 @@ vec3 highlights(vec3 x, vec3 ns, vec3 wo, float n)
             }
             for (uint k = L.loops.x; k < L.loops.x + L.loops.y; ++k) {
                 float Sk = loop_phong(u_loops[k].x, u_loops[k].y, x, ns, r, n);
-                if (Sk < 0.0) return vec3(-1.0); // clipped: the interpolated value
+                if (Sk == CLIPPED) return vec3(CLIPPED); // the interpolated value
                 S += float(u_loops[k].z) * Sk;
             }
             S = max(S, 0.0);
@@ -172,7 +172,7 @@ void main()
     if (v_exponent >= HIGHLIGHT_MIN_N && u_light_count > 0u && v_visible > 0.0) {
         vec3 ns = normalize(v_normal), wo = normalize(u_eye - v_pos);
         vec3 h = highlights(v_pos, ns, wo, v_exponent);
-        if (h.x >= 0.0) {
+        if (h.x != CLIPPED) {
             vec3 rest = max(v_value - v_direct, vec3(0.0));
             o_value = vec4(rest + clamp(v_visible, 0.0, 1.0) * h, 1.0);
             return;

@@ -447,6 +447,14 @@ typedef struct cache_lobe {
                          lum(L_ℓ)·S_ℓ of the unshadowed value (by their power where the lobe sees
                          none of them): exact with one light */
 } cache_lobe;
+/* Where a renderer draws the lights' part per pixel (rend_value.frag) and the
+ * cache's edge tests judge the same picture (cache_specular_drawn): materials
+ * whose Phong exponent is at least CACHE_HIGHLIGHT_MIN_EXPONENT (a broader lobe
+ * varies little across a leaf); a light further from the lobe's axis than its
+ * angular radius plus CACHE_HIGHLIGHT_SKIP_CORE lobe widths (1/√n) sends nothing
+ * there (cos^n below e^-8 of its peak). */
+#define CACHE_HIGHLIGHT_MIN_EXPONENT 8.0
+#define CACHE_HIGHLIGHT_SKIP_CORE 4.0
 /* The lobe data of specular vertex vid (a vertex of cache_specular_mesh). */
 void cache_get_lobe(const cache *c, uint32_t vid, cache_lobe *out);
 /* Light `light`'s radiance (area) or intensity (point) as the cache uses it now

@@ -474,6 +474,14 @@ float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, 
  * area light (eq. 5 with V_ℓ constant over the light; samp_polygon_phong), and
  * for a point light the point's exact lobe·G. */
 /* It also records the lights' combined visible fraction at vid (cache_get_lobe). */
+/* What a renderer that draws the highlights per pixel (cache.h, cache_lobe)
+ * shows at specular vertex mid, the midpoint of the edge a–b of a leaf: the
+ * glossy parts and the visible fractions of a and b interpolated, the lights'
+ * lobe integral at mid itself. Returns 0 (out untouched) where the renderer
+ * interpolates the values instead: an exponent below
+ * CACHE_HIGHLIGHT_MIN_EXPONENT, or a light it would have to clip (part of its
+ * outline below mid's horizon or behind the lobe's hemisphere). */
+int cache_specular_drawn(const cache *c, uint32_t a, uint32_t b, uint32_t mid, float out[3]);
 lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err);
 
 /* ---- cache_first.c: the first image from a budget of samples --------------------- */

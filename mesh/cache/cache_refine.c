@@ -641,6 +641,10 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             mesh_qmesh_get_value(m, corner[(k + 1) % 3], b);
             mesh_qmesh_get_value(m, leaves[i].mid[k], fresh);
             for (int ch = 0; ch < 3; ++ch) interp[ch] = 0.5f * (a[ch] + b[ch]);
+            /* A highlight drawn per pixel: the picture at the midpoint is not the
+             * ends' interpolation but the lobe's own integral there (its rim is
+             * the renderer's to draw, not the leaves': docs/renderer.md). */
+            if (kind == KIND_SPECULAR) cache_specular_drawn(c, corner[k], corner[(k + 1) % 3], leaves[i].mid[k], interp);
             if (combined) {
                 /* One mesh holds everything: fresh direct and indirect against both
                  * interpolated from the edge's ends. */

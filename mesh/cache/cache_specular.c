@@ -283,6 +283,72 @@ lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V,
     return LM_OK;
 }
 
+/* Whether the renderer skips area light l at x for the lobe about r of exponent
+ * n (rend_value.frag: the lobe's core misses the light's bounding sphere). */
+static int highlight_skips(const scene_area_light *L, const double x[3], lm_dvec3 r, double n)
+{
+    double c[3], r2 = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        c[k] = 0.5 * ((double)L->bounds_min[k] + L->bounds_max[k]) - x[k];
+        double h = 0.5 * ((double)L->bounds_max[k] - L->bounds_min[k]);
+        r2 += h * h;
+    }
+    double radius = 1.001 * sqrt(r2), dist = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    if (!(dist > radius)) return 0;
+    double cosr = (r.x * c[0] + r.y * c[1] + r.z * c[2]) / dist;
+    double ang = acos(cosr < -1.0 ? -1.0 : cosr > 1.0 ? 1.0 : cosr);
+    return ang > asin(fmin(radius / dist, 1.0)) + CACHE_HIGHLIGHT_SKIP_CORE / sqrt(n);
+}
+
+int cache_specular_drawn(const cache *c, uint32_t a, uint32_t b, uint32_t mid, float out[3])
+{
+    const scene *s = c->s;
+    const mesh_vertex *mv = mesh_vtable_vertex(c->vt, mid);
+    const double n = s->materials[s->tris[mv->tri].material].n;
+    if (!(n >= CACHE_HIGHLIGHT_MIN_EXPONENT)) return 0;
+    const double x[3] = {mv->position[0], mv->position[1], mv->position[2]},
+                 nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]},
+                 wo[3] = {c->eye[0] - x[0], c->eye[1] - x[1], c->eye[2] - x[2]};
+    lm_dvec3 ns = dv3_normalize(dv3_of(nx)), w = dv3_normalize(dv3_of(wo));
+    lm_dvec3 r = dv3_normalize(dv3_sub(dv3_scale(ns, 2.0 * dv3_dot(ns, w)), w));
+    double U[3] = {0, 0, 0};
+    for (uint32_t l = 0; l < c->light_count; ++l) {
+        if (l < s->area_light_count) {
+            const scene_area_light *L = &s->area_lights[l];
+            if (highlight_skips(L, x, r, n)) continue;
+            /* Facing x, and wholly above its horizon and in the lobe's hemisphere,
+             * or the renderer keeps the interpolated value. */
+            const float *p0 = s->positions + 3 * (size_t)s->tris[s->light_tris[L->first]].v[0];
+            double side = 0.0;
+            for (int k = 0; k < 3; ++k) side += (double)L->normal[k] * (x[k] - p0[k]);
+            if (side > 0.0) {
+                const cache_outlines *o = &c->outl;
+                for (uint32_t k = o->light_loop[l]; k < o->light_loop[l + 1]; ++k)
+                    for (uint32_t i = o->loop[k]; i < o->loop[k + 1]; ++i) {
+                        lm_dvec3 d = dv3_sub(dv3_of(o->xyz + 3 * (size_t)i), dv3_of(x));
+                        if (dv3_dot(d, r) < 0.0 || dv3_dot(d, ns) < 0.0) return 0;
+                    }
+            }
+        }
+        double S = light_phong(c, l, x, nx, wo, n);
+        if (!(S > 0.0)) continue;
+        for (int k = 0; k < 3; ++k) U[k] += c->light_le[3 * (size_t)l + (size_t)k] * S;
+    }
+    cache_lobe la, lb;
+    cache_get_lobe(c, a, &la);
+    cache_get_lobe(c, b, &lb);
+    float va[3], vb[3];
+    if (mesh_qmesh_get_value(c->specular, a, va) < 0 || mesh_qmesh_get_value(c->specular, b, vb) < 0) return 0;
+    const double vis = 0.5 * ((double)la.visible + lb.visible);
+    if (!(vis > 0.0)) return 0; /* a full shadow: the renderer keeps the values */
+    for (int k = 0; k < 3; ++k) {
+        double rest = 0.5 * ((double)va[k] - la.direct[k] + vb[k] - lb.direct[k]);
+        double v = (rest > 0.0 ? rest : 0.0) + (vis > 1.0 ? 1.0 : vis) * U[k];
+        out[k] = v < 3e38 ? (float)v : 3e38f;
+    }
+    return 1;
+}
+
 void cache_get_lobe(const cache *c, uint32_t vid, cache_lobe *out)
 {
     const mesh_vertex *mv = mesh_vtable_vertex(c->vt, vid);

@@ -16,11 +16,6 @@ static const char *const material_names[] = {"rend_material.vert", "rend_materia
 static const char *const value_names[] = {"rend_value.vert", "rend_value.frag", NULL};
 static const char *const resolve_names[] = {"rend_composite.vert", "rend_resolve.frag", NULL};
 static const char *const composite_names[] = {"rend_composite.vert", "rend_composite.frag", NULL};
-/* Materials with a Phong exponent below this keep the specular mesh's interpolated
- * value (rend_value.frag): a lobe that broad varies little across a leaf, and
- * its per-pixel integral would cost a pass over the light's outline in every
- * pixel of it (the door's copper, n ≈ 1). */
-#define HIGHLIGHT_MIN_N "8.0"
 
 static void free_images(rend_frame *f);
 
@@ -350,9 +345,14 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, "", &f->prog_value, err);
     if (r == LM_OK && ss > 1) r = glprog_build(gl, "renderer", resolve_names, defines, &f->prog_resolve, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", composite_names, defines, &f->prog_composite, err);
-    if (r == LM_OK)
-        r = glprog_build(gl, "renderer", value_names, "#define HIGHLIGHT 1\n#define HIGHLIGHT_MIN_N " HIGHLIGHT_MIN_N "\n",
-                         &f->prog_highlight, err);
+    /* Materials with a Phong exponent below CACHE_HIGHLIGHT_MIN_EXPONENT keep the
+     * specular mesh's interpolated value: a lobe that broad varies little across a
+     * leaf, and its integral would cost a pass over the light's outline in every
+     * pixel of it (the door's copper, n ≈ 1). The cache's tests judge the same. */
+    char hl_defines[160];
+    snprintf(hl_defines, sizeof hl_defines, "#define HIGHLIGHT 1\n#define HIGHLIGHT_MIN_N %.1f\n#define SKIP_CORE %.1f\n",
+             CACHE_HIGHLIGHT_MIN_EXPONENT, CACHE_HIGHLIGHT_SKIP_CORE);
+    if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, hl_defines, &f->prog_highlight, err);
     if (r != LM_OK) {
         rend_frame_destroy(f);
         return r;
