@@ -8,8 +8,9 @@
 // Gauss–Legendre over the lobe's core). The visible fraction and the glossy part
 // (value − direct) stay interpolated; a highlight's outline, which linear
 // interpolation over leaves a pixel wide spreads (docs/renderer.md, "Highlights
-// per pixel"), is then exact. Materials with n < HIGHLIGHT_MIN_N keep the
-// interpolated value: their lobe is broader than a leaf.
+// per pixel"), is then exact. Materials with n < HIGHLIGHT_MIN_N, and leaves
+// where a light is partly or wholly hidden (v_visible < MIN_VISIBLE), keep the
+// interpolated value (mesh/cache/cache.h, CACHE_HIGHLIGHT_*).
 in vec3 v_value;
 layout(location = 0) out vec4 o_value;
 #ifdef HIGHLIGHT
@@ -168,13 +169,14 @@ vec3 highlights(vec3 x, vec3 ns, vec3 wo, float n)
 void main()
 {
 #ifdef HIGHLIGHT
-    // (In a full shadow the lights' part is 0 whatever the lobe does.)
-    if (v_exponent >= HIGHLIGHT_MIN_N && u_light_count > 0u && v_visible > 0.0) {
+    // Only where the lights are wholly visible: a partly hidden light's visible
+    // fraction is the one its corners' lobes see, not this pixel's.
+    if (v_exponent >= HIGHLIGHT_MIN_N && u_light_count > 0u && v_visible >= MIN_VISIBLE) {
         vec3 ns = normalize(v_normal), wo = normalize(u_eye - v_pos);
         vec3 h = highlights(v_pos, ns, wo, v_exponent);
         if (h.x != CLIPPED) {
             vec3 rest = max(v_value - v_direct, vec3(0.0));
-            o_value = vec4(rest + clamp(v_visible, 0.0, 1.0) * h, 1.0);
+            o_value = vec4(rest + min(v_visible, 1.0) * h, 1.0);
             return;
         }
     }

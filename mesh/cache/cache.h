@@ -455,6 +455,11 @@ typedef struct cache_lobe {
  * there (cos^n below e^-8 of its peak). */
 #define CACHE_HIGHLIGHT_MIN_EXPONENT 8.0
 #define CACHE_HIGHLIGHT_SKIP_CORE 4.0
+/* ... and only where the lights are wholly visible (cache_lobe.visible at least
+ * this at every corner around): a partly hidden light's visible fraction is the
+ * one its corners' lobes see, and a pixel's lobe turned to the hidden part of
+ * it lit up speckles (the Veach door's metal teapot, seen through the gap). */
+#define CACHE_HIGHLIGHT_MIN_VISIBLE 0.999
 /* The lobe data of specular vertex vid (a vertex of cache_specular_mesh). */
 void cache_get_lobe(const cache *c, uint32_t vid, cache_lobe *out);
 /* Light `light`'s radiance (area) or intensity (point) as the cache uses it now

@@ -340,7 +340,7 @@ int cache_specular_drawn(const cache *c, uint32_t a, uint32_t b, uint32_t mid, f
     float va[3], vb[3];
     if (mesh_qmesh_get_value(c->specular, a, va) < 0 || mesh_qmesh_get_value(c->specular, b, vb) < 0) return 0;
     const double vis = 0.5 * ((double)la.visible + lb.visible);
-    if (!(vis > 0.0)) return 0; /* a full shadow: the renderer keeps the values */
+    if (!(vis >= CACHE_HIGHLIGHT_MIN_VISIBLE)) return 0; /* partly or wholly hidden: the renderer keeps the values */
     for (int k = 0; k < 3; ++k) {
         double rest = 0.5 * ((double)va[k] - la.direct[k] + vb[k] - lb.direct[k]);
         double v = (rest > 0.0 ? rest : 0.0) + (vis > 1.0 ? 1.0 : vis) * U[k];

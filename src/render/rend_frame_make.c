@@ -348,10 +348,12 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     /* Materials with a Phong exponent below CACHE_HIGHLIGHT_MIN_EXPONENT keep the
      * specular mesh's interpolated value: a lobe that broad varies little across a
      * leaf, and its integral would cost a pass over the light's outline in every
-     * pixel of it (the door's copper, n ≈ 1). The cache's tests judge the same. */
-    char hl_defines[160];
-    snprintf(hl_defines, sizeof hl_defines, "#define HIGHLIGHT 1\n#define HIGHLIGHT_MIN_N %.1f\n#define SKIP_CORE %.1f\n",
-             CACHE_HIGHLIGHT_MIN_EXPONENT, CACHE_HIGHLIGHT_SKIP_CORE);
+     * pixel of it (the door's copper, n ≈ 1). Lights partly hidden keep it too
+     * (CACHE_HIGHLIGHT_MIN_VISIBLE). The cache's tests judge the same. */
+    char hl_defines[192];
+    snprintf(hl_defines, sizeof hl_defines,
+             "#define HIGHLIGHT 1\n#define HIGHLIGHT_MIN_N %.1f\n#define SKIP_CORE %.1f\n#define MIN_VISIBLE %.4f\n",
+             CACHE_HIGHLIGHT_MIN_EXPONENT, CACHE_HIGHLIGHT_SKIP_CORE, CACHE_HIGHLIGHT_MIN_VISIBLE);
     if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, hl_defines, &f->prog_highlight, err);
     if (r != LM_OK) {
         rend_frame_destroy(f);
