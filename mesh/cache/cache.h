@@ -437,15 +437,18 @@ void cache_outlines_free(cache_outlines *o);
 /* What a renderer needs to evaluate the lights' part of a specular vertex's value
  * per pixel (eq. 5 at the pixel's own point and view; docs/renderer.md, "Highlights
  * per pixel"): the value is direct + the glossy part, and at a point inside a leaf
- * the lights' part is visible·Σ_ℓ L_ℓ·S_ℓ there, the visible fraction interpolated
- * (a shadow's edge is the mesh's to find) and the lobe integral exact. */
+ * whose corners see every light wholly the lights' part is Σ_ℓ L_ℓ·S_ℓ there, the
+ * lobe integral exact (elsewhere the values are interpolated: a shadow's edge
+ * is the mesh's to find). */
 typedef struct cache_lobe {
     float normal[3];  /* unit shading normal */
     float exponent;   /* Phong n of the vertex's material (its first triangle's) */
     float direct[3];  /* the lights' part of the value, Σ_ℓ V_ℓ·L_ℓ·S_ℓ (RGB per unit ks) */
-    float visible;    /* the lights' visible fraction V_ℓ, combined over the lights by their share
-                         lum(L_ℓ)·S_ℓ of the unshadowed value (by their power where the lobe sees
-                         none of them): exact with one light */
+    float visible;    /* the smallest visible fraction V_ℓ of the lights the vertex can see at all
+                         (above its horizon, facing it): 1 where each is wholly visible, the only
+                         case a renderer evaluates per pixel (CACHE_HIGHLIGHT_MIN_VISIBLE); a
+                         light hidden from a vertex whose lobe misses it would otherwise light
+                         a pixel whose lobe does not */
 } cache_lobe;
 /* Where a renderer draws the lights' part per pixel (rend_value.frag) and the
  * cache's edge tests judge the same picture (cache_specular_drawn): materials

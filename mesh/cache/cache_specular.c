@@ -242,8 +242,27 @@ static double light_phong(const cache *c, uint32_t l, const double x[3], const d
     return sum > 0.0 ? sum : 0.0; /* a hole's round-off cannot make light negative */
 }
 
-/* Luminance weights of the channels (Rec. 709), for combining lights. */
-static double lum3(const float *rgb) { return 0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]; }
+/* Can x (normal nx) see any of light l at all: some corner of its bounding box
+ * above x's horizon, and x in front of its emitting side (a point light: above
+ * the horizon)? A bound, not G_ℓ's integral: it runs for every light at every
+ * specular value. */
+static int light_above(const scene *s, uint32_t l, const float x[3], const float nx[3])
+{
+    if (l >= s->area_light_count) {
+        const float *p = s->point_lights[l - s->area_light_count].position;
+        return (p[0] - x[0]) * nx[0] + (p[1] - x[1]) * nx[1] + (p[2] - x[2]) * nx[2] > 0.0f;
+    }
+    const scene_area_light *L = &s->area_lights[l];
+    const float *p0 = s->positions + 3 * (size_t)s->tris[s->light_tris[L->first]].v[0];
+    if (!((x[0] - p0[0]) * L->normal[0] + (x[1] - p0[1]) * L->normal[1] + (x[2] - p0[2]) * L->normal[2] > 0.0f))
+        return 0;
+    for (int k = 0; k < 8; ++k) {
+        float d = 0.0f;
+        for (int a = 0; a < 3; ++a) d += ((k >> a & 1 ? L->bounds_max[a] : L->bounds_min[a]) - x[a]) * nx[a];
+        if (d > 0.0f) return 1;
+    }
+    return 0;
+}
 
 lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err)
 {
@@ -255,23 +274,19 @@ lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V,
     const double x[3] = {mv->position[0], mv->position[1], mv->position[2]},
                  nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]},
                  wo[3] = {c->eye[0] - x[0], c->eye[1] - x[1], c->eye[2] - x[2]};
-    double e[3] = {0, 0, 0}, seen = 0.0, all = 0.0, pseen = 0.0, pall = 0.0;
+    double e[3] = {0, 0, 0}, least = 1.0;
     for (uint32_t l = 0; l < c->light_count; ++l) {
         const float *le = c->light_le + 3 * (size_t)l;
-        const double v = V[l] > 0.0f ? V[l] : 0.0, power = lum3(le) * (l < s->area_light_count ? s->area_lights[l].area : 1.0f);
-        pseen += v * power;
-        pall += power;
+        const double v = V[l] > 0.0f ? V[l] : 0.0;
+        /* The smallest visible fraction of the lights this vertex can see at
+         * all (cache_lobe.visible): 1 only where each is wholly visible. */
+        if (v < least && light_above(s, l, mv->position, mv->normal)) least = v;
+        if (!(v > 0.0)) continue;
         double S = light_phong(c, l, x, nx, wo, n);
         if (!(S > 0.0)) continue;
-        seen += v * lum3(le) * S;
-        all += lum3(le) * S;
-        if (!(v > 0.0)) continue;
         for (int k = 0; k < 3; ++k) e[k] += v * le[k] * S;
     }
     for (int k = 0; k < 3; ++k) rgb[k] = e[k] < 3e38 ? (float)e[k] : 3e38f;
-    /* The combined visible fraction (cache_lobe.visible): the lights weighed by
-     * what each sends through the lobe here, or by their power where it sends
-     * nothing (a vertex beside a highlight whose pixels may reach it). */
     if (vid >= c->spec_visible_cap) {
         size_t cap = lm_grow_capacity(c->spec_visible_cap, (size_t)vid + 1, 1024, SIZE_MAX / sizeof *c->spec_visible);
         if (!cap || !lm_realloc_array(&c->spec_visible, c->spec_visible_cap, cap, sizeof *c->spec_visible))
@@ -279,7 +294,7 @@ lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V,
         for (size_t i = c->spec_visible_cap; i < cap; ++i) c->spec_visible[i] = 1.0f;
         c->spec_visible_cap = cap;
     }
-    c->spec_visible[vid] = (float)(all > 0.0 ? seen / all : pall > 0.0 ? pseen / pall : 1.0);
+    c->spec_visible[vid] = (float)least;
     return LM_OK;
 }
 
