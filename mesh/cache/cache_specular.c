@@ -321,6 +321,13 @@ int cache_specular_drawn(const cache *c, uint32_t a, uint32_t b, uint32_t mid, f
     const mesh_vertex *mv = mesh_vtable_vertex(c->vt, mid);
     const double n = s->materials[s->tris[mv->tri].material].n;
     if (!(n >= CACHE_HIGHLIGHT_MIN_EXPONENT)) return 0;
+    cache_lobe la, lb;
+    cache_get_lobe(c, a, &la);
+    cache_get_lobe(c, b, &lb);
+    const double vis = 0.5 * ((double)la.visible + lb.visible);
+    if (!(vis >= CACHE_HIGHLIGHT_MIN_VISIBLE)) return 0; /* partly or wholly hidden: the renderer keeps the values */
+    float va[3], vb[3];
+    if (mesh_qmesh_get_value(c->specular, a, va) < 0 || mesh_qmesh_get_value(c->specular, b, vb) < 0) return 0;
     const double x[3] = {mv->position[0], mv->position[1], mv->position[2]},
                  nx[3] = {mv->normal[0], mv->normal[1], mv->normal[2]},
                  wo[3] = {c->eye[0] - x[0], c->eye[1] - x[1], c->eye[2] - x[2]};
@@ -349,13 +356,6 @@ int cache_specular_drawn(const cache *c, uint32_t a, uint32_t b, uint32_t mid, f
         if (!(S > 0.0)) continue;
         for (int k = 0; k < 3; ++k) U[k] += c->light_le[3 * (size_t)l + (size_t)k] * S;
     }
-    cache_lobe la, lb;
-    cache_get_lobe(c, a, &la);
-    cache_get_lobe(c, b, &lb);
-    float va[3], vb[3];
-    if (mesh_qmesh_get_value(c->specular, a, va) < 0 || mesh_qmesh_get_value(c->specular, b, vb) < 0) return 0;
-    const double vis = 0.5 * ((double)la.visible + lb.visible);
-    if (!(vis >= CACHE_HIGHLIGHT_MIN_VISIBLE)) return 0; /* partly or wholly hidden: the renderer keeps the values */
     for (int k = 0; k < 3; ++k) {
         double rest = 0.5 * ((double)va[k] - la.direct[k] + vb[k] - lb.direct[k]);
         double v = (rest > 0.0 ? rest : 0.0) + (vis > 1.0 ? 1.0 : vis) * U[k];
