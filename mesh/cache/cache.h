@@ -463,6 +463,10 @@ typedef struct cache_lobe {
  * one its corners' lobes see, and a pixel's lobe turned to the hidden part of
  * it lit up speckles (the Veach door's metal teapot, seen through the gap). */
 #define CACHE_HIGHLIGHT_MIN_VISIBLE 0.999
+/* The bounding sphere the renderer and the cache test a lobe's core against
+ * (CACHE_HIGHLIGHT_SKIP_CORE): the light's box's centre and half diagonal, a
+ * little wider so that round-off never skips a light that sends something. */
+void cache_highlight_sphere(const scene_area_light *L, double centre[3], double *radius);
 /* The lobe data of specular vertex vid (a vertex of cache_specular_mesh). */
 void cache_get_lobe(const cache *c, uint32_t vid, cache_lobe *out);
 /* Light `light`'s radiance (area) or intensity (point) as the cache uses it now

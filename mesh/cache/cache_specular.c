@@ -300,15 +300,23 @@ lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V,
 
 /* Whether the renderer skips area light l at x for the lobe about r of exponent
  * n (rend_value.frag: the lobe's core misses the light's bounding sphere). */
-static int highlight_skips(const scene_area_light *L, const double x[3], lm_dvec3 r, double n)
+void cache_highlight_sphere(const scene_area_light *L, double centre[3], double *radius)
 {
-    double c[3], r2 = 0.0;
+    double r2 = 0.0;
     for (int k = 0; k < 3; ++k) {
-        c[k] = 0.5 * ((double)L->bounds_min[k] + L->bounds_max[k]) - x[k];
+        centre[k] = 0.5 * ((double)L->bounds_min[k] + L->bounds_max[k]);
         double h = 0.5 * ((double)L->bounds_max[k] - L->bounds_min[k]);
         r2 += h * h;
     }
-    double radius = 1.001 * sqrt(r2), dist = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
+    *radius = 1.001 * sqrt(r2);
+}
+
+static int highlight_skips(const scene_area_light *L, const double x[3], lm_dvec3 r, double n)
+{
+    double c[3], radius;
+    cache_highlight_sphere(L, c, &radius);
+    for (int k = 0; k < 3; ++k) c[k] -= x[k];
+    double dist = sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]);
     if (!(dist > radius)) return 0;
     double cosr = (r.x * c[0] + r.y * c[1] + r.z * c[2]) / dist;
     double ang = acos(cosr < -1.0 ? -1.0 : cosr > 1.0 ? 1.0 : cosr);

@@ -297,7 +297,8 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
         dirty[t] = full;
         lm_result r = LM_OK;
         int hashed = 0;
-        if (reusable && n && !f->desc.no_snapshot_copy && !m->lobes == !ts->lobes)
+        /* New radiance changes every highlight, not only the changed triangles'. */
+        if (reusable && n && !f->desc.no_snapshot_copy && !m->lobes == !ts->lobes && !(relit && m->lobes))
             r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
         if (r == LM_OK) r = upload_mesh(f, ts, m, err);
         if (r == LM_OK && hashed) { /* the new triangles' hashes serve the next comparison */

@@ -4,7 +4,6 @@
  * its shader variants then. The passes are in rend_frame.c. */
 #include "src/render/rend_frame_internal.h"
 
-#include <math.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -105,13 +104,10 @@ static lm_result upload_lights(rend_frame *f, const scene *s, lm_error *err)
         if (l < s->area_light_count) {
             const scene_area_light *a = &s->area_lights[l];
             memcpy(L->le, a->le, 3 * sizeof(float));
-            float r2 = 0.0f;
-            for (int k = 0; k < 3; ++k) {
-                L->sphere[k] = 0.5f * (a->bounds_min[k] + a->bounds_max[k]);
-                float h = 0.5f * (a->bounds_max[k] - a->bounds_min[k]);
-                r2 += h * h;
-            }
-            L->sphere[3] = 1.001f * sqrtf(r2);
+            double centre[3], radius;
+            cache_highlight_sphere(a, centre, &radius); /* the cache's tests skip the same lights */
+            for (int k = 0; k < 3; ++k) L->sphere[k] = (float)centre[k];
+            L->sphere[3] = (float)radius;
             L->loops[0] = o.light_loop[l];
             L->loops[1] = o.light_loop[l + 1] - o.light_loop[l];
         } else {
