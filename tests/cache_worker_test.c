@@ -479,6 +479,15 @@ int main(void)
         const uint64_t t_first = first ? first->tested : 0, g_first = first ? first->generation : 0;
         cache_worker_pause(w);
         const cache_snapshot *cut = cache_worker_acquire(w);
+        /* A pause that arrives before the worker has begun its step (a loaded
+         * machine can run this thread first) parks it with nothing new to
+         * publish: that pause was not within a step, so try again later. */
+        for (int attempt = 1; attempt < 20 && cut && cut->generation == g_first; attempt++) {
+            cache_worker_resume(w);
+            sleep_ms(attempt);
+            cache_worker_pause(w);
+            cut = cache_worker_acquire(w);
+        }
         const uint64_t g_cut = cut ? cut->generation : 0, t_cut = cut ? cut->tested : 0;
         const int cut_converged = cut ? cut->converged : 1;
         cache_worker_resume(w);
@@ -494,9 +503,10 @@ int main(void)
                "returned (generation %llu -> %llu, %s), %llu later\n",
                (unsigned long long)t_first, (unsigned long long)t_cut, (unsigned long long)g_first,
                (unsigned long long)g_cut, cut_converged ? "converged" : "not converged", (unsigned long long)t_later);
-        /* The synchronous cache above needs more than `budget` leaves: a step
-         * that ran to its end would have tested them all. */
-        CHECK(g_cut > g_first && !cut_converged && t_cut < t_first + budget / 2);
+        /* The step has no leaf budget, so a step that ran to its end would have
+         * converged: a pause that waited for it could not return unconverged.
+         * (No bound on the leaves tested before the pause: that is timing.) */
+        CHECK(g_cut > g_first && !cut_converged);
         CHECK(t_later > t_cut);
         cache_worker_destroy(w);
     }
