@@ -13,7 +13,7 @@
  *   - while the worker refines, every new snapshot drawn incrementally (only
  *     where its meshes changed) gives the same image, bit for bit, as a full
  *     redraw; so does a renderer that keeps no CPU copy of the snapshot
- *     (no_snapshot_copy, render's final one), which reuses a snapshot drawn
+ *     (one_snapshot, render's final one), which reuses a snapshot drawn
  *     again; a picture added to itself as read (rend_frame_draw_adding) is
  *     exactly twice it;
  *   - the composite averages per-sample values exactly: on a flat-coloured view
@@ -130,7 +130,7 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
     CHECK(rend_frame_create(gl, &banded, &inc, &err) == LM_OK);
     CHECK(rend_frame_create(gl, &banded, &full, &err) == LM_OK);
     rend_frame_desc one = banded;
-    one.no_snapshot_copy = 1; /* render's final renderer: each new snapshot drawn whole */
+    one.one_snapshot = 1; /* render's final renderer: each new snapshot drawn whole */
     CHECK(rend_frame_create(gl, &one, &nocopy, &err) == LM_OK);
     CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = w, .height = h, .supersample = 2}, &whole,
                             &err) == LM_OK);
@@ -322,6 +322,49 @@ static void run_scene(const GladGLContext *gl, const scene *s, int w, int h, int
     rend_id_destroy(ip);
 }
 
+/* A renderer of one snapshot (the terms summed into its output: one_snapshot at
+ * s > 1) against renderer f at the same s, through component and emission
+ * edits, bit for bit; the same draw again redraws nothing. f is left showing
+ * everything, with its scene's emission. */
+static void one_snapshot_edits(const GladGLContext *gl, const scene *s, const cache_snapshot *snap, rend_frame *f,
+                               int ss)
+{
+    enum { W = 37, H = 23 };
+    static float a[W * H * 3], b[W * H * 3];
+    lm_error err;
+    rend_frame *o = NULL;
+    CHECK(rend_frame_create(gl, &(rend_frame_desc){.scene = s, .width = W, .height = H, .supersample = ss,
+                                                   .one_snapshot = 1},
+                            &o, &err) == LM_OK);
+    if (!o) return;
+    const float le[3] = {1.0f, 2.0f, 3.0f}, dark[3] = {0.0f, 0.0f, 0.0f};
+    const unsigned shown[] = {REND_FRAME_COMPONENTS_ALL, REND_FRAME_COMPONENTS_ALL & ~REND_FRAME_COMPONENT_INDIRECT,
+                              REND_FRAME_COMPONENT_EMISSION, REND_FRAME_COMPONENT_DIRECT_SPECULAR,
+                              REND_FRAME_COMPONENTS_ALL & ~REND_FRAME_COMPONENT_EMISSION, REND_FRAME_COMPONENTS_ALL};
+    int differ = 0, reused = 0;
+    for (int e = 0; e < 2; ++e) {
+        CHECK(rend_frame_set_emission(f, 0, e ? le : dark, &err) == LM_OK);
+        CHECK(rend_frame_set_emission(o, 0, e ? le : dark, &err) == LM_OK);
+        for (size_t k = 0; k < sizeof shown / sizeof *shown; ++k) {
+            rend_frame_set_components(f, shown[k]);
+            rend_frame_set_components(o, shown[k]);
+            CHECK(rend_frame_draw(f, &s->cameras[0], snap, a, &err) == LM_OK);
+            CHECK(rend_frame_draw(o, &s->cameras[0], snap, b, &err) == LM_OK);
+            differ += !same_floats(a, b, W * H * 3);
+            CHECK(rend_frame_draw(o, &s->cameras[0], snap, b, &err) == LM_OK);
+            rend_frame_times t;
+            rend_frame_get_times(o, &t);
+            reused += t.radiance_reused && t.composite_reused && same_floats(a, b, W * H * 3);
+        }
+    }
+    CHECK(rend_frame_set_emission(f, 0, s->materials[0].le, &err) == LM_OK);
+    printf("  s = %d, the terms summed into the output: %d of %d component and emission edits differ from "
+           "separate term images; %d drawn again redrew nothing\n",
+           ss, differ, (int)(2 * sizeof shown / sizeof *shown), reused);
+    CHECK(differ == 0 && reused == (int)(2 * sizeof shown / sizeof *shown));
+    rend_frame_destroy(o);
+}
+
 /* A plane facing the camera, constant values: every sample of every pixel has
  * the same value, so the box filter must give the s = 1 image exactly. */
 static void flat_case(const GladGLContext *gl)
@@ -400,6 +443,7 @@ static void flat_case(const GladGLContext *gl)
             rend_frame_destroy(g);
         } else {
             CHECK_MSG(same_floats(one, img, W * H * 3), "s = %d differs from s = 1 on a flat view", ss);
+            one_snapshot_edits(gl, s, &snap, f, ss);
         }
         rend_frame_destroy(f);
     }

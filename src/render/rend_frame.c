@@ -176,7 +176,7 @@ static int same_mesh(const cache_snapshot_mesh *a, const cache_snapshot_mesh *b)
 }
 
 /* Copies snapshot mesh m to the term's buffers (grown when needed) and its CPU
- * copy (not with desc.no_snapshot_copy). */
+ * copy (not with desc.one_snapshot). */
 static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m, lm_error *err)
 {
     const GladGLContext *gl = f->gl;
@@ -185,7 +185,7 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
     ts->copy = (cache_snapshot_mesh){0};
     ts->hash_valid = 0;
     if (!n) return LM_OK;
-    const int keep = !f->desc.no_snapshot_copy;
+    const int keep = !f->desc.one_snapshot;
     if (keep && n > ts->copy_cap) {
         uint32_t *x = realloc(ts->copy_i, 3 * (size_t)n * sizeof *x);
         if (x) ts->copy_i = x;
@@ -287,7 +287,7 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
          * per worker: rend_frame.h), else the same bytes. */
         int same = f->snap_valid && generation == f->snap_generation && (m ? m->vertices : NULL) == ts->src &&
                    n == ts->copy.triangle_count;
-        if (!same && n == ts->copy.triangle_count && !f->desc.no_snapshot_copy)
+        if (!same && n == ts->copy.triangle_count && !f->desc.one_snapshot)
             same = n == 0 || same_mesh(&ts->copy, m);
         if (same) {
             ts->src = m ? m->vertices : NULL;
@@ -298,7 +298,7 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
         lm_result r = LM_OK;
         int hashed = 0;
         /* New radiance changes every highlight, not only the changed triangles'. */
-        if (reusable && n && !f->desc.no_snapshot_copy && !m->lobes == !ts->lobes && !(relit && m->lobes))
+        if (reusable && n && !f->desc.one_snapshot && !m->lobes == !ts->lobes && !(relit && m->lobes))
             r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
         if (r == LM_OK) r = upload_mesh(f, ts, m, err);
         if (r == LM_OK && hashed) { /* the new triangles' hashes serve the next comparison */
@@ -347,6 +347,27 @@ static lm_result read_output(rend_frame *f, float *rgb, int add, lm_error *err)
     gl->PixelStorei(GL_PACK_ALIGNMENT, pack);
     free(band);
     return LM_OK;
+}
+
+/* The terms are resolved straight into the output (rend_frame_desc.one_snapshot). */
+static int summed(const rend_frame *f) { return f->desc.one_snapshot && f->desc.supersample > 1; }
+
+/* The composite pass into the output, full screen (the caller's state: no depth
+ * test, the output's viewport). comp_terms: bits 0..2 the term images drawn and
+ * shown (none when summed: they are added after it), bit 3 emission shown. */
+static void composite(rend_frame *f, unsigned comp_terms)
+{
+    const GladGLContext *gl = f->gl;
+    gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->out_fbo);
+    gl->UseProgram(f->prog_composite);
+    gl->Uniform1ui(f->loc_comp_terms, comp_terms);
+    GLuint inputs[1 + TERMS] = {f->mat_tex, f->term[0].tex, f->term[1].tex, f->term[2].tex};
+    gl->BindTextures(0, 1 + TERMS, inputs);
+    gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
+    gl->BindVertexArray(f->empty_vao);
+    gl->DrawArrays(GL_TRIANGLES, 0, 3);
+    gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
+    gl->BindTextures(0, 1 + TERMS, NULL);
 }
 
 static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb, int add,
@@ -432,9 +453,29 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
     double redrawn = 0.0, present = 0.0;
     int drew = 0;
     const int ss = f->desc.supersample;
+    /* Summed into the output (one_snapshot at s > 1): the output first gets the
+     * emission, then each shown term whole, added as it is resolved, in the
+     * composite's order (Le, L_dd, E_i, L_ds: the same bits). So any change
+     * redraws them all, and a hidden term is not drawn. */
+    const int sum = summed(f);
+    unsigned comp_terms = REND_FRAME_COMPONENT_EMISSION & f->components;
+    for (int t = 0; t < TERMS; ++t)
+        if (f->term[t].copy.triangle_count) comp_terms |= (1u << t) & f->components;
+    if (sum && r == LM_OK) {
+        int redraw = !f->comp_valid || !tt->material_reused || comp_terms != f->comp_terms;
+        for (int t = 0; t < TERMS; ++t) redraw |= (comp_terms >> t & 1u) && !rect_empty(&dirty[t]);
+        for (int t = 0; t < TERMS; ++t)
+            dirty[t] = redraw && (comp_terms >> t & 1u) ? (rect){0, 0, f->sw, f->sh} : (rect){0, 0, 0, 0};
+        if (redraw) {
+            gl->Disable(GL_DEPTH_TEST); /* each band enables it again */
+            gl->Viewport(0, 0, w, h);
+            composite(f, comp_terms & REND_FRAME_COMPONENT_EMISSION);
+        }
+        tt->composite_reused = !redraw;
+    }
     for (int t = 0; r == LM_OK && t < TERMS; ++t) {
         term_state *ts = &f->term[t];
-        if (!ts->copy.triangle_count) {
+        if (!ts->copy.triangle_count || (sum && !(comp_terms >> t & 1u))) {
             ts->drawn = 0;
             continue;
         }
@@ -489,7 +530,12 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
             gl->Viewport(0, 0, w, h);
             gl->Enable(GL_SCISSOR_TEST);
             gl->Scissor(d.x0 / ss, (y0 + b0) / ss, (d.x1 - d.x0) / ss, (b1 - b0) / ss);
-            gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, ts->fbo);
+            gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, sum ? f->out_fbo : ts->fbo);
+            if (sum) { /* out = out + resolved: float32 blending adds exactly, as the composite does */
+                gl->Enable(GL_BLEND);
+                gl->BlendEquation(GL_FUNC_ADD);
+                gl->BlendFunc(GL_ONE, GL_ONE);
+            }
             gl->UseProgram(f->prog_resolve);
             gl->Uniform1ui(f->loc_res_term, (GLuint)t);
             gl->Uniform1i(f->loc_res_band, y0);
@@ -501,6 +547,7 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
             gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
             gl->BindTextures(0, 2, NULL);
             gl->Disable(GL_SCISSOR_TEST);
+            if (sum) gl->Disable(GL_BLEND);
         }
     }
     if (r == LM_OK) {
@@ -518,21 +565,13 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
     gl->DepthFunc(GL_LESS);
     gl->ClipControl(GL_LOWER_LEFT, GL_NEGATIVE_ONE_TO_ONE);
     gl->Viewport(0, 0, w, h);
-    unsigned comp_terms = (terms | REND_FRAME_COMPONENT_EMISSION) & f->components;
-    tt->composite_reused = r == LM_OK && f->comp_valid && tt->material_reused && tt->radiance_reused &&
-                           comp_terms == f->comp_terms;
-    if (r == LM_OK && !tt->composite_reused) {
-        gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->out_fbo);
-        gl->UseProgram(f->prog_composite);
-        /* Bits 0..2: the radiance images drawn and shown; bit 3: emission shown. */
-        gl->Uniform1ui(f->loc_comp_terms, comp_terms);
-        GLuint inputs[1 + TERMS] = {f->mat_tex, f->term[0].tex, f->term[1].tex, f->term[2].tex};
-        gl->BindTextures(0, 1 + TERMS, inputs);
-        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
-        gl->BindVertexArray(f->empty_vao);
-        gl->DrawArrays(GL_TRIANGLES, 0, 3);
-        gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
-        gl->BindTextures(0, 1 + TERMS, NULL);
+    if (!sum) {
+        comp_terms = (terms | REND_FRAME_COMPONENT_EMISSION) & f->components;
+        tt->composite_reused = r == LM_OK && f->comp_valid && tt->material_reused && tt->radiance_reused &&
+                               comp_terms == f->comp_terms;
+        if (r == LM_OK && !tt->composite_reused) composite(f, comp_terms);
+    }
+    if (r == LM_OK) {
         f->comp_valid = 1;
         f->comp_terms = comp_terms;
     }

@@ -107,10 +107,13 @@ typedef struct rend_frame_desc {
     int band_samples;     /* s > 1: the passes draw bands of whole pixel rows of at most this many samples
                              (at least one row), so the depth and radiance images hold a band, not the
                              image; 0 = REND_FRAME_BAND_SAMPLES (tests ask for small bands) */
-    int no_snapshot_copy; /* keep no CPU copy of the meshes drawn (~32 bytes a leaf triangle), for a
-                             renderer of one snapshot (render's final picture): a snapshot other than
-                             the last drawn (another array or generation) is then drawn whole, not
-                             compared with it for the parts that changed */
+    int one_snapshot;     /* a renderer of one snapshot (render's final picture): it keeps no CPU copy
+                             of the meshes drawn (~32 bytes a leaf triangle) and, at s > 1, no image per
+                             term: the terms are resolved straight into the output, added to the
+                             emission drawn there first (48 bytes a pixel less; docs/memory.md). So a
+                             snapshot other than the last drawn (another array or generation), a new
+                             camera, component set or emission redraws every term whole, not only
+                             the parts that changed; the pictures are the same, bit for bit */
 } rend_frame_desc;
 
 /* Wall-clock seconds of the last rend_frame_draw, each pass finished (glFinish)

@@ -289,7 +289,8 @@ static lm_result make_images(rend_frame *f, lm_error *err)
         gl->NamedFramebufferTexture(f->val_fbo, GL_COLOR_ATTACHMENT0, f->val_tex, 0);
         gl->NamedFramebufferRenderbuffer(f->val_fbo, GL_DEPTH_ATTACHMENT, GL_RENDERBUFFER, f->depth);
     }
-    for (int t = 0; t < TERMS; ++t) {
+    /* Summed into the output (one_snapshot at s > 1: rend_frame.c), no term images. */
+    for (int t = 0; t < TERMS && !(f->desc.one_snapshot && ss > 1); ++t) {
         term_state *ts = &f->term[t];
         gl->CreateFramebuffers(1, &ts->fbo);
         ts->tex = color_target(gl, GL_RGBA32F, w, h);
@@ -304,7 +305,7 @@ static lm_result make_images(rend_frame *f, lm_error *err)
     GLuint fbos[3 + TERMS] = {f->mat_fbo, f->out_fbo, f->term[0].fbo, f->term[1].fbo, f->term[2].fbo,
                               f->val_fbo};
     for (int i = 0; i < 2 + TERMS + (ss > 1); ++i)
-        if (gl->CheckNamedFramebufferStatus(fbos[i], GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
+        if (fbos[i] && gl->CheckNamedFramebufferStatus(fbos[i], GL_FRAMEBUFFER) != GL_FRAMEBUFFER_COMPLETE) {
             free_images(f);
             return lm_fail(err, LM_ERR_RUNTIME, "renderer: a %dx%d framebuffer is not complete on this GL", f->sw,
                            f->sh);

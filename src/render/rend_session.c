@@ -505,7 +505,7 @@ lm_result rend_session_renderer(rend_session *rs, rend_session_renderer_kind kin
         const int one = kind == REND_SESSION_FINAL && rs->d.final_one_snapshot;
         r = rend_frame_create(rs->gl, &(rend_frame_desc){.scene = rs->d.scene, .width = rs->info.width,
                                                          .height = rs->info.height, .supersample = s,
-                                                         .no_snapshot_copy = one},
+                                                         .one_snapshot = one},
                               &rs->frame[kind], err);
         if (r != LM_OK) return r;
     }
