@@ -143,7 +143,8 @@ typedef struct rend_session_desc {
                                       at the end (render) refines without the GL driver resident (LLVM
                                       and llvmpipe, ~60 MB; docs/memory.md) */
     int final_one_snapshot;        /* REND_SESSION_FINAL draws one snapshot (render): its renderer keeps no
-                                      CPU copy of the meshes (rend_frame_desc.one_snapshot) */
+                                      CPU copy of the meshes and no image per term
+                                      (rend_frame_desc.one_snapshot) */
     int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
     int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */
     uint32_t first_budget;         /* WORKER_FIRST with a camera and a size: leaves the worker tests before
