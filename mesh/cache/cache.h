@@ -210,6 +210,13 @@ typedef struct cache_refine_desc {
                                  (nothing is lost: what is left stays flagged or queued and counts in
                                  remaining). A worker being cancelled: a step of the 116k box's first
                                  regather made its client wait 1.2 s (docs/cache.md) */
+    int first_image;          /* non-zero: the rounds before the first image (the worker's first_budget):
+                                 after the budget's leaves the source is brought up to date with the
+                                 direct mesh they refined, and the seen indirect leaves are tested
+                                 with a fifth of the budget more, gathering from it, although the
+                                 first image's indirect values are still owed (they are all gathered
+                                 again after it). Water's ceiling, lit only by the walls, was black
+                                 in the first image and until 0.5 s without it (docs/renderer.md) */
     int wait_for_indirect;    /* non-zero: no leaf is tested while indirect values are owed (the first
                                  image's borrowed ones, or ones a rebuilt source flagged), so that
                                  they are judged against the source they were flagged by (a test of

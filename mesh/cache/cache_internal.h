@@ -295,6 +295,12 @@ typedef struct cache_bounce_state {
  * the visible roots, the current root, and how many leaves are waiting. */
 typedef struct cache_sched {
     cache_queue q[CACHE_KINDS];
+    /* The first image's indirect leaves (cache_refine_desc.first_image): the heap
+     * scheduler picks none below pick_floor (0: any), and while
+     * first_image_round sets aside those a surface parts, queued again after. */
+    float pick_floor;
+    int first_image_round;
+    cache_queue set_aside;
     uint8_t *done[CACHE_KINDS];
     size_t done_cap[CACHE_KINDS];
     float *prio[CACHE_KINDS];

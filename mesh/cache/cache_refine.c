@@ -50,6 +50,10 @@ typedef cache_kind refine_kind;
 #define KIND_INDIRECT CACHE_KIND_INDIRECT
 #define KIND_SPECULAR CACHE_KIND_SPECULAR
 
+/* The first image's indirect leaves (cache_refine_desc.first_image): only those
+ * of at least this share of the pixels seen (priority pixels·(1 + ΔE)). */
+#define FIRST_IMAGE_LEAF_SHARE (1.0 / 256.0)
+
 /* ---- heap -------------------------------------------------------------------- */
 
 static lm_result queue_push(cache_queue *q, float priority, uint32_t node, uint32_t v0, lm_error *err)
@@ -300,6 +304,8 @@ static lm_result sched_done(cache *c, refine_kind kind, uint32_t node, lm_error 
     return r;
 }
 
+static int corners_parted(const cache *c, const mesh_qnode *n);
+
 /* The next leaf to test and the priority it was picked at; 0 when none is waiting. */
 static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t *out, float *picked)
 {
@@ -314,6 +320,21 @@ static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_
             if (e.node < c->sched.done_cap[kind] && c->sched.done[kind][e.node]) continue;
             /* A leaf of one sample never splits (an unseen source leaf: by its importance). */
             if (!source_only(pixels, kind, n) && below_sample(c, kind, pixels, n)) continue;
+            /* Before the first image, a leaf that a surface parts (a floor running
+             * on under a wall into the next room) is set aside: split then, on
+             * values gathered before the regathers, the Veach door's floor kept a
+             * band of the lamp room's light along its back wall until 4 s and
+             * more (docs/renderer.md, "The ceiling lit in the first image"). */
+            if (c->sched.first_image_round && kind == KIND_INDIRECT && corners_parted(c, n)) {
+                lm_error ignore;
+                if (queue_push(&c->sched.set_aside, e.priority, e.node, e.v0, &ignore) != LM_OK) return 0;
+                continue;
+            }
+            if (e.priority < c->sched.pick_floor) { /* the rest is below it too: left queued */
+                lm_error ignore;
+                if (queue_push(q, e.priority, e.node, e.v0, &ignore) == LM_OK) c->sched.waiting[kind]++;
+                return 0;
+            }
             *out = e.node;
             *picked = e.priority;
             return 1;
@@ -1053,6 +1074,35 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
         total_left = used >= total_left ? 0 : total_left - used;
         if (by_cost && used == 0) c->sched.waiting[kind] = 0; /* nothing it could test: not picked again */
     }
+    /* The first image's indirect leaves (cache_refine_desc.first_image): the
+     * source the first gathers drew from was built before the rounds above
+     * split the direct mesh where the light is (Water's walls: root corners
+     * grazing the lamp or under the water, dark), and the indirect leaves wait
+     * while the first image's values are owed, so a surface lit only
+     * indirectly stayed dark until the regathers after the first image were
+     * done (0.5 s). A fifth of the budget, as the random scheduler gives
+     * indirect leaves (§4.3.3), and only to leaves of a visible share of the
+     * picture (FIRST_IMAGE_LEAF_SHARE: big surfaces that a few corners
+     * misrepresent; a scene of small leaves, the 116k box, pays nothing);
+     * leaves a surface parts are set aside (pick_leaf). */
+    if (r == LM_OK && desc->first_image && !cache_stopping(c)) {
+        r = cache_settle_source(c, err);
+        double seen = 0.0;
+        for (uint32_t t = 0; desc->pixels && t < c->s->tri_count; ++t) seen += desc->pixels[t];
+        c->sched.pick_floor = (float)(seen * FIRST_IMAGE_LEAF_SHARE);
+        c->sched.first_image_round = 1;
+        if (r == LM_OK) r = refine_round(c, KIND_INDIRECT, desc->pixels, fifth, &res, err);
+        c->sched.first_image_round = 0;
+        c->sched.pick_floor = 0.0f;
+        /* The leaves set aside (pick_leaf) wait in the queue as before. */
+        cache_queue *aside = &c->sched.set_aside;
+        while (r == LM_OK && aside->n) {
+            cache_queue_entry e = queue_pop(aside);
+            r = queue_push(&c->sched.q[KIND_INDIRECT], e.priority, e.node, e.v0, err);
+            if (r == LM_OK) c->sched.waiting[KIND_INDIRECT]++;
+        }
+        aside->n = 0;
+    }
     /* Values still waiting to be gathered again count as work left. */
     res.outdated = (uint32_t)(c->src.outdated_n + (c->vis.borrowed_released ? cache_borrowed_waiting(c) : 0) +
                               cache_borrow_pending(c) + cache_glossy_waiting(c));
@@ -1086,6 +1136,7 @@ void cache_sched_free(cache_sched *st)
         free(st->roots[k]);
         free(st->resid[k]);
     }
+    free(st->set_aside.e);
     free(st->dark_gen);
     free(st->vt_first);
     free(st->vt_tris);

@@ -387,7 +387,9 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     double t = lm_now_seconds();
     if (r == LM_OK && w->desc.first_budget && w->pixels) {
         cache_refine_result res;
-        r = cache_refine(*c, &(cache_refine_desc){.pixels = w->pixels, .budget = w->desc.first_budget, .seen_only = 1},
+        r = cache_refine(*c,
+                         &(cache_refine_desc){.pixels = w->pixels, .budget = w->desc.first_budget, .seen_only = 1,
+                                              .first_image = 1},
                          &res, err);
         if (r == LM_OK) w->first_tested = res.tested;
     }

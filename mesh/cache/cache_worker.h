@@ -62,7 +62,9 @@ typedef struct cache_worker_desc {
     uint32_t step_budget;        /* leaves tested between publications; 0 = 512 */
     uint32_t first_budget;       /* leaves tested with the quick sampler before the first publication,
                                     by `pixels` (a first image with shadows and the light's falloff:
-                                    docs/renderer.md, "The first image"); 0 = none (and without pixels) */
+                                    docs/renderer.md, "The first image"), and up to a fifth of it more
+                                    indirect leaves (cache_refine_desc.first_image); 0 = none (and
+                                    without pixels) */
     uint64_t max_tested;         /* stop after this many leaves tested (deterministic runs); 0 = no limit */
     float jnd_floor;             /* ΔE; > 0: never plateau. Once the cache has converged at its JND
                                     (cache_desc.jnd), the worker halves the JND and refines on, and

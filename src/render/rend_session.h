@@ -148,7 +148,8 @@ typedef struct rend_session_desc {
     int publish_debug;             /* snapshots carry the debug data (cache_worker_desc.publish_debug) */
     int single_mesh;               /* cache_desc.single_mesh: one mesh for all terms */
     uint32_t first_budget;         /* WORKER_FIRST with a camera and a size: leaves the worker tests before
-                                      its first snapshot, by pixel counts guessed from the camera
+                                      its first snapshot (and up to a fifth more indirect ones:
+                                      cache_worker_desc.first_budget), by pixel counts guessed from the camera
                                       (camera_triangle_pixels), and it refines on by them until the ID
                                       pass: a first image with shadows (docs/renderer.md); 0 = none */
     int bounces;                   /* diffuse bounces (cache_desc.bounces): 1..CACHE_BOUNCES_MAX or
