@@ -212,8 +212,9 @@ typedef struct cache_refine_desc {
                                  regather made its client wait 1.2 s (docs/cache.md) */
     int first_image;          /* non-zero: the rounds before the first image (the worker's first_budget):
                                  after the budget's leaves the source is brought up to date with the
-                                 direct mesh they refined, and the seen indirect leaves are tested
-                                 with a fifth of the budget more, gathering from it, although the
+                                 direct mesh they refined, and the seen indirect leaves of at least
+                                 1/256 of the seen pixels (none a surface parts) are tested with a
+                                 fifth of the budget more, gathering from it, although the
                                  first image's indirect values are still owed (they are all gathered
                                  again after it). Water's ceiling, lit only by the walls, was black
                                  in the first image and until 0.5 s without it (docs/renderer.md) */
