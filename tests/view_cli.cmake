@@ -22,7 +22,12 @@
 # both with imperfect shadow maps (vpl-ism, bdir-ism), each shown from a complete
 # pass (peer spp 1 or more) with VPLs made: the script waits for that picture
 # (peer-picture, at most 20 s: under TSan a first pass with maps takes 3-5 s);
-# a fifth i shows the cache again.
+# a fifth i shows the cache again. The moving view (docs/peers.md), at 480x270:
+# right after a move the peer's picture stays shown (of the view before, until the
+# new one's), the new view's first picture is the peer's over a grid of its pixels
+# (a whole pass there takes longer than the grid's 0.05 s), filled in between, and
+# its tone-mapped mean is within 20% of the complete pass's that follows (linear,
+# the lamp would set the mean: a coarse grid hits or misses it).
 # -DXVFB_RUN= -DLUMESH= -DCHECK= -DDIR=
 file(REMOVE_RECURSE ${DIR})
 file(MAKE_DIRECTORY ${DIR})
@@ -99,6 +104,18 @@ frames 1
 wait 1
 peer-picture 20
 screenshot ${DIR}/peer-moved.png
+resize 480 270
+frames 2
+wait 0.5
+peer-picture 20
+orbit 4 0
+frames 1
+screenshot ${DIR}/peer-moving.png
+peer-preview 20
+screenshot ${DIR}/peer-preview.png
+peer-picture 20
+screenshot ${DIR}/peer-whole.png
+resize 160 120
 key i
 peer-picture 20
 screenshot ${DIR}/bdir.png
@@ -318,3 +335,39 @@ execute_process(COMMAND ${CHECK} ${DIR}/peer.exr ${DIR}/peer-moved.png RESULT_VA
 if(NOT crc EQUAL 0)
   message(FATAL_ERROR "the VPL pictures are missing, uniform or the same before and after the orbit: ${cout}${cerr}")
 endif()
+# The moving view: the peer's picture throughout, a grid's first, then whole.
+foreach(f peer-moving.png peer-preview.png peer-whole.png)
+  string(REPLACE "." "\\." fre "${f}")
+  if(NOT out MATCHES "screenshot [^\n]*/${fre}: [^\n]*indirect vpl, peer spp ([0-9]+), peer vpls [0-9]+, peer grid ([0-9]+), peer earlier ([01])")
+    message(FATAL_ERROR "no screenshot line for ${f} with indirect vpl")
+  endif()
+  set(spp ${CMAKE_MATCH_1})
+  set(grid ${CMAKE_MATCH_2})
+  set(earlier ${CMAKE_MATCH_3})
+  message("${f}: peer spp ${spp}, grid ${grid}, of the view before ${earlier}")
+  if(spp LESS 1)
+    message(FATAL_ERROR "${f}: the peer's picture is not shown while the view moves (the cache's instead)")
+  endif()
+  if(NOT f STREQUAL "peer-moving.png" AND NOT earlier EQUAL 0)
+    message(FATAL_ERROR "${f}: the picture shown is of the view before the move")
+  endif()
+  if(f STREQUAL "peer-whole.png" AND NOT grid EQUAL 1)
+    message(FATAL_ERROR "peer-whole.png: not a complete pass (grid ${grid})")
+  endif()
+  if(f STREQUAL "peer-preview.png" AND grid LESS 2)
+    message(FATAL_ERROR "peer-preview.png: the new view's first picture is not a grid's (grid ${grid})")
+  endif()
+endforeach()
+execute_process(COMMAND ${CHECK} ${DIR}/peer-preview.png ${DIR}/peer-whole.png RESULT_VARIABLE crc OUTPUT_VARIABLE cout
+                ERROR_VARIABLE cerr)
+if(NOT crc EQUAL 0)
+  message(FATAL_ERROR "the moving view's pictures are missing, uniform or identical: ${cout}${cerr}")
+endif()
+if(NOT cout MATCHES "mean of the second over the first ([0-9.]+)")
+  message(FATAL_ERROR "no means for the moving view's pictures: ${cout}")
+endif()
+message("the moving view: the complete pass's mean over its first picture's ${CMAKE_MATCH_1}")
+if(CMAKE_MATCH_1 LESS 0.8 OR CMAKE_MATCH_1 GREATER 1.25)
+  message(FATAL_ERROR "the moving view's first picture is not the peer's light: mean ratio ${CMAKE_MATCH_1}")
+endif()
+

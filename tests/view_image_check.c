@@ -1,7 +1,8 @@
 /* view_image_check — for view_cli.cmake: every image given exists, reads back,
  * and is not uniform (the luminance spread over its pixels is more than a few
  * 8-bit steps); with two or more, the first two differ (the camera moved
- * between them). Exit 0 when all holds, 1 otherwise (each failure printed). */
+ * between them), and their means' ratio is printed. Exit 0 when all holds, 1
+ * otherwise (each failure printed). */
 #include <math.h>
 #include <stdio.h>
 
@@ -36,6 +37,7 @@ int main(int argc, char **argv)
         if (i <= 2) mean[i - 1] = m;
         img_free(&im);
     }
+    if (argc > 2 && mean[0] > 0.0) printf("mean of the second over the first %.4f\n", mean[1] / mean[0]);
     if (argc > 2 && mean[0] == mean[1]) {
         fprintf(stderr, "%s and %s look the same (mean %.6f)\n", argv[1], argv[2], mean[0]);
         fails++;

@@ -32,13 +32,13 @@ static void print_screenshot(const char *path, const view_app_report *rep, void 
     for (uint32_t l = 0; snap && l < snap->stats.light_count; ++l) light_samples += snap->stats.lights[l].samples;
     printf("screenshot %s: %dx%d, frame %llu, %.2f s, direct samples %llu, light samples %llu, indirect samples %llu, "
            "generation %llu, bounces %d, converged %d, rest draws %u, residual spp %u, indirect %s, peer spp %u, peer vpls %llu, "
-           "exposure %g, judged at %g\n",
+           "peer grid %u, peer earlier %d, exposure %g, judged at %g\n",
            path, rep->width, rep->height, (unsigned long long)rep->frames, rep->seconds,
            snap ? (unsigned long long)snap->stats.direct.samples : 0ull, light_samples,
            snap ? (unsigned long long)snap->stats.indirect.samples : 0ull,
            snap ? (unsigned long long)snap->generation : 0ull, snap ? snap->stats.bounces.bounces : 0,
            snap ? snap->converged : 0, rep->rest_draws, rep->residual_spp, rep->indirect, rep->peer_spp,
-           (unsigned long long)rep->peer_vpls, (double)rep->exposure, snap ? (double)snap->estimate.exposure : 0.0);
+           (unsigned long long)rep->peer_vpls, rep->peer_grid, rep->peer_earlier, (double)rep->exposure, snap ? (double)snap->estimate.exposure : 0.0);
     fflush(stdout);
 }
 

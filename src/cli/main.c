@@ -208,7 +208,7 @@ static const app_command commands[] = {
      "                      camera N, screenshot PATH.png|PATH.exr, window-shot PATH.png,\n"
      "                      light INDEX SCALE, light-color INDEX R G B, resize W H,\n"
      "                      minimise, restore,\n"
-     "                      next-snapshot SECONDS, peer-picture SECONDS,\n"
+     "                      next-snapshot SECONDS, peer-picture SECONDS, peer-preview SECONDS,\n"
      "                      key escape|q|p|plus|minus|f12|f|c|l|bracketright|bracketleft|1|2|3|4|h|o|v|r|k|b|i,\n"
      "                      quit; prints a line per screenshot\n"
      "  --stats FILE        write the last snapshot's statistics as JSON at exit (docs/stats.md)\n"

@@ -57,6 +57,8 @@ void view_app_report_of(const view_state *v, view_app_report *r)
                            .indirect = view_app_indirect_name(v->indirect, v->indirect_visibility),
                            .peer_spp = view_app_showing_residual(v) && v->peer_on ? v->residual_info.min_samples : 0,
                            .peer_vpls = view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpls : 0,
+                           .peer_grid = view_app_showing_residual(v) && v->peer_on ? v->residual_info.grid : 0,
+                           .peer_earlier = view_app_showing_residual(v) && v->peer_on && !v->residual_current,
                            .exposure = v->exposure};
 }
 
@@ -382,11 +384,14 @@ static lm_result run_script(view_state *v, lm_error *err)
             if ((!v->snap || v->snap->generation == v->cmd_generation0) && lm_now_seconds() - v->cmd_t0 < c->a)
                 return LM_OK;
             break;
-        case VIEW_CMD_PEER_PICTURE: {
-            /* As the screenshot line counts it: the peer's picture is shown, from a complete pass. */
+        case VIEW_CMD_PEER_PICTURE:
+        case VIEW_CMD_PEER_PREVIEW: {
+            /* As the screenshot line counts it: the peer's picture of this view is
+             * shown, from a complete pass (or, for peer-preview, its grid's). */
             view_app_report rep;
             view_app_report_of(v, &rep);
-            if (rep.peer_spp == 0 && lm_now_seconds() - v->cmd_t0 < c->a) return LM_OK;
+            int shown = rep.peer_spp > 0 && !rep.peer_earlier && (c->kind == VIEW_CMD_PEER_PREVIEW || rep.peer_grid == 1);
+            if (!shown && lm_now_seconds() - v->cmd_t0 < c->a) return LM_OK;
             break;
         }
         case VIEW_CMD_LIGHT: r = set_light_scale(v, (uint32_t)c->a, (float)c->b, err); break;
@@ -521,7 +526,8 @@ static lm_result residual_buffers(view_state *v, size_t n, lm_error *err)
  * picture) into residual_tex, shown from now on. */
 static void upload_residual(view_state *v, const scene_camera *cam)
 {
-    if (!view_residual_take(v->residual, v->residual_rgb, &v->residual_seq, &v->residual_info)) {
+    if (!view_residual_take(v->residual, v->residual_rgb, &v->residual_seq, &v->residual_info,
+                            &v->residual_current)) {
         if (v->residual_shown) v->shown = v->residual_tex;
         return;
     }
@@ -544,14 +550,16 @@ static void upload_residual(view_state *v, const scene_camera *cam)
     v->shown = v->residual_tex;
 }
 
-/* --indirect vpl|bdir (I): while the camera rests with every term shown, the
- * peer renders the view on the residual's thread (view_residual.h) and its
- * picture is shown from its first complete pass; before it, and while the
- * camera moves, the cache's. A move restarts it with its VPLs kept (the thesis's
- * temporal reuse); a light edit or a new bounce count traces new ones. */
-static lm_result show_peer(view_state *v, const rend_frame *f, const scene_camera *cam, lm_error *err)
+/* --indirect vpl|bdir (I): with every term shown, the peer renders the view on
+ * the residual's thread (view_residual.h) and its picture is shown: a new view's
+ * first at one pixel in k×k (about 0.05 s a pass), then its whole passes; before
+ * the first, the cache's. A move restarts it with its VPLs kept (the thesis's
+ * temporal reuse) and the picture of the view before stays until the new one's:
+ * a moving view is the peer's, a pass late. A light edit, a new bounce count or
+ * a resize traces new ones and shows the cache's picture until then. */
+static lm_result show_peer(view_state *v, const scene_camera *cam, lm_error *err)
 {
-    if (f != v->frame || v->components != REND_FRAME_COMPONENTS_ALL) {
+    if (v->components != REND_FRAME_COMPONENTS_ALL) {
         residual_stop(v);
         return LM_OK;
     }
@@ -561,8 +569,14 @@ static lm_result show_peer(view_state *v, const rend_frame *f, const scene_camer
     view_accum_key k = accum_key_now(v, cam);
     k.generation = 0; /* the peer does not follow the cache's snapshots */
     const int bounces = v->snap && v->snap->stats.bounces.bounces > 0 ? v->snap->stats.bounces.bounces : 1;
-    if (!v->peer_on || !accum_same_view(&v->residual_key, &k) || v->peer_bounces != bounces ||
-        v->peer_kind != v->indirect || v->peer_visibility != v->indirect_visibility) {
+    const int same_peer = v->peer_on && v->peer_bounces == bounces && v->peer_kind == v->indirect &&
+                          v->peer_visibility == v->indirect_visibility;
+    if (!same_peer || !accum_same_view(&v->residual_key, &k)) {
+        /* Only the camera moved (not its size, the lights or the terms): the
+         * picture shown stays until the new view's (view_residual_start). */
+        const int moved = same_peer && v->residual_key.components == k.components &&
+                          v->residual_key.lights == k.lights && v->residual_key.cam.width == k.cam.width &&
+                          v->residual_key.cam.height == k.cam.height;
         for (uint32_t l = 0; l < v->light_count; ++l)
             light_value(v->s, l, v->light_scale[l], v->light_tint + 3 * (size_t)l, v->residual_lights + 3 * (size_t)l);
         view_residual_view rv = {.cam = *cam, .bounces = bounces, .light_values = v->residual_lights,
@@ -572,7 +586,8 @@ static lm_result show_peer(view_state *v, const rend_frame *f, const scene_camer
         if (r != LM_OK) return r;
         v->residual_on = v->peer_on = 1;
         v->residual_key = k;
-        v->residual_shown = 0;
+        v->residual_shown = moved && v->residual_shown;
+        v->residual_current = 0;
         v->peer_bounces = bounces;
         v->peer_kind = v->indirect;
         v->peer_visibility = v->indirect_visibility;
@@ -623,11 +638,22 @@ static lm_result draw_picture(view_state *v, rend_frame *f, const scene_camera *
     const uint32_t full = VIEW_ACCUM_SIDE * VIEW_ACCUM_SIDE;
     int rest = f == v->frame && v->snap && v->snap->converged && !v->snap->failed && v->accum;
     v->shown = o->texture;
-    if (v->indirect != REF_ESTIMATOR_PATHS) { /* a peer's picture at rest (show_peer), the cache's meanwhile */
+    if (v->indirect != REF_ESTIMATOR_PATHS) { /* the peer's picture (show_peer), the cache's until its first */
         v->accum_n = 0;
         v->accum_key.generation = 0;
-        lm_result r = rend_frame_draw(f, cam, v->snap, NULL, err);
-        return r == LM_OK ? show_peer(v, f, cam, err) : r;
+        /* At the window's size while moving too (the cache's moving picture is
+         * half that): the peer keeps one renderer, its VPLs and its picture. */
+        rend_frame_output whole;
+        rend_frame_get_output(v->frame, &whole);
+        scene_camera at = *cam;
+        at.width = whole.width;
+        at.height = whole.height;
+        lm_result r = show_peer(v, &at, err);
+        if (r == LM_OK && !v->residual_shown) {
+            r = rend_frame_draw(f, cam, v->snap, NULL, err);
+            v->shown = o->texture;
+        }
+        return r;
     }
     if (!rest) {
         residual_stop(v);

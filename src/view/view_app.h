@@ -81,6 +81,9 @@ typedef struct view_app_report {
     uint32_t peer_spp;                 /* the picture shown is a peer's (vpl, bdir) of this many samples a
                                           pixel at least; 0: the cache's */
     uint64_t peer_vpls;                /* ...and the VPLs it has made (BDIR: its candidates) */
+    uint32_t peer_grid;                /* ...sampled at one pixel in peer_grid² (a new view's first pass, the
+                                          rest interpolated); 1: every pixel */
+    int peer_earlier;                  /* ...of the camera before: the view moved since (until the new one's) */
     float exposure;                    /* the display's exposure (stops; + and −), which the cache judges
                                           at once its worker has taken it (snap->estimate.exposure) */
 } view_app_report;

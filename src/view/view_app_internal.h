@@ -100,6 +100,7 @@ typedef struct view_state {
     float *residual_lights;         /* 3 per light: what the lights emit now */
     GLuint residual_tex;            /* the correction shown (RGB32F); 0 = none made */
     int residual_shown;             /* residual_tex holds a correction of residual_key (or the peer's picture) */
+    int residual_current;           /* ...of residual_key's camera, not of one before it (a peer's moving view) */
     ref_estimator indirect;         /* I: the cache (PATHS), or the peer shown at rest (VPL, BDIR) */
     ref_vpl_visibility indirect_visibility; /* the peer's visibility: shadow rays or imperfect shadow maps */
     int peer_on;                    /* the residual's thread renders the peer for residual_key, */

@@ -178,9 +178,14 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
                                : strcmp(rep.indirect, "vpl-ism") == 0 ? "instant radiosity (VPLs, shadow maps)"
                                : strcmp(rep.indirect, "bdir-ism") == 0 ? "BDIR (shadow maps)"
                                                                        : "BDIR";
-            if (rep.peer_spp)
-                k += (size_t)snprintf(out + k, size - k, "picture: %s, %u samples a pixel, %llu VPLs made\n", peer,
-                                      rep.peer_spp, (unsigned long long)rep.peer_vpls);
+            if (rep.peer_spp && rep.peer_grid > 1) /* a new view's first pass (view_residual.h) */
+                k += (size_t)snprintf(out + k, size - k, "picture: %s, one pixel in %ux%u sampled%s, %llu VPLs made\n",
+                                      peer, rep.peer_grid, rep.peer_grid, rep.peer_earlier ? " (the view before)" : "",
+                                      (unsigned long long)rep.peer_vpls);
+            else if (rep.peer_spp)
+                k += (size_t)snprintf(out + k, size - k, "picture: %s, %u samples a pixel%s, %llu VPLs made\n", peer,
+                                      rep.peer_spp, rep.peer_earlier ? " (the view before)" : "",
+                                      (unsigned long long)rep.peer_vpls);
             else
                 k += (size_t)snprintf(out + k, size - k, "picture: the cache's until the first pass of %s\n", peer);
         }

@@ -16,6 +16,11 @@
  * renderer instead (instant radiosity: docs/peers.md) and hands back its own
  * picture: the viewer's --indirect vpl|bdir. Its VPLs are kept across camera
  * moves (ref_desc.vpl_keep: the thesis's temporal reuse), not across light edits.
+ * A peer's new view is first sampled at one pixel in k×k (k so that the pass
+ * takes about 0.05 s) and that picture, filled in between, is handed back at
+ * once; then whole passes. While the camera moves (starts that differ only in
+ * the camera) the newest picture of an earlier view is still handed back and
+ * stands until the new view's own: the moving view is the peer's, a pass late.
  *
  * Threads: every call on the display thread. The thread made by create owns the
  * rend_residual (its BVH, its passes: rend_residual.h's one thread); the starts
@@ -23,7 +28,8 @@
  * never held while it builds a BVH or path-traces. The passes use every core but
  * one (the display's); the worker is idle meanwhile.
  * Units: linear RGB, width·height·3 floats, top row first (view_accum_read's).
- * Does NOT do: GL, choosing when to run (view_app.c), reprojection across moves.
+ * Does NOT do: GL, choosing when to run (view_app.c), reprojection across moves
+ * (a moving view's picture is of the camera its pass began at).
  */
 #ifndef LUMESH_VIEW_RESIDUAL_H
 #define LUMESH_VIEW_RESIDUAL_H
@@ -70,8 +76,10 @@ void view_residual_stop(view_residual *vr);
 /* When the thread has a corrected picture newer than *seq, made with enough
  * samples to correct anything (rend_residual_desc.min_samples): copies it into
  * rgb (the size of the last start), its statistics into info (may be NULL),
- * updates *seq and returns 1. Else 0. Never waits for a pass. */
-int view_residual_take(view_residual *vr, float *rgb, uint64_t *seq, rend_residual_info *info);
+ * into *current (may be NULL) 1 when it is of the last start's view, 0 when of
+ * an earlier one it stands for (a peer's, the camera moved since), updates *seq
+ * and returns 1. Else 0. Never waits for a pass. */
+int view_residual_take(view_residual *vr, float *rgb, uint64_t *seq, rend_residual_info *info, int *current);
 
 #ifdef __cplusplus
 }

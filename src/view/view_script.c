@@ -111,13 +111,16 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
     } else if (strcmp(k, "peer-picture") == 0) {
         c->kind = VIEW_CMD_PEER_PICTURE;
         ok = n == 2 && number(w[1], 0, 1e6, &c->a);
+    } else if (strcmp(k, "peer-preview") == 0) {
+        c->kind = VIEW_CMD_PEER_PREVIEW;
+        ok = n == 2 && number(w[1], 0, 1e6, &c->a);
     } else if (strcmp(k, "quit") == 0) {
         c->kind = VIEW_CMD_QUIT;
         ok = n == 1;
     } else {
         return lm_fail(err, LM_ERR_BAD_INPUT,
                        "%s:%d: unknown command '%s' (wait, frames, orbit, zoom, pan, fly, look, camera, screenshot, "
-                       "window-shot, resize, minimise, restore, key, light, light-color, next-snapshot, peer-picture, quit)", path, line,
+                       "window-shot, resize, minimise, restore, key, light, light-color, next-snapshot, peer-picture, peer-preview, quit)", path, line,
                        k);
     }
     if (!ok) {
@@ -126,7 +129,7 @@ static lm_result parse_line(char **w, int n, const char *path, int line, view_cm
             [VIEW_CMD_ORBIT] = "orbit DX DY",        [VIEW_CMD_ZOOM] = "zoom FACTOR (> 0)",
             [VIEW_CMD_SCREENSHOT] = "screenshot PATH", [VIEW_CMD_QUIT] = "quit",
             [VIEW_CMD_LIGHT] = "light INDEX SCALE (>= 0)", [VIEW_CMD_NEXT_SNAPSHOT] = "next-snapshot SECONDS",
-            [VIEW_CMD_PEER_PICTURE] = "peer-picture SECONDS",
+            [VIEW_CMD_PEER_PICTURE] = "peer-picture SECONDS", [VIEW_CMD_PEER_PREVIEW] = "peer-preview SECONDS",
             [VIEW_CMD_PAN] = "pan DX DY",            [VIEW_CMD_FLY] = "fly FORWARD RIGHT UP",
             [VIEW_CMD_LOOK] = "look DX DY",          [VIEW_CMD_CAMERA] = "camera INDEX",
             [VIEW_CMD_WINDOW_SHOT] = "window-shot PATH.png", [VIEW_CMD_LIGHT_COLOR] = "light-color INDEX R G B (>= 0)",

@@ -25,6 +25,8 @@
  *     light-color INDEX R G B  light INDEX's colour: the scene's times (R, G, B) (>= 0), no new light samples
  *     next-snapshot SECONDS  keep drawing until a snapshot newer than the one shown now is drawn
  *                          (a light edit published), at most SECONDS
+ *     peer-picture SECONDS keep drawing until a peer (key i) shows a complete pass of this view, at most SECONDS
+ *     peer-preview SECONDS the same, its first pass over a grid of pixels is enough
  *     quit                 as Esc (the script also ends the viewer when it runs out)
  *
  * Usage:
@@ -91,7 +93,8 @@ typedef enum view_cmd_kind {
     VIEW_CMD_LIGHT_COLOR, /* a: light index, rgb: colour multipliers of the scene's */
     VIEW_CMD_RESIZE,     /* a, b: width, height */
     VIEW_CMD_MINIMISE,   /* a: 1 minimise, 0 restore */
-    VIEW_CMD_PEER_PICTURE, /* a: seconds at most, until the picture shown is a peer's complete pass */
+    VIEW_CMD_PEER_PICTURE, /* a: seconds at most, until the picture shown is a peer's complete pass of the view */
+    VIEW_CMD_PEER_PREVIEW, /* a: seconds at most, until it is a peer's picture of the view (its grid's or whole) */
     VIEW_CMD_COUNT
 } view_cmd_kind;
 
