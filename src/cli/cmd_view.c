@@ -61,6 +61,18 @@ static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
                                                .frames = rep->frames, .phase_names = phase_names,
                                                .phase_seconds = phases, .phase_count = 6});
     if (!j) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the statistics");
+    if (rep->peer_spp) { /* the picture shown at exit is a peer's (I, --indirect): its VPLs and times */
+        cJSON *p = cJSON_AddObjectToObject(j, "peer");
+        if (p) {
+            cJSON_AddStringToObject(p, "indirect", rep->indirect);
+            cJSON_AddNumberToObject(p, "samples_per_pixel", rep->peer_spp);
+            cJSON_AddNumberToObject(p, "grid", rep->peer_grid);
+            cJSON_AddBoolToObject(p, "view_before", rep->peer_earlier);
+            cJSON_AddNumberToObject(p, "vpls", (double)rep->peer_vpls);
+            cJSON_AddNumberToObject(p, "seconds", rep->peer_seconds);
+            cJSON_AddNumberToObject(p, "vpl_seconds", rep->peer_vpl_seconds);
+        }
+    }
     lm_result r = app_write_json(c->stats, j, err);
     cJSON_Delete(j);
     return r;

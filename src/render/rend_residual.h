@@ -123,6 +123,7 @@ typedef struct rend_residual_info {
                                           NAN while a block is short of samples */
     uint64_t vpls;                     /* a peer in its place (view_residual.h, --indirect vpl|bdir):
                                           VPLs made since it was made; 0 for the residual */
+    double vpl_seconds;                /* a peer's: of `seconds`, making its VPLs (and shadow maps) */
     uint32_t grid;                     /* a peer's picture of a new view (view_residual.h): one pixel in
                                           grid×grid sampled, the others interpolated; 1: every pixel;
                                           0 for the residual */

@@ -59,6 +59,9 @@ void view_app_report_of(const view_state *v, view_app_report *r)
                            .peer_vpls = view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpls : 0,
                            .peer_grid = view_app_showing_residual(v) && v->peer_on ? v->residual_info.grid : 0,
                            .peer_earlier = view_app_showing_residual(v) && v->peer_on && !v->residual_current,
+                           .peer_seconds = view_app_showing_residual(v) && v->peer_on ? v->residual_info.seconds : 0.0,
+                           .peer_vpl_seconds =
+                               view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpl_seconds : 0.0,
                            .exposure = v->exposure};
 }
 

@@ -84,6 +84,9 @@ typedef struct view_app_report {
     uint32_t peer_grid;                /* ...sampled at one pixel in peer_grid² (a new view's first pass, the
                                           rest interpolated); 1: every pixel */
     int peer_earlier;                  /* ...of the camera before: the view moved since (until the new one's) */
+    double peer_seconds;               /* ...its renderer's time in passes (since made: size, bounces, light
+                                          edits), and of it making VPLs (and shadow maps) */
+    double peer_vpl_seconds;
     float exposure;                    /* the display's exposure (stops; + and −), which the cache judges
                                           at once its worker has taken it (snap->estimate.exposure) */
 } view_app_report;

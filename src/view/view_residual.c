@@ -242,6 +242,8 @@ static void preview_pass(residual_thread *t, rend_residual_info *info)
     info->min_samples = info->max_samples = 1;
     info->rays = after.rays;
     info->vpls = after.vpls;
+    info->seconds = after.seconds;
+    info->vpl_seconds = after.vpl_seconds + after.ism_seconds;
     info->grid = (uint32_t)k;
 }
 
@@ -312,6 +314,8 @@ static void *thread_main(void *arg)
             info.max_samples = st.max_samples;
             info.rays = st.rays;
             info.vpls = st.vpls;
+            info.seconds = st.seconds;
+            info.vpl_seconds = st.vpl_seconds + st.ism_seconds;
             info.grid = 1;
         } else {
             rend_residual_run(t.rr, NULL, deadline);
