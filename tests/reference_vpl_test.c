@@ -16,7 +16,10 @@
  * full transport) within three standard errors of their difference: the seeds'
  * spread for the VPL methods (a pass's pixels share its VPLs, so their errors
  * are correlated), the pixels' standard errors for the path tracer
- * (independent). BDIR must also keep fewer VPLs than it traced.
+ * (independent). BDIR must also keep fewer VPLs than it traced. BDIR's reverse
+ * VPLs (found from the camera, ref_vpl_add_reverse) are in its estimate; the
+ * same sphere lit by a small quad light instead of the point light tests them
+ * with an area light's sampling too (model transport).
  */
 #include <math.h>
 #include <stdio.h>
@@ -35,6 +38,16 @@ static const char json_text[] =
     "            {\"file\": \"vpl_square.obj\", \"material\": \"black\"}],"
     " \"materials\": {\"white\": {\"kd\": [0.6, 0.5, 0.4]}, \"black\": {\"kd\": [0, 0, 0]}},"
     " \"lights\": [{\"type\": \"point\", \"position\": [0.3, 0.9, 0.4], \"intensity\": [3, 3, 3]}],"
+    " \"cameras\": [{\"position\": [0, 0, -0.2], \"target\": [0, 0, 2], \"fov_y\": 70,"
+    " \"width\": 24, \"height\": 18}]}";
+
+/* The same, lit by a small quad facing down instead (area-light sampling). */
+static const char quad_json_text[] =
+    "{\"meshes\": [{\"file\": \"vpl_sphere.obj\", \"material\": \"white\"},"
+    "            {\"file\": \"vpl_square.obj\", \"material\": \"black\"}],"
+    " \"materials\": {\"white\": {\"kd\": [0.6, 0.5, 0.4]}, \"black\": {\"kd\": [0, 0, 0]}},"
+    " \"lights\": [{\"type\": \"quad\", \"corner\": [0.1, 1.2, 0.2], \"edge1\": [0.4, 0, 0],"
+    " \"edge2\": [0, 0, 0.4], \"radiance\": [12, 12, 12]}],"
     " \"cameras\": [{\"position\": [0, 0, -0.2], \"target\": [0, 0, 2], \"fov_y\": 70,"
     " \"width\": 24, \"height\": 18}]}";
 
@@ -139,5 +152,20 @@ int main(void)
     bad = (ref_desc){.scene = s, .estimator = REF_ESTIMATOR_VPL, .vpl_paths = -1};
     CHECK(ref_create(&bad, &r, &err) == LM_ERR_INVALID_ARG);
     scene_destroy(s);
+
+    /* An area light: BDIR's reverse VPLs take their light from a point on it. */
+    test_write_file("vpl_sphere_quad.json", quad_json_text, json, sizeof json);
+    s = NULL;
+    CHECK_MSG(scene_load(&(scene_load_desc){.path = json, .require_light = 1, .crease_angle_deg = 0.01f}, &s,
+                         &load_err) == LM_OK, "%s", load_err.msg);
+    if (s) {
+        double ref_se = NAN;
+        ref_stats st;
+        double ref_mean = render_mean(s, REF_TRANSPORT_MODEL, REF_ESTIMATOR_PATHS, 1, PT_SPP, &ref_se, &st);
+        printf("quad light, model, 2 bounces:\n");
+        check_estimator(s, REF_TRANSPORT_MODEL, REF_ESTIMATOR_VPL, "VPL", ref_mean, ref_se);
+        check_estimator(s, REF_TRANSPORT_MODEL, REF_ESTIMATOR_BDIR, "BDIR (resampled)", ref_mean, ref_se);
+        scene_destroy(s);
+    }
     return test_finish("reference_vpl_test");
 }
