@@ -12,7 +12,6 @@ enum { MAX_PATH_DEPTH = 256, RR_START_DEPTH = 3, RR_DEEP_DEPTH = 32 };
 #define RR_SMALL_THROUGHPUT 0.05f
 #define VPL_SEED_SALT 0x7c1e5a3bu  /* the light paths' streams apart from the pixels' */
 #define BDIR_SEED_SALT 0x2b3d9e61u /* the resampling's apart from both */
-#define REVERSE_SEED_SALT 0x51f0c8a7u /* BDIR's reverse VPLs' apart from all three */
 
 static int any_positive(const float *c) { return c[0] > 0.0f || c[1] > 0.0f || c[2] > 0.0f; }
 static float max3(const float *c) { return fmaxf(c[0], fmaxf(c[1], c[2])); }
@@ -158,7 +157,6 @@ lm_result ref_vpl_generate(ref_vpl_set *set, const ref_vpl_params *params, uint6
     double t0 = lm_now_seconds();
     set->params = *params;
     set->count = 0;
-    set->reverse = set->reverse_tries = 0;
     lm_result r = LM_OK;
     uint32_t nlights = light_table(set, err, &r);
     if (r != LM_OK || nlights == 0 || (!params->full && params->bounces <= 0)) return r;
@@ -236,165 +234,12 @@ void ref_vpl_gather(const ref_vpl_set *set, const ref_surface *x, lm_vec3 wo, in
     }
 }
 
-/* ---- BDIR's reverse VPLs (Segovia et al. 2006, section 3) ------------------ */
-
-/* The area density with which a reverse try (an eye point of eye_count uniformly,
- * a direction by cosθ/π about its shading normal, kept above its geometric one)
- * lands on v's point from v's side: (1/E)·Σ_e cosθ_e/π·cosθ_y/r²·V(e, y), with θ_y
- * at v's geometric normal (area measure). One shadow ray an eye that faces it,
- * counted in *rays. 0 where no eye point sees it. */
-static double reverse_density(const ref_vpl_params *P, const ref_vpl_eye *eyes, uint32_t eye_count, const ref_vpl *v,
-                              uint64_t *rays)
-{
-    float b[3], nb[3];
-    v3_store(b, v->p);
-    v3_store(nb, v->ng);
-    const float eps_v = rt_scene_tri_epsilon(P->rt, v->tri);
-    double sum = 0.0;
-    for (uint32_t i = 0; i < eye_count; ++i) {
-        const ref_surface *e = &eyes[i].x;
-        lm_vec3 d = v3_sub(v->p, e->p);
-        float d2 = v3_dot(d, d);
-        if (!(d2 > 0.0f)) continue;
-        lm_vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
-        float cos_e = v3_dot(e->ns, w), cos_y = -v3_dot(v->ng, w);
-        if (cos_e <= 0.0f || v3_dot(e->ng, w) <= 0.0f || cos_y <= 0.0f) continue;
-        float a[3], na[3];
-        v3_store(a, e->p);
-        v3_store(na, e->ng);
-        ++*rays;
-        if (rt_segment_occluded(P->rt, a, na, b, nb, fmaxf(eps_v, rt_scene_tri_epsilon(P->rt, e->tri)))) continue;
-        sum += (double)cos_e / M_PI * (double)cos_y / (double)d2;
-    }
-    return sum / (double)eye_count;
-}
-
-/* What the weights of the two ways to depth-1 light take for the light paths'
- * density at v's point (area measure, one path): each light as a point at its
- * centroid, by the set's light table, no visibility. Only an approximation, but
- * the same function of the point whichever way found it, so the weights still
- * sum to 1 and the estimate stays unbiased; the closer, the less variance. */
-static double light_path_density(const ref_vpl_set *set, uint32_t nlights, const ref_vpl *v)
-{
-    const scene *s = set->params.s;
-    double sum = 0.0;
-    for (uint32_t l = 0; l < nlights; ++l) {
-        const int area = l < s->area_light_count;
-        const float *c = area ? s->area_lights[l].centroid : s->point_lights[l - s->area_light_count].position;
-        lm_vec3 d = v3_sub(v->p, v3_load(c));
-        float d2 = v3_dot(d, d);
-        if (!(d2 > 0.0f)) continue;
-        lm_vec3 w = v3_scale(d, 1.0f / sqrtf(d2)); /* from the light to the point */
-        float cos_y = -v3_dot(v->ng, w);
-        if (cos_y <= 0.0f) continue;
-        double emit = area ? fmax(0.0, (double)v3_dot(v3_load(s->area_lights[l].normal), w)) / M_PI : 0.25 / M_PI;
-        sum += (double)set->light_pmf[l] * emit * (double)cos_y / (double)d2;
-    }
-    return sum;
-}
-
-/* The direct light arriving at y (W·m⁻², irradiance), from one light drawn by
- * the set's table (as the light paths draw theirs) and one point on it; the unit
- * direction towards that point in *w_in. 0 where none arrives. */
-static int reverse_irradiance(const ref_vpl_set *set, uint32_t nlights, const ref_surface *y, lm_rng *g, float E[3],
-                              lm_vec3 *w_in, uint64_t *rays)
-{
-    const ref_vpl_params *P = &set->params;
-    const scene *s = P->s;
-    float u0 = lm_rng_float(g), u1 = lm_rng_float(g), u2 = lm_rng_float(g), u3 = lm_rng_float(g);
-    uint32_t li = ref_pick_cdf(set->light_cdf, nlights, u0);
-    const float p = set->light_pmf[li];
-    if (!(p > 0.0f)) return 0;
-    const float *v = P->light_value + 3 * (size_t)li;
-    lm_vec3 z, nz = v3(0.0f, 0.0f, 0.0f);
-    uint32_t tri = UINT32_MAX;
-    float scale; /* E per unit of the light's value, before the cosine at y and the distance */
-    if (li < s->area_light_count) {
-        z = ref_area_light_point(P->lights, li, u1, u2, u3, &tri);
-        nz = v3_load(s->tri_normals + 3 * (size_t)tri);
-        scale = s->area_lights[li].area / p; /* 1 / (p · 1/area) */
-    } else {
-        z = v3_load(s->point_lights[li - s->area_light_count].position);
-        scale = 1.0f / p;
-    }
-    lm_vec3 d = v3_sub(z, y->p);
-    float d2 = v3_dot(d, d);
-    if (!(d2 > 0.0f)) return 0;
-    lm_vec3 w = v3_scale(d, 1.0f / sqrtf(d2));
-    float cos_y = v3_dot(y->ns, w), cos_z = tri == UINT32_MAX ? 1.0f : -v3_dot(nz, w);
-    if (cos_y <= 0.0f || v3_dot(y->ng, w) <= 0.0f || cos_z <= 0.0f) return 0; /* the light's back is dark */
-    float a[3], na[3], b[3], nb[3];
-    v3_store(a, y->p);
-    v3_store(na, y->ng);
-    v3_store(b, z);
-    v3_store(nb, nz);
-    float eps = rt_scene_tri_epsilon(P->rt, y->tri);
-    if (tri != UINT32_MAX) eps = fmaxf(eps, rt_scene_tri_epsilon(P->rt, tri));
-    ++*rays;
-    if (rt_segment_occluded(P->rt, a, na, b, tri != UINT32_MAX ? nb : NULL, eps)) return 0;
-    for (int k = 0; k < 3; ++k) E[k] = v[k] * scale * cos_y * cos_z / d2;
-    *w_in = w;
-    return any_positive(E);
-}
-
-lm_result ref_vpl_add_reverse(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t eye_count, uint32_t count,
-                              uint64_t pass, uint64_t *rays, lm_error *err)
-{
-    double t0 = lm_now_seconds();
-    const ref_vpl_params *P = &set->params;
-    lm_result r = LM_OK;
-    uint32_t nlights = light_table(set, err, &r);
-    if (r != LM_OK || nlights == 0 || eye_count == 0 || count == 0 || P->paths <= 0 ||
-        (!P->full && P->bounces <= 0))
-        return r;
-    lm_rng g;
-    lm_rng_seed(&g, (uint64_t)P->seed ^ REVERSE_SEED_SALT, pass, P->generation);
-    const uint32_t before = set->count;
-    for (uint32_t k = 0; k < count && r == LM_OK; ++k) {
-        uint32_t j = (uint32_t)(lm_rng_float(&g) * (float)eye_count);
-        const ref_surface *e = &eyes[j < eye_count ? j : eye_count - 1].x;
-        float u1 = lm_rng_float(&g), u2 = lm_rng_float(&g);
-        lm_vec3 w = ref_sample_cosine(e->ns, u1, u2);
-        const float cos_e = v3_dot(e->ns, w);
-        if (cos_e <= 0.0f || v3_dot(e->ng, w) <= 0.0f) continue;
-        lm_vec3 org = v3_add(e->p, v3_scale(e->ng, rt_scene_tri_epsilon(P->rt, e->tri)));
-        float o[3] = {org.x, org.y, org.z}, dv[3] = {w.x, w.y, w.z};
-        rt_hit h;
-        ++*rays;
-        if (!rt_intersect(P->rt, o, dv, 0.0f, INFINITY, &h)) continue;
-        ref_surface y;
-        ref_surface_from_hit(P->s, &h, v3_scale(w, -1.0f), &y);
-        if (!any_positive(y.m->kd) && !(P->full && any_positive(y.m->ks))) continue; /* reflects nothing */
-        float E[3];
-        lm_vec3 w_in;
-        if (!reverse_irradiance(set, nlights, &y, &g, E, &w_in, rays)) continue;
-        const float d2 = v3_dot(v3_sub(y.p, e->p), v3_sub(y.p, e->p)), cos_y = -v3_dot(y.ng, w);
-        const double density = (double)cos_e / M_PI * (double)cos_y / (double)d2 / (double)eye_count;
-        if (!(cos_y > 0.0f) || !(density > 0.0)) continue;
-        ref_vpl v = {.p = y.p, .ng = y.ng, .ns = y.ns, .w_in = w_in, .tri = y.tri, .depth = 1, .m = y.m,
-                     .reverse = 1, .density = (float)density};
-        /* Flux "before the 1/N of the pass" (N light paths), as the light paths'
-         * VPLs hold it, weighed by the balance heuristic: E·N/(count·d + N·p_s).
-         * Here d is this eye's term of the tries' density alone, so the flux the
-         * resampling draws by is at least the one it keeps (every eye's): no
-         * candidate is drawn too rarely for what it brings. */
-        const double fwd = (double)P->paths * light_path_density(set, nlights, &v);
-        for (int c = 0; c < 3; ++c) v.flux[c] = (float)(E[c] * (double)P->paths / ((double)count * density + fwd));
-        r = push(set, &v, err);
-    }
-    set->reverse = set->count - before;
-    set->reverse_tries = count; /* an estimate even where every try found nothing (then 0) */
-    set->made += set->reverse;
-    set->seconds += lm_now_seconds() - t0;
-    return r;
-}
-
 lm_result ref_vpl_resample(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t eye_count, uint32_t keep,
                            uint64_t pass, uint64_t *rays, lm_error *err)
 {
     double t0 = lm_now_seconds();
     const ref_vpl_params *P = &set->params;
-    const uint32_t V = set->count, nlights = P->s->area_light_count + P->s->point_light_count;
+    const uint32_t V = set->count;
     if (V == 0 || eye_count == 0 || keep == 0 || P->paths <= 0) return LM_OK;
     double *p = malloc(V * sizeof *p);
     uint32_t *times = calloc(V, sizeof *times);
@@ -443,20 +288,7 @@ lm_result ref_vpl_resample(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t e
     for (uint32_t c = 0; c < V; ++c) {
         if (!times[c]) continue;
         ref_vpl v = set->vpls[c];
-        double w = (double)times[c] / ((double)keep * p[c] * (double)P->paths);
-        if (set->reverse_tries && v.depth == 1) {
-            /* Depth-1 light found both ways (ref_vpl_add_reverse): the balance
-             * heuristic's weight of each way, by the tries' exact density (every
-             * eye's) and the light paths' approximated; a reverse VPL's flux
-             * divided by the exact density instead of its proposal's. */
-            const double rev = (double)set->reverse_tries * reverse_density(P, eyes, eye_count, &v, rays);
-            const double fwd = (double)P->paths * light_path_density(set, nlights, &v);
-            if (v.reverse) /* rev = 0: a shadow ray's rounding lost its own eye */
-                w *= rev > 0.0 ? ((double)set->reverse_tries * (double)v.density + fwd) / (rev + fwd) : 0.0;
-            else if (rev > 0.0)
-                w *= fwd / (rev + fwd);
-        }
-        if (!(w > 0.0)) continue;
+        const double w = (double)times[c] / ((double)keep * p[c] * (double)P->paths);
         for (int k = 0; k < 3; ++k) v.flux[k] = (float)(v.flux[k] * w);
         set->vpls[n++] = v;
     }

@@ -65,9 +65,6 @@ typedef struct ref_vpl {
     uint32_t tri;
     uint32_t depth;     /* its light path's bounce: 1 at the first surface the light reaches */
     const scene_material *m;
-    int reverse;        /* BDIR: found from the camera (ref_vpl_add_reverse), not by a light path */
-    float density;      /* reverse: the area density its flux was divided by, the eye it came from's
-                           alone (ref_vpl_resample makes it every eye's) */
 } ref_vpl;
 
 typedef struct ref_vpl_params {
@@ -97,8 +94,6 @@ typedef struct ref_vpl_set {
     float *light_cdf;          /* all lights by power now; rebuilt each pass (light edits) */
     float *light_pmf;
     uint32_t light_capacity;
-    uint32_t reverse;          /* of them, found from the camera this pass (ref_vpl_add_reverse) */
-    uint32_t reverse_tries;    /* the tries from the camera this pass; 0: none (no reverse estimate) */
     uint64_t made;             /* VPLs made over all passes (stats) */
     double seconds;            /* spent making them */
 } ref_vpl_set;
@@ -133,33 +128,13 @@ enum { REF_BDIR_TESTS = 8,       /* eye points a candidate is tested against */
        REF_BDIR_EYES = 256 };    /* eye points a pass */
 #define REF_BDIR_DEFENSIVE 0.25  /* the share of uniform odds in the resampling */
 
-/* Bidirectional instant radiosity's reverse VPLs (Segovia et al. 2006, section
- * 3): `count` tries, each from an eye point of the pass (uniformly) along a
- * cosine-distributed direction to the surface it meets, y, which becomes a VPL
- * of depth 1 holding the direct light there (one light sample, the lights by
- * power as the light paths draw them) over the density of finding y so: the
- * first bounce's light found from where the camera looks, which light paths
- * reach only by chance in a room lit through a gap (the paper's "U" office; the
- * Veach door). The two ways to depth-1 light are combined by the balance
- * heuristic (ref_vpl_resample weighs the depth-1 VPLs it keeps, of both kinds):
- * the tries' density is the eyes' mixture, exact for the pass's eye points (one
- * shadow ray an eye; not the paper's estimate from a few camera paths, whose
- * inverse is biased), the light paths' approximated (each light a point at its
- * centroid, no visibility) but the same function of the point whichever way found
- * it, so the weights sum to 1 and the estimate is unbiased. Call it after
- * ref_vpl_generate and before ref_vpl_resample, with the same eyes. */
-lm_result ref_vpl_add_reverse(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t eye_count, uint32_t count,
-                              uint64_t pass, uint64_t *rays, lm_error *err);
-
 /* Keeps `keep` of the set's VPLs, drawn by their estimated contribution to the
  * eye points (the luminance each sends to REF_BDIR_TESTS of them, shadow rays
  * included) mixed with uniform odds, and weighs each by the inverse of its odds:
  * for any odds above zero the estimate stays unbiased (the clamp aside), and the
  * VPLs go where the camera looks (a room lit through a door gap: the few that
  * come through). Candidates drawn more than once are kept once, their flux
- * multiplied. With reverse VPLs in the set, each kept VPL of depth 1 gets its
- * weight and a reverse one its exact density (ref_vpl_add_reverse), from one
- * shadow ray an eye point. Call it after ref_vpl_generate; rays are added to *rays. */
+ * multiplied. Call it after ref_vpl_generate; rays are added to *rays. */
 lm_result ref_vpl_resample(ref_vpl_set *set, const ref_vpl_eye *eyes, uint32_t eye_count, uint32_t keep,
                            uint64_t pass, uint64_t *rays, lm_error *err);
 void ref_vpl_free(ref_vpl_set *set);

@@ -400,9 +400,6 @@ static lm_result make_vpls(ref_renderer *r, lm_error *err)
         ref_vpl_eye *eyes = NULL;
         uint32_t n = 0;
         res = bdir_eyes(r, &eyes, &n, err);
-        /* As many tries from the camera as VPLs kept (Segovia et al. sample half
-         * and half; the light paths here are REF_BDIR_CANDIDATES times that). */
-        if (res == LM_OK) res = ref_vpl_add_reverse(&r->vpl, eyes, n, (uint32_t)keep, r->passes, &rays, err);
         if (res == LM_OK) res = ref_vpl_resample(&r->vpl, eyes, n, (uint32_t)keep, r->passes, &rays, err);
         free(eyes);
     }

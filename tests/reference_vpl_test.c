@@ -16,10 +16,9 @@
  * full transport) within three standard errors of their difference: the seeds'
  * spread for the VPL methods (a pass's pixels share its VPLs, so their errors
  * are correlated), the pixels' standard errors for the path tracer
- * (independent). BDIR must also keep fewer VPLs than it traced. BDIR's reverse
- * VPLs (found from the camera, ref_vpl_add_reverse) are in its estimate; the
- * same sphere lit by a small quad light instead of the point light tests them
- * with an area light's sampling too (model transport).
+ * (independent). BDIR must also keep fewer VPLs than it traced. The same sphere
+ * lit by a small quad light instead of the point light tests both with an area
+ * light's sampling too (model transport).
  */
 #include <math.h>
 #include <stdio.h>
@@ -153,7 +152,7 @@ int main(void)
     CHECK(ref_create(&bad, &r, &err) == LM_ERR_INVALID_ARG);
     scene_destroy(s);
 
-    /* An area light: BDIR's reverse VPLs take their light from a point on it. */
+    /* An area light: the light paths start from points on it, by area. */
     test_write_file("vpl_sphere_quad.json", quad_json_text, json, sizeof json);
     s = NULL;
     CHECK_MSG(scene_load(&(scene_load_desc){.path = json, .require_light = 1, .crease_angle_deg = 0.01f}, &s,
