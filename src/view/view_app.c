@@ -46,22 +46,23 @@ static cache_worker *worker(const view_state *v)
 
 void view_app_report_of(const view_state *v, view_app_report *r)
 {
+    /* The picture shown is a correction of the cache's (residual), or a peer's. */
+    const int residual = view_app_showing_residual(v) && !v->peer_on, peer = view_app_showing_residual(v) && v->peer_on;
     *r = (view_app_report){.scene = v->s, .camera = &v->cam, .width = v->fb_w, .height = v->fb_h, .frames = v->frames,
                            .seconds = lm_now_seconds() - v->t_open, .first_image_seconds = v->first_image,
                            .startup = v->startup,
                            .id_seconds = v->id_seconds, .id_passes = v->id_passes, .snap = v->snap,
                            .frame = v->frames ? &v->times : NULL, .renderer = view_window_renderer(v->win),
                            .rest_draws = view_app_showing_mean(v) ? v->accum_n : 0,
-                           .residual_spp = view_app_showing_residual(v) && !v->peer_on ? v->residual_info.min_samples : 0,
-                           .residual_corrected = view_app_showing_residual(v) && !v->peer_on ? v->residual_info.corrected : 0.0,
+                           .residual_spp = residual ? v->residual_info.min_samples : 0,
+                           .residual_corrected = residual ? v->residual_info.corrected : 0.0,
                            .indirect = view_app_indirect_name(v->indirect, v->indirect_visibility),
-                           .peer_spp = view_app_showing_residual(v) && v->peer_on ? v->residual_info.min_samples : 0,
-                           .peer_vpls = view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpls : 0,
-                           .peer_grid = view_app_showing_residual(v) && v->peer_on ? v->residual_info.grid : 0,
-                           .peer_earlier = view_app_showing_residual(v) && v->peer_on && !v->residual_current,
-                           .peer_seconds = view_app_showing_residual(v) && v->peer_on ? v->residual_info.seconds : 0.0,
-                           .peer_vpl_seconds =
-                               view_app_showing_residual(v) && v->peer_on ? v->residual_info.vpl_seconds : 0.0,
+                           .peer_spp = peer ? v->residual_info.min_samples : 0,
+                           .peer_vpls = peer ? v->residual_info.vpls : 0,
+                           .peer_grid = peer ? v->residual_info.grid : 0,
+                           .peer_earlier = peer && !v->residual_current,
+                           .peer_seconds = peer ? v->residual_info.seconds : 0.0,
+                           .peer_vpl_seconds = peer ? v->residual_info.vpl_seconds : 0.0,
                            .exposure = v->exposure};
 }
 

@@ -52,20 +52,24 @@ struct view_residual {
     uint64_t published_start;    /* the start whose view the published picture is of */
 };
 
+static int same_lights(const view_residual_view *a, const view_residual_view *b, uint32_t lights)
+{
+    return memcmp(a->light_values, b->light_values, 3 * (size_t)lights * sizeof *a->light_values) == 0;
+}
+
 static int same_view(const view_residual_view *a, const view_residual_view *b, uint32_t lights)
 {
-    if (!camera_equal(&a->cam, &b->cam) || a->bounces != b->bounces || a->peer != b->peer) return 0;
-    return memcmp(a->light_values, b->light_values, 3 * (size_t)lights * sizeof *a->light_values) == 0;
+    return camera_equal(&a->cam, &b->cam) && a->bounces == b->bounces && a->peer == b->peer &&
+           same_lights(a, b, lights);
 }
 
 /* Two peer views that differ at most in where the camera looks from (not in its
  * size): a picture of one stands for the other while the view moves. */
 static int same_but_camera(const view_residual_view *a, const view_residual_view *b, uint32_t lights)
 {
-    if (a->peer == REF_ESTIMATOR_PATHS || a->peer != b->peer || a->bounces != b->bounces ||
-        a->visibility != b->visibility || a->cam.width != b->cam.width || a->cam.height != b->cam.height)
-        return 0;
-    return memcmp(a->light_values, b->light_values, 3 * (size_t)lights * sizeof *a->light_values) == 0;
+    return a->peer != REF_ESTIMATOR_PATHS && a->peer == b->peer && a->bounces == b->bounces &&
+           a->visibility == b->visibility && a->cam.width == b->cam.width && a->cam.height == b->cam.height &&
+           same_lights(a, b, lights);
 }
 
 /* The thread's own state: the residual, the view its samples are of, and the
@@ -167,6 +171,16 @@ static int preview_grid(const residual_thread *t, int w, int h)
     return k < 1.0 ? 1 : k > VIEW_RESIDUAL_GRID_MAX ? VIEW_RESIDUAL_GRID_MAX : (int)k;
 }
 
+/* Along one axis: the grid lines (at o + i·k, g of them) either side of pixel x,
+ * and the weight of the second, clamped at the borders. */
+static void grid_span(int x, int o, int k, int g, int *i0, int *i1, float *wt)
+{
+    *i0 = x < o ? 0 : (x - o) / k < g - 1 ? (x - o) / k : g - 1;
+    *i1 = *i0 + 1 < g ? *i0 + 1 : *i0;
+    const float f = (float)(x - o - *i0 * k) / (float)k;
+    *wt = f < 0.0f ? 0.0f : f > 1.0f ? 1.0f : f;
+}
+
 /* The pixels between a grid's (one in k×k, at (ox + i·k, oy + j·k)), from the
  * grid's bilinearly (clamped at the borders); rgb (w·h·3) holds the grid's
  * samples, which are not written. Separably: the grid's rows first, along x,
@@ -180,20 +194,18 @@ static void fill_between(float *rgb, int w, int h, int k, int ox, int oy)
         float *r = rgb + (size_t)(oy + j * k) * row;
         for (int x = 0; x < w; ++x) {
             if (x >= ox && (x - ox) % k == 0) continue;
-            const int i0 = x < ox ? 0 : (x - ox) / k < gw - 1 ? (x - ox) / k : gw - 1;
-            const int i1 = i0 + 1 < gw ? i0 + 1 : i0;
-            float wx = (float)(x - ox - i0 * k) / (float)k;
-            wx = wx < 0.0f ? 0.0f : wx > 1.0f ? 1.0f : wx;
+            int i0, i1;
+            float wx;
+            grid_span(x, ox, k, gw, &i0, &i1, &wx);
             const float *a = r + (size_t)(ox + i0 * k) * 3, *b = r + (size_t)(ox + i1 * k) * 3;
             for (int c = 0; c < 3; ++c) r[(size_t)x * 3 + (size_t)c] = a[c] + wx * (b[c] - a[c]);
         }
     }
     for (int y = 0; y < h; ++y) {
         if (y >= oy && (y - oy) % k == 0) continue;
-        const int j0 = y < oy ? 0 : (y - oy) / k < gh - 1 ? (y - oy) / k : gh - 1;
-        const int j1 = j0 + 1 < gh ? j0 + 1 : j0;
-        float wy = (float)(y - oy - j0 * k) / (float)k;
-        wy = wy < 0.0f ? 0.0f : wy > 1.0f ? 1.0f : wy;
+        int j0, j1;
+        float wy;
+        grid_span(y, oy, k, gh, &j0, &j1, &wy);
         const float *a = rgb + (size_t)(oy + j0 * k) * row, *b = rgb + (size_t)(oy + j1 * k) * row;
         float *o = rgb + (size_t)y * row;
         for (size_t c = 0; c < row; ++c) o[c] = a[c] + wy * (b[c] - a[c]);
