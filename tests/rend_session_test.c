@@ -319,7 +319,8 @@ static void test_first_image_indirect(glctx *ctx)
     char path[1024];
     snprintf(path, sizeof path, "%s/cornell-box/CornellBox-Water.obj", LUMESH_SCENES);
     scene *s = NULL;
-    CHECK(scene_load(&(scene_load_desc){.path = path, .require_light = 1}, &s, &err) == LM_OK);
+    lm_result loaded = scene_load(&(scene_load_desc){.path = path, .require_light = 1}, &s, &err);
+    CHECK_MSG(loaded == LM_OK, "%s", err.msg);
     if (!s) return;
     rend_session *rs = NULL;
     lm_result r = rend_session_create(&(rend_session_desc){.scene = s, .order = REND_SESSION_WORKER_FIRST,

@@ -43,8 +43,10 @@
 #include "src/base/fork_guard.h"
 #include "src/scene/scene_internal.h"
 
-/* CPU seconds the reader may use: generous for a large file (Assimp reads a
- * 100 MB OBJ in well under a minute here), finite for a loop.
+/* CPU seconds one reader child may use: generous for a large file (Assimp reads
+ * a 100 MB OBJ in well under a minute here, the 116k-triangle PLYs in 0.15 s),
+ * finite for a loop, and short enough that a child spinning on a lock it was
+ * copied with (below) is ended and forked again within seconds.
  * LUMESH_READER_CPU_SECONDS overrides it (bench/fuzz.sh: below libFuzzer's timeout). */
 static rlim_t cpu_limit_seconds(const char *path)
 {
@@ -52,7 +54,7 @@ static rlim_t cpu_limit_seconds(const char *path)
     if (env && atoi(env) > 0) return (rlim_t)atoi(env);
     struct stat st;
     double mb = stat(path, &st) == 0 ? (double)st.st_size / (1 << 20) : 0.0;
-    return (rlim_t)(60.0 + 2.0 * mb);
+    return (rlim_t)(10.0 + 2.0 * mb);
 }
 
 /* ---- the child's side: write everything, then _exit ---------------------- */
@@ -242,17 +244,24 @@ static double stall_limit_seconds(void)
     return s > 0.0 ? s : 10.0;
 }
 
-enum { READER_TRIES = 3 }; /* a stalled child is forked again this many times in all */
+/* Children forked in all: for one that stalled, and for one that ran out of
+ * CPU time (a file that loops does so again; a child that spun on a copied
+ * lock does not). */
+enum { READER_TRIES = 3, READER_TIME_TRIES = 2 };
 
-typedef enum { CHILD_DONE, CHILD_STALLED, CHILD_NOT_FORKED } child_outcome;
+typedef enum { CHILD_DONE, CHILD_STALLED, CHILD_OUT_OF_TIME, CHILD_NOT_FORKED } child_outcome;
 
 /* One child: forks it, reads all it sends into *buf, reaps it. CHILD_STALLED:
  * it sat asleep (no CPU time, nothing sent) for the stall limit and was killed.
- * Why a child sleeps for good: fork() copies every lock as it was, and a lock
+ * CHILD_OUT_OF_TIME: its CPU-time limit ended it. Why a child never finishes
+ * although its file is good: fork() copies every lock as it was, and a lock
  * held at that moment by another thread (an allocator's: glibc's malloc is
- * fork-safe, ASan's in Debian 12's GCC is not; it happened to `view`'s reload
- * while the worker refined) is never released in the child. The CPU-time limit
- * ends a reader that loops, not one that sleeps. */
+ * fork-safe, ASan's in Debian 12's GCC is not) is never released in the child.
+ * ASan's blocking locks leave it asleep (it happened to `view`'s reload while
+ * the worker refined); its spin locks leave it spinning, using CPU time until
+ * the limit (rend_session_test in CI, the load after GL work: 1 run in 6 with
+ * a cold Mesa shader cache, whose writer thread allocates). The CPU-time limit
+ * ends a reader that loops or spins, not one that sleeps. */
 static child_outcome run_child(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
                                void *user, int attempt, char **buf, size_t *len, size_t *cap, int *status,
                                FILE **child_err, lm_result *r, lm_error *err)
@@ -278,11 +287,11 @@ static child_outcome run_child(scene_builder *b, const char *what, int32_t mater
         struct rlimit cpu = {seconds, seconds + 5};
         setrlimit(RLIMIT_CPU, &cpu);
         /* Fault injection for the tests (tests/cli_tests.cmake): a reader that
-         * crashes, one that never returns, one that sleeps for good (every
-         * time, or only the first: the next child loads). */
+         * crashes, one that spins for good, one that sleeps for good (either
+         * every time, or only the first: the next child loads). */
         const char *fault = getenv("LUMESH_FAULT_INJECT");
         if (fault && strcmp(fault, "reader-crash") == 0) raise(SIGSEGV);
-        if (fault && strcmp(fault, "reader-hang") == 0) {
+        if (fault && (strcmp(fault, "reader-hang") == 0 || (strcmp(fault, "reader-hang-once") == 0 && attempt == 0))) {
             struct rlimit one = {1, 2};
             setrlimit(RLIMIT_CPU, &one);
             for (volatile unsigned long spin = 0;; ++spin) {
@@ -339,6 +348,9 @@ static child_outcome run_child(scene_builder *b, const char *what, int32_t mater
     close(fds[0]);
     while (waitpid(pid, status, 0) < 0 && errno == EINTR) {
     }
+    if (out == CHILD_DONE && *r == LM_OK && WIFSIGNALED(*status) &&
+        (WTERMSIG(*status) == SIGXCPU || WTERMSIG(*status) == SIGKILL)) /* SIGKILL: past the hard limit */
+        out = CHILD_OUT_OF_TIME;
     return out;
 }
 
@@ -353,7 +365,9 @@ lm_result scene_isolate(scene_builder *b, const char *what, int32_t material_ove
     int status = 0, attempt = 0;
     FILE *child_err = NULL;
     child_outcome out = CHILD_STALLED;
-    for (; r == LM_OK && out == CHILD_STALLED && attempt < READER_TRIES; ++attempt) {
+    for (; r == LM_OK && ((out == CHILD_STALLED && attempt < READER_TRIES) ||
+                          (out == CHILD_OUT_OF_TIME && attempt < READER_TIME_TRIES));
+         ++attempt) {
         if (child_err) fclose(child_err);
         child_err = NULL;
         out = run_child(b, what, material_override, fill, user, attempt, &buf, &len, &cap, &status, &child_err, &r,
