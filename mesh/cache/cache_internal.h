@@ -801,5 +801,45 @@ int cache_leaf_below_sample(const cache *c, cache_kind kind, double px, const me
 static inline float cache_pixel_share(double px) { return px < 1.0 ? (float)px : 1.0f; }
 /* cache_refine (cache.h) on an initialised cache. */
 lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
+/* Leaf `node` (n) of mesh m queued at priority p; a second entry of a queued
+ * leaf is dropped when popped. */
+lm_result cache_sched_add(cache *c, cache_kind kind, uint32_t node, float p, lm_error *err);
+/* Priority of a leaf (§4.3.3): its pixels × (1 + the largest ΔE between its
+ * corners); an unseen source leaf's, cache_unseen_priority. */
+float cache_leaf_priority(const cache *c, const mesh_qmesh *m, cache_kind kind, uint32_t node, const mesh_qnode *n,
+                          const uint32_t *pixels);
+
+/* ---- cache_unseen.c: the direct mesh as the source where no pixel sees it ------------- */
+
+/* A leaf of the direct mesh that no pixel sees: refined as the indirect source,
+ * for what the visible gathers draw from it (importance), not for its pixels. */
+int cache_unseen_leaf(const uint32_t *pixels, cache_kind kind, const mesh_qnode *n);
+/* An unseen leaf's priority in pixel·ΔE, the units of cache_leaf_priority. */
+float cache_unseen_priority(const cache *c, uint32_t node, const mesh_qnode *n);
+/* How many generations of an unseen node's ancestors found their corners and
+ * midpoints dark (cache_sched.dark_gen), and setting it. */
+uint32_t cache_unseen_dark_generations(const cache *c, uint32_t node);
+lm_result cache_unseen_set_dark_generations(cache *c, uint32_t node, uint32_t gen, lm_error *err);
+/* Dark at its corners and at the midpoints mid its test sampled. */
+int cache_unseen_all_dark(const cache *c, const mesh_qnode *n, const uint32_t mid[3]);
+/* Whether the viewer could see a split of unseen leaf node (n) with midpoints
+ * mid through the gathers; *seen_change: that change in pixel·ΔE. */
+int cache_unseen_split_seen(const cache *c, uint32_t node, const mesh_qnode *n, const uint32_t mid[3],
+                            float *seen_change);
+/* After visible gathers at sites[0..n): records where they draw from and
+ * schedules the unseen source leaves whose importance grew. */
+lm_result cache_unseen_schedule_important(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
+                                          lm_error *err);
+
+/* ---- cache_requeue.c: values changed under the refinement, their leaves again --------- */
+
+/* Falsified light leaves, outdated indirect values (at most *allowance), stale
+ * glossy parts (*glossy_allowance) and the first image's borrowed values
+ * recomputed, and the leaves around them queued again. */
+lm_result cache_requeue_revise(cache *c, const uint32_t *pixels, uint64_t *allowance, uint64_t *glossy_allowance,
+                               lm_error *err);
+/* Indirect values whose noise keeps a visible leaf above the JND gathered again
+ * with more rays (at most budget; *done counts them), their leaves queued again. */
+lm_result cache_requeue_noisy(cache *c, const uint32_t *pixels, uint32_t budget, uint32_t *done, lm_error *err);
 
 #endif

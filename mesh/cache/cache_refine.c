@@ -21,17 +21,19 @@
  * through the gathers (importance, Smits et al. 1992; recorded by
  * cache_source.c), in the same heap, with a priority in the same units. An
  * indirect split is kept only on a difference beyond the gathers' noise.
- * After each round, values that changed under the
+ * (What an unseen source leaf is worth, and when its split is kept:
+ * cache_unseen.c.) After each round, values that changed under the
  * refinement's feet — radiance values inside a light leaf that answered as
  * uniform and proved not to be, indirect values a rebuilt source moved by more
  * than the JND — are recomputed (cache_light.c, cache_source.c) and the leaves
- * around them tested again. Two schedulers pick the leaves (cache_desc.scheduler): a max-heap of
+ * around them tested again (cache_requeue.c). Two schedulers pick the leaves (cache_desc.scheduler): a max-heap of
  * leaves, or the paper's randomized rule over node priorities kept as the
  * maximum of the children's (measured against each other in
  * bench/bench_cache.c, docs/cache.md).
  *
- * Owns cache_sched (cache_internal.h). Calls cache_site.c, cache_light.c and
- * cache_source.c below it; cache.c (cache_refine, the edits) calls it, never the
+ * Owns cache_sched (cache_internal.h), with cache_unseen.c and cache_requeue.c
+ * (its dark generations, its requeued leaves). Calls cache_site.c, cache_light.c
+ * and cache_source.c below it; cache.c (cache_refine, the edits) calls it, never the
  * reverse (the coarse cache is made there, before cache_sched_refine).
  */
 #include <math.h>
@@ -129,110 +131,12 @@ static int below_sample(const cache *c, refine_kind kind, const uint32_t *pixels
     return cache_leaf_below_sample(c, kind, leaf_pixels(pixels, n), n);
 }
 
-/* A leaf of the direct mesh that no pixel sees: refined as the indirect source,
- * for what the visible gathers draw from it (importance), not for its pixels. */
-static int source_only(const uint32_t *pixels, refine_kind kind, const mesh_qnode *n)
-{
-    return kind == KIND_DIRECT && pixels && pixels[n->tri] == 0;
-}
-
-/* A source leaf's radiance kd·L_dd (any channel) at its corners, lowest and
- * highest, and its bound with every light unoccluded there (kd·Σ_ℓ
- * L_ℓ·G_ℓ,unocc/π): light through a gap may fall between corners that are all
- * in shadow, and only the bound says that it could. */
-typedef struct source_levels {
-    float lo, hi, bound;
-} source_levels;
-
-static source_levels source_levels_of(const cache *c, const mesh_qnode *n, int with_bound)
-{
-    const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
-    source_levels s = {INFINITY, 0.0f, 0.0f};
-    for (int k = 0; k < 3; ++k) {
-        float v[3] = {0, 0, 0};
-        mesh_qmesh_get_value(c->direct, n->v[k], v);
-        for (int ch = 0; ch < 3; ++ch) {
-            s.lo = fminf(s.lo, kd[ch] * v[ch]);
-            s.hi = fmaxf(s.hi, kd[ch] * v[ch]);
-        }
-        for (uint32_t l = 0; with_bound && l < c->light_count; ++l) { /* analytic, and dear */
-            double g = cache_unoccluded(c, l, n->v[k]) / M_PI;
-            for (int ch = 0; ch < 3; ++ch)
-                s.bound = fmaxf(s.bound, (float)(kd[ch] * c->light_le[3 * (size_t)l + (size_t)ch] * g));
-        }
-    }
-    return s;
-}
-
-/* The largest source radiance a node could send: its corners', or its bound. */
-static float source_peak(const cache *c, const mesh_qnode *n)
-{
-    source_levels s = source_levels_of(c, n, 1);
-    return fmaxf(s.hi, s.bound);
-}
-
-static uint32_t dark_generations(const cache *c, uint32_t node)
-{
-    return node < c->sched.dark_gen_cap ? c->sched.dark_gen[node] : 0u;
-}
-
-static lm_result set_dark_generations(cache *c, uint32_t node, uint32_t gen, lm_error *err)
-{
-    cache_sched *st = &c->sched;
-    if (node >= st->dark_gen_cap) {
-        size_t old = st->dark_gen_cap;
-        if (!LM_GROW(st->dark_gen, st->dark_gen_cap, (size_t)node + 1))
-            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the source's dark generations");
-        memset(st->dark_gen + old, 0, st->dark_gen_cap - old);
-    }
-    st->dark_gen[node] = (uint8_t)(gen < 255u ? gen : 255u);
-    return LM_OK;
-}
-
-/* Priority of an unseen source leaf: pixel·ΔE the viewer would see of its
- * error, the units of leaf_priority: imp_sum × the radiance it may be off by.
- * Where a corner sends light, the light meshes have looked there, and the leaf
- * may be off by about its corners' spread (linear interpolation, as the
- * on-screen contrast). Where every corner is dark (V = 0 sends exactly 0), a beam
- * through a gap may still lie between them: the bound, a quarter of it for each
- * generation of ancestors whose test found their corners and midpoints dark
- * too (a beam that escaped those samples is narrower than their spacing, so it
- * fills at most about the share of the leaf that one child is of its parent).
- * With the whole bound for every leaf, the walls the Veach door's beam lights
- * (bound 3-9 times their light) and the dark ones beside them kept ahead of
- * visible leaves at the door's base for the whole run (docs/cache.md, "The line
- * along the door's base"). */
-static float source_priority(const cache *c, uint32_t node, const mesh_qnode *n)
-{
-    float imax, isum;
-    cache_node_importance(c, node, &imax, &isum);
-    if (!(isum > 0.0f)) return 0.0f; /* no gather draws from it (yet): nothing to weigh */
-    source_levels s = source_levels_of(c, n, 0);
-    if (s.hi > 0.0f) return isum * (s.hi - s.lo);
-    s = source_levels_of(c, n, 1);
-    return isum * ldexpf(s.bound, -2 * (int)dark_generations(c, node));
-}
-
-/* Dark at its corners and at the midpoints its test sampled (an unseen leaf's
- * test: the children's dark generations). */
-static int source_all_dark(const cache *c, const mesh_qnode *n, const uint32_t mid[3])
-{
-    for (int k = 0; k < 3; ++k) {
-        float a[3], m[3];
-        mesh_qmesh_get_value(c->direct, n->v[k], a);
-        mesh_qmesh_get_value(c->direct, mid[k], m);
-        for (int ch = 0; ch < 3; ++ch)
-            if (a[ch] > 0.0f || m[ch] > 0.0f) return 0;
-    }
-    return 1;
-}
-
 /* Priority of a leaf: its pixels × (1 + the largest ΔE between its corners);
- * an unseen source leaf's, source_priority. */
-static float leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind, uint32_t node, const mesh_qnode *n,
-                           const uint32_t *pixels)
+ * an unseen source leaf's, cache_unseen_priority. */
+float cache_leaf_priority(const cache *c, const mesh_qmesh *m, refine_kind kind, uint32_t node, const mesh_qnode *n,
+                          const uint32_t *pixels)
 {
-    if (source_only(pixels, kind, n)) return source_priority(c, node, n);
+    if (cache_unseen_leaf(pixels, kind, n)) return cache_unseen_priority(c, node, n);
     return leaf_pixels(pixels, n) * (1.0f + cache_leaf_contrast(c, m, kind, n));
 }
 
@@ -270,7 +174,7 @@ static lm_result set_leaf_priority(cache *c, refine_kind kind, uint32_t node, fl
 }
 
 /* A new, or newly rescheduled, leaf with priority p (0: nothing to do there). */
-static lm_result sched_add(cache *c, refine_kind kind, uint32_t node, float p, lm_error *err)
+lm_result cache_sched_add(cache *c, refine_kind kind, uint32_t node, float p, lm_error *err)
 {
     lm_result r = set_done(&c->sched.done[kind], &c->sched.done_cap[kind], node, p > 0.0f ? 0 : 1, err);
     if (r != LM_OK) return r;
@@ -319,7 +223,7 @@ static int pick_leaf(cache *c, refine_kind kind, const uint32_t *pixels, uint32_
             if (!n || n->child != MESH_QMESH_NONE || n->v[0] != e.v0) continue;
             if (e.node < c->sched.done_cap[kind] && c->sched.done[kind][e.node]) continue;
             /* A leaf of one sample never splits (an unseen source leaf: by its importance). */
-            if (!source_only(pixels, kind, n) && below_sample(c, kind, pixels, n)) continue;
+            if (!cache_unseen_leaf(pixels, kind, n) && below_sample(c, kind, pixels, n)) continue;
             /* Before the first image, a leaf that a surface parts (a floor running
              * on under a wall into the next room) is set aside: split then, on
              * values gathered before the regathers, the Veach door's floor kept a
@@ -385,75 +289,6 @@ float cache_node_priority(const cache *c, int mesh, uint32_t node)
     return c->sched.prio[mesh][node];
 }
 
-/* ---- the indirect source: unseen leaves of the direct mesh ----------------------
- *
- * A split of an unseen source leaf is kept when the viewer could see it through
- * the gathers (importance, cache_source.c): the deviations δ_k of kd·L_dd at the
- * edge midpoints from the edges' means change the leaf's mean radiance by
- * (Σ δ_k)/4 (the children's planes against the parent's, integrated), which
- * changes a visible colour by at most imp_max × that; kept above
- * SOURCE_EDGE_JND of the JND. The size criterion's counterpart: a leaf whose
- * peak (source_peak: its values, and its unoccluded bound) would be seen above
- * SOURCE_SIZE_JND JNDs is split anyway (a bright spot, such as the beam through
- * a door gap, may lie between corners that do not show it). */
-#define SOURCE_EDGE_JND 0.5f
-#define SOURCE_SIZE_JND 8.0f
-
-static int source_split_seen(const cache *c, uint32_t node, const mesh_qnode *n, const uint32_t mid[3],
-                             float *seen_change)
-{
-    float imax, isum;
-    cache_node_importance(c, node, &imax, &isum);
-    *seen_change = 0.0f;
-    if (!(imax > 0.0f)) return 0;
-    const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
-    float dev = 0.0f, peak = source_peak(c, n);
-    for (int k = 0; k < 3; ++k) {
-        float a[3], b[3], m[3], d = 0.0f;
-        mesh_qmesh_get_value(c->direct, n->v[k], a);
-        mesh_qmesh_get_value(c->direct, n->v[(k + 1) % 3], b);
-        mesh_qmesh_get_value(c->direct, mid[k], m);
-        for (int ch = 0; ch < 3; ++ch) {
-            d = fmaxf(d, kd[ch] * fabsf(m[ch] - 0.5f * (a[ch] + b[ch])));
-            peak = fmaxf(peak, kd[ch] * m[ch]);
-        }
-        dev += d;
-    }
-    /* The children's share of the importance is a quarter each: imp_max stays the
-     * parent's bound for the change over the whole leaf. What the viewer sees of
-     * the change, in source_priority's units (pixel·ΔE): isum times it. */
-    *seen_change = isum * 0.25f * dev;
-    return imax * 0.25f * dev > SOURCE_EDGE_JND * c->desc.jnd || imax * peak > SOURCE_SIZE_JND * c->desc.jnd;
-}
-
-/* Schedules every unseen leaf of the direct mesh under `node`. */
-static lm_result schedule_source_subtree(cache *c, uint32_t node, const uint32_t *pixels, lm_error *err)
-{
-    const mesh_qnode *n = mesh_qmesh_node(c->direct, node);
-    if (n->child != MESH_QMESH_NONE) {
-        uint32_t child = n->child;
-        lm_result r = LM_OK;
-        for (uint32_t k = 0; r == LM_OK && k < 4; ++k) r = schedule_source_subtree(c, child + k, pixels, err);
-        return r;
-    }
-    if (!source_only(pixels, KIND_DIRECT, n)) return LM_OK;
-    /* (It may be waiting already: the heap drops a second entry when it is popped.) */
-    return sched_add(c, KIND_DIRECT, node, source_priority(c, node, n), err);
-}
-
-/* After visible gathers: record where they draw from, and schedule the unseen
- * source leaves whose importance grew. */
-static lm_result schedule_important_sources(cache *c, const cache_site *sites, uint32_t n, const uint32_t *pixels,
-                                            lm_error *err)
-{
-    if (c->desc.single_mesh || !pixels) return LM_OK;
-    const uint32_t *grown;
-    uint32_t gn;
-    lm_result r = cache_record_importance(c, sites, n, pixels, &grown, &gn, err);
-    for (uint32_t i = 0; r == LM_OK && i < gn; ++i) r = schedule_source_subtree(c, grown[i], pixels, err);
-    return r;
-}
-
 /* ---- one round ---------------------------------------------------------------- */
 
 /* Is fresh − interp (the midpoint's gather against the mean of the edge's ends)
@@ -491,8 +326,8 @@ static float noise_delta_e(const cache *c, uint32_t tri, const float background[
     return tm_delta_e(lab, lab_interp);
 }
 
-/* A leaf's priority (leaf_priority: pixels × (1 + its corners' ΔE);
- * source_priority) predicts what its test removes, but not equally well for
+/* A leaf's priority (cache_leaf_priority: pixels × (1 + its corners' ΔE);
+ * cache_unseen_priority) predicts what its test removes, but not equally well for
  * every mesh: an untested leaf of uniform wall is counted at one ΔE a pixel and
  * its test usually finds nothing, while a specular leaf across a highlight's
  * rim finds most of its contrast. The heap scheduler weighs each mesh's top
@@ -623,7 +458,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     } else if (r == LM_OK) {
         /* A midpoint is compared with its edge's ends: gathered with at least the
          * rays of the one with more, or the edges of leaves whose corners were
-         * gathered again for their noise (regather_noisy) are tested again with
+         * gathered again for their noise (cache_requeue_noisy) are tested again with
          * midpoints as noisy as before, and a real difference still passes as
          * noise (the slot test, docs/cache.md "Guided gathers"). */
         r = cache_sample_indirect_like(c, vids, like, ns, vals, err);
@@ -632,7 +467,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     free(vals);
     free(vids);
     /* What the new visible gathers draw from: the source is refined there. */
-    if (r == LM_OK && kind == KIND_INDIRECT) r = schedule_important_sources(c, sites, ns, pixels, err);
+    if (r == LM_OK && kind == KIND_INDIRECT) r = cache_unseen_schedule_important(c, sites, ns, pixels, err);
 
     /* Edge tests: keep or undo. What the kept splits removed (pixels × their
      * midpoints' ΔE; an unseen source leaf's change as the viewer sees it),
@@ -650,10 +485,10 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         float sum_de = 0.0f, sum_de2 = 0.0f, sum_dn2 = 0.0f;
         int tested_mid = 0;
         int combined = leaves[i].mirror != MESH_QMESH_NONE;
-        int unseen = source_only(pixels, kind, n);
+        int unseen = cache_unseen_leaf(pixels, kind, n);
         float seen_change = 0.0f; /* unseen: what its split changes on screen */
         if (unseen) {
-            found = source_split_seen(c, leaves[i].node, n, leaves[i].mid, &seen_change);
+            found = cache_unseen_split_seen(c, leaves[i].node, n, leaves[i].mid, &seen_change);
             px = 0.0f;
         }
         for (int k = 0; k < 3 && !found && !unseen; ++k) {
@@ -719,14 +554,17 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         if (found || px > min_pixels) {
             removed += unseen ? (double)seen_change : (double)px * interp_err;
             res->split++;
-            uint32_t gen = unseen && source_all_dark(c, n, leaves[i].mid) ? dark_generations(c, leaves[i].node) + 1 : 0;
+            uint32_t gen = unseen && cache_unseen_all_dark(c, n, leaves[i].mid)
+                               ? cache_unseen_dark_generations(c, leaves[i].node) + 1
+                               : 0;
             for (uint32_t k = 0; r == LM_OK && k < 4; ++k) {
                 const mesh_qnode *ch = mesh_qmesh_node(m, child + k);
                 /* Every child of the direct mesh, seen or not: a node id comes back
                  * after a merge, and a leaf seen now may be unseen after a move. */
-                if (kind == KIND_DIRECT) r = set_dark_generations(c, child + k, gen, err);
+                if (kind == KIND_DIRECT) r = cache_unseen_set_dark_generations(c, child + k, gen, err);
                 if (r == LM_OK) r = set_residual(c, kind, child + k, 0.25f * interp_err, 0, err);
-                if (r == LM_OK) r = sched_add(c, kind, child + k, leaf_priority(c, m, kind, child + k, ch, pixels), err);
+                if (r == LM_OK)
+                    r = cache_sched_add(c, kind, child + k, cache_leaf_priority(c, m, kind, child + k, ch, pixels), err);
             }
         } else {
             r = mesh_qmesh_merge(m, leaves[i].node, err);
@@ -742,154 +580,6 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         st->removed[kind] = YIELD_MEMORY * st->removed[kind] + removed;
         st->predicted[kind] = YIELD_MEMORY * st->predicted[kind] + predicted;
     }
-    return r;
-}
-
-/* ---- revised values: falsified light leaves, outdated indirect values --------- */
-
-typedef struct requeue_ctx {
-    cache *c;
-    cache_kind kind;
-    const uint32_t *pixels;
-    const uint32_t *vids; /* changed, sorted */
-    uint32_t n;
-} requeue_ctx;
-
-static int cmp_u32(const void *a, const void *b)
-{
-    uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
-    return (x > y) - (x < y);
-}
-
-/* A leaf with a changed corner is tested again (also one found done before: what
- * it was compared with has changed). */
-static lm_result requeue_visit(const mesh_qmesh *m, uint32_t node, const mesh_qnode *n, void *user, lm_error *err)
-{
-    requeue_ctx *q = user;
-    if (n->child != MESH_QMESH_NONE) return LM_OK;
-    int hit = 0;
-    for (int k = 0; k < 3 && !hit; ++k) hit = bsearch(&n->v[k], q->vids, q->n, sizeof *q->vids, cmp_u32) != NULL;
-    if (!hit || (q->pixels && q->pixels[n->tri] == 0 && !source_only(q->pixels, q->kind, n))) return LM_OK;
-    return sched_add(q->c, q->kind, node, leaf_priority(q->c, m, q->kind, node, n, q->pixels), err);
-}
-
-/* The triangles around each scene vertex (cache_sched.vt_first, vt_tris), and a
- * stamp per triangle; 0 when memory runs out (the caller walks every tree). */
-static int around_ready(cache *c, lm_error *err)
-{
-    (void)err;
-    cache_sched *st = &c->sched;
-    if (st->vt_first) return 1;
-    const scene *s = c->s;
-    uint32_t *first = calloc((size_t)s->vertex_count + 1, sizeof *first);
-    uint32_t *tris = malloc(3 * (size_t)(s->tri_count ? s->tri_count : 1) * sizeof *tris);
-    uint32_t *fill = calloc((size_t)s->vertex_count + 1, sizeof *fill);
-    uint32_t *stamp = calloc(s->tri_count ? s->tri_count : 1, sizeof *stamp);
-    if (!first || !tris || !fill || !stamp) {
-        free(first);
-        free(tris);
-        free(fill);
-        free(stamp);
-        return 0;
-    }
-    for (uint32_t t = 0; t < s->tri_count; ++t)
-        for (int k = 0; k < 3; ++k) first[s->tris[t].v[k] + 1]++;
-    for (uint32_t v = 0; v < s->vertex_count; ++v) first[v + 1] += first[v];
-    for (uint32_t t = 0; t < s->tri_count; ++t)
-        for (int k = 0; k < 3; ++k) {
-            uint32_t v = s->tris[t].v[k];
-            tris[first[v] + fill[v]++] = t;
-        }
-    free(fill);
-    st->vt_first = first;
-    st->vt_tris = tris;
-    st->tri_stamp = stamp;
-    st->stamp = 0;
-    return 1;
-}
-
-/* regions NULL: anywhere in the mesh. The single-mesh ablation schedules the
- * combined (direct) mesh only. */
-static lm_result requeue_changed(cache *c, cache_kind kind, const cache_region *regions, uint32_t region_count,
-                                 const uint32_t *vids, uint32_t n, void *user, lm_error *err)
-{
-    if (kind == KIND_INDIRECT && c->desc.single_mesh) kind = KIND_DIRECT;
-    requeue_ctx q = {c, kind, user, vids, n};
-    const mesh_qmesh *m = cache_kind_mesh(c, kind);
-    lm_result r = LM_OK;
-    for (uint32_t i = 0; r == LM_OK && i < region_count; ++i) r = cache_region_walk(m, &regions[i], requeue_visit, &q, err);
-    if (!regions && (uint64_t)n * 32 < c->s->tri_count && around_ready(c, err)) {
-        /* Few changed: only the trees of the triangles around their triangles'
-         * corners (a cache vertex lies inside its triangle, on one of its edges or
-         * at one of its corners), not every tree of a big scene for each batch of
-         * regathered values. */
-        cache_sched *st = &c->sched;
-        if (++st->stamp == 0) {
-            memset(st->tri_stamp, 0, c->s->tri_count * sizeof *st->tri_stamp);
-            st->stamp = 1;
-        }
-        for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
-            const uint32_t *corner = c->s->tris[mesh_vtable_vertex(c->vt, vids[i])->tri].v;
-            for (int k = 0; r == LM_OK && k < 3; ++k)
-                for (uint32_t j = st->vt_first[corner[k]]; r == LM_OK && j < st->vt_first[corner[k] + 1]; ++j) {
-                    uint32_t t = st->vt_tris[j];
-                    if (st->tri_stamp[t] == st->stamp) continue;
-                    st->tri_stamp[t] = st->stamp;
-                    if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue;
-                    const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
-                    r = cache_region_walk(m, &whole, requeue_visit, &q, err);
-                }
-        }
-        return r;
-    }
-    for (uint32_t t = 0; r == LM_OK && !regions && t < c->s->tri_count; ++t) {
-        if (mesh_qmesh_root(m, t) == MESH_QMESH_NONE || !cache_tri_active(c, t)) continue;
-        const cache_region whole = {.tri = t, .w1 = {0, 1, 0}, .w2 = {0, 0, 1}};
-        r = cache_region_walk(m, &whole, requeue_visit, &q, err);
-    }
-    return r;
-}
-
-/* What changed under the refinement's feet: values inside falsified light leaves
- * (cache_light.c) and indirect values the source has moved (cache_source.c); their leaves are tested
- * again. */
-
-static lm_result revise(cache *c, const uint32_t *pixels, uint64_t *allowance, uint64_t *glossy_allowance,
-                        lm_error *err)
-{
-    lm_result r = cache_revise_falsified(c, requeue_changed, (void *)pixels, err);
-    /* Indirect values wait while the first image's borrowed light is recomputed:
-     * the source moves under them until it is (a million-triangle scene's first
-     * rebuilds, bounded value by value, took 8 s each and flagged most values). */
-    if (c->vis.borrowed_released && cache_borrowed_waiting(c)) return r;
-    if (r == LM_OK) r = cache_regather_outdated(c, requeue_changed, (void *)pixels, allowance, err);
-    /* Glossy parts a rebuilt source (or a new eye) left stale (cache_glossy.c). */
-    if (r == LM_OK) r = cache_glossy_refresh(c, requeue_changed, (void *)pixels, glossy_allowance, err);
-    /* The first image's borrowed values, tested once their donors are up to date. */
-    if (r == LM_OK && !c->src.outdated_n) r = cache_borrow_test(c, pixels, requeue_changed, (void *)pixels, allowance, err);
-    return r;
-}
-
-/* Gathers again with more rays (cache_regather_finer) the indirect values whose
- * noise keeps a visible leaf above the JND (cache_noisy_vertices), at most
- * `budget`, and queues their leaves to be tested again. */
-static lm_result regather_noisy(cache *c, const uint32_t *pixels, uint32_t budget, uint32_t *done, lm_error *err)
-{
-    if (!c->indirect || c->desc.single_mesh) return LM_OK;
-    uint32_t *vids, n;
-    lm_result r = cache_noisy_vertices(c, pixels, budget, &vids, &n, err);
-    if (r != LM_OK || n == 0) {
-        free(vids);
-        return r;
-    }
-    float *E = malloc(3 * (size_t)n * sizeof *E);
-    r = E ? cache_regather_finer(c, vids, n, E, err) : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory refining");
-    for (uint32_t i = 0; r == LM_OK && i < n; ++i) r = mesh_qmesh_set_value(c->indirect, vids[i], E + 3 * (size_t)i, err);
-    /* (vids is sorted: requeue_changed looks them up.) */
-    if (r == LM_OK) r = requeue_changed(c, KIND_INDIRECT, NULL, 0, vids, n, (void *)pixels, err);
-    if (r == LM_OK) *done += n;
-    free(E);
-    free(vids);
     return r;
 }
 
@@ -928,8 +618,8 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
         if (!n || n->child != MESH_QMESH_NONE) continue;
         if (!cache_tri_active(c, n->tri)) continue; /* unsampled roots: nothing to test yet */
         if (seen_only && pixels && !pixels[n->tri]) continue; /* the next call schedules it */
-        float p = leaf_priority(c, m, kind, leaf, n, pixels); /* 0: unseen and nothing gathers from it */
-        r = sched_add(c, kind, leaf, p, err);
+        float p = cache_leaf_priority(c, m, kind, leaf, n, pixels); /* 0: unseen and nothing gathers from it */
+        r = cache_sched_add(c, kind, leaf, p, err);
     }
     if (seen_only && pixels) c->sched.requeue[kind] = 1; /* the whole queue next time */
     return r;
@@ -1024,7 +714,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
     /* Values a rebuild left unbounded while unseen, seen now (a camera move). */
     if (r == LM_OK) r = cache_refresh_stale(c, desc->pixels, err);
     /* Changes made outside refinement (coarse cache, a camera move). */
-    if (r == LM_OK) r = revise(c, desc->pixels, &allowance, &glossy_allowance, err);
+    if (r == LM_OK) r = cache_requeue_revise(c, desc->pixels, &allowance, &glossy_allowance, err);
     int settled = 0, finer = 0;
     /* No leaf is tested while values it would be judged by are still the first
      * image's (its borrowed direct and specular roots). Indirect values still
@@ -1052,12 +742,12 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
             if (!settled) {
                 settled = 1;
                 r = cache_settle_source(c, err);
-                if (r == LM_OK) r = revise(c, desc->pixels, &allowance, &glossy_allowance, err);
+                if (r == LM_OK) r = cache_requeue_revise(c, desc->pixels, &allowance, &glossy_allowance, err);
                 continue;
             }
             if (finer) break;
             finer = 1;
-            r = regather_noisy(c, desc->pixels, budget, &res.regathered_finer, err);
+            r = cache_requeue_noisy(c, desc->pixels, budget, &res.regathered_finer, err);
             continue;
         }
         uint32_t before = res.tested;
@@ -1068,7 +758,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
         /* The round's light fetches may have found uniform light leaves that were
          * not, and its gathers a rebuilt source that moved older indirect values:
          * recompute those values (cache_light.c) and test their leaves again. */
-        if (r == LM_OK) r = revise(c, desc->pixels, &allowance, &glossy_allowance, err);
+        if (r == LM_OK) r = cache_requeue_revise(c, desc->pixels, &allowance, &glossy_allowance, err);
         uint32_t used = res.tested - before;
         left[kind] = used == 0 || used >= left[kind] ? 0 : left[kind] - used;
         total_left = used >= total_left ? 0 : total_left - used;
