@@ -4,7 +4,8 @@
 #   build/release  Release, -Wall -Wextra -Werror
 #   build/asan     Debug, AddressSanitizer + UndefinedBehaviorSanitizer
 #   build/tsan     Debug, ThreadSanitizer: the refinement worker and its display side
-#                  (cache_worker_test, and the scripted viewer under Xvfb)
+#                  (cache_worker_test, and the scripted viewer under Xvfb), and the
+#                  first image's borrowed values made over every core (startup_test)
 # Third-party scenes are read from ../shared/scenes beside the checkout.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -37,7 +38,8 @@ fi
 unset ASAN_OPTIONS UBSAN_OPTIONS
 
 cmake -S . -B build/tsan -DCMAKE_BUILD_TYPE=Debug -DLUMESH_WERROR=ON -DLUMESH_TSAN=ON
-cmake --build build/tsan -j "$jobs" --target cache_worker_test lumesh_cli view_image_check
+cmake --build build/tsan -j "$jobs" --target cache_worker_test startup_test lumesh_cli view_image_check
 # cli_view_xvfb: the scripted viewer (display thread, worker, light edits while paused).
+# startup_test: budgets below its ball's corners, so cache_first.c's parallel loops run.
 TSAN_OPTIONS="halt_on_error=1 suppressions=$PWD/tests/tsan.supp" \
-  ctest --test-dir build/tsan -R '^(cache_worker_test|cli_view_xvfb)$' --output-on-failure
+  ctest --test-dir build/tsan -R '^(cache_worker_test|startup_test|cli_view_xvfb)$' --output-on-failure

@@ -488,7 +488,11 @@ float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, 
  * CACHE_HIGHLIGHT_MIN_EXPONENT, or a light it would have to clip (part of its
  * outline below mid's horizon or behind the lobe's hemisphere). */
 int cache_specular_drawn(const cache *c, uint32_t a, uint32_t b, uint32_t mid, float out[3]);
+/* Writes only vid's entry once cache_specular_reserve covers it: calls for
+ * different vertices may then run on different threads (cache_first.c). */
 lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err);
+/* Room for the visible fractions of vertex ids below limit (c->spec_visible). */
+lm_result cache_specular_reserve(cache *c, uint32_t limit, lm_error *err);
 
 /* ---- cache_first.c: the first image from a budget of samples --------------------- */
 
@@ -518,8 +522,12 @@ lm_result cache_sample_light(cache *c, uint32_t l, const uint32_t *vids, uint32_
  * they cannot interpolate confidently (see cache.h). */
 lm_result cache_fetch_visibility(cache *c, const cache_site *sites, uint32_t n, float *V, lm_error *err);
 /* L_dd (RGB per unit albedo) at vertex vid from visible fractions V[0..light_count);
- * remembers G_ℓ there for cache_set_light. */
+ * remembers G_ℓ there for cache_set_light. Writes only vid's row once
+ * cache_direct_reserve covers it: calls for different vertices may then run on
+ * different threads (cache_first.c). */
 lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err);
+/* Room for the G_ℓ rows of vertex ids below limit (cache_light_state.vertex_G). */
+lm_result cache_direct_reserve(cache *c, uint32_t limit, lm_error *err);
 /* The values (RGB) of the direct or the specular mesh at the sites, from the light
  * meshes (cache_fetch_visibility), counted as that mesh's samples; not stored. */
 lm_result cache_light_values(cache *c, cache_kind kind, const cache_site *sites, uint32_t n, float *rgb,

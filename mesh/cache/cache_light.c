@@ -282,17 +282,26 @@ static void direct_from_G(const cache *c, const float *G, float rgb[3])
     }
 }
 
-lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err)
+lm_result cache_direct_reserve(cache *c, uint32_t limit, lm_error *err)
 {
     const size_t L = c->light_count;
     cache_light_state *st = &c->vis;
-    if (vid >= st->vertex_G_cap) { /* a row of L floats per vertex id */
+    if (limit > st->vertex_G_cap) { /* a row of L floats per vertex id */
         size_t row = (L ? L : 1) * sizeof *st->vertex_G;
-        size_t cap = lm_grow_capacity(st->vertex_G_cap, (size_t)vid + 1, 1024, SIZE_MAX / row);
+        size_t cap = lm_grow_capacity(st->vertex_G_cap, limit, 1024, SIZE_MAX / row);
         if (!cap || !lm_realloc_array(&st->vertex_G, st->vertex_G_cap, cap, row))
             return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the cache's G values");
         st->vertex_G_cap = cap;
     }
+    return LM_OK;
+}
+
+lm_result cache_direct_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err)
+{
+    const size_t L = c->light_count;
+    cache_light_state *st = &c->vis;
+    lm_result r = cache_direct_reserve(c, vid + 1, err);
+    if (r != LM_OK) return r;
     float *G = st->vertex_G + (size_t)vid * L;
     for (uint32_t l = 0; l < L; ++l) {
         double g = V[l] > 0.0f ? V[l] * cache_unoccluded(c, l, vid) : 0.0;

@@ -264,6 +264,18 @@ static int light_above(const scene *s, uint32_t l, const float x[3], const float
     return 0;
 }
 
+lm_result cache_specular_reserve(cache *c, uint32_t limit, lm_error *err)
+{
+    if (limit > c->spec_visible_cap) {
+        size_t cap = lm_grow_capacity(c->spec_visible_cap, limit, 1024, SIZE_MAX / sizeof *c->spec_visible);
+        if (!cap || !lm_realloc_array(&c->spec_visible, c->spec_visible_cap, cap, sizeof *c->spec_visible))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the specular values");
+        for (size_t i = c->spec_visible_cap; i < cap; ++i) c->spec_visible[i] = 1.0f;
+        c->spec_visible_cap = cap;
+    }
+    return LM_OK;
+}
+
 lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V, float rgb[3], lm_error *err)
 {
     const scene *s = c->s;
@@ -287,15 +299,9 @@ lm_result cache_specular_from_visibility(cache *c, uint32_t vid, const float *V,
         for (int k = 0; k < 3; ++k) e[k] += v * le[k] * S;
     }
     for (int k = 0; k < 3; ++k) rgb[k] = e[k] < 3e38 ? (float)e[k] : 3e38f;
-    if (vid >= c->spec_visible_cap) {
-        size_t cap = lm_grow_capacity(c->spec_visible_cap, (size_t)vid + 1, 1024, SIZE_MAX / sizeof *c->spec_visible);
-        if (!cap || !lm_realloc_array(&c->spec_visible, c->spec_visible_cap, cap, sizeof *c->spec_visible))
-            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the specular values");
-        for (size_t i = c->spec_visible_cap; i < cap; ++i) c->spec_visible[i] = 1.0f;
-        c->spec_visible_cap = cap;
-    }
-    c->spec_visible[vid] = (float)least;
-    return LM_OK;
+    lm_result r = cache_specular_reserve(c, vid + 1, err);
+    if (r == LM_OK) c->spec_visible[vid] = (float)least;
+    return r;
 }
 
 /* Whether the renderer skips area light l at x for the lobe about r of exponent
