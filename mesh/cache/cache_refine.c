@@ -41,6 +41,7 @@
 #include <string.h>
 
 #include "mesh/cache/cache_internal.h"
+#include "src/base/parallel.h"
 #include "src/base/vecmath.h"
 
 enum { ROUND_LEAVES = 64 };
@@ -583,6 +584,31 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
     return r;
 }
 
+/* The priorities of a mesh's leaves to schedule, made over every core: a
+ * leaf's priority reads the cache and writes nothing (the 116k-triangle box's
+ * queues after the first image: 350,000 leaves, 0.1-0.17 s on the worker's
+ * thread alone). Not to schedule: -1. */
+typedef struct leaf_priority_job {
+    const cache *c;
+    const mesh_qmesh *m;
+    refine_kind kind;
+    const uint32_t *pixels;
+    int seen_only;
+    float *p; /* per node id */
+} leaf_priority_job;
+
+static void leaf_priority_one(void *user, uint32_t leaf)
+{
+    const leaf_priority_job *job = user;
+    const mesh_qnode *n = mesh_qmesh_node(job->m, leaf);
+    job->p[leaf] = -1.0f;
+    if (!n || n->child != MESH_QMESH_NONE) return;
+    if (!cache_tri_active(job->c, n->tri)) return; /* unsampled roots: nothing to test yet */
+    if (job->seen_only && job->pixels && !job->pixels[n->tri]) return; /* the next call schedules it */
+    /* 0: unseen, and nothing gathers from it. */
+    job->p[leaf] = cache_leaf_priority(job->c, job->m, job->kind, leaf, n, job->pixels);
+}
+
 /* Schedules every leaf of one mesh afresh (at the start; after a light changed;
  * for the specular mesh after the camera moved): heap, done flags and priorities
  * are rebuilt. */
@@ -611,16 +637,15 @@ static lm_result schedule_leaves(cache *c, refine_kind kind, const uint32_t *pix
     }
     /* Every live leaf, in node order (as mesh_qmesh_leaf_triangles visits them,
      * without making their triangles: 0.11 s of the 116k box's start). */
-    lm_result r = LM_OK;
     const uint32_t limit = mesh_qmesh_node_limit(m);
-    for (uint32_t leaf = 0; r == LM_OK && leaf < limit; ++leaf) {
-        const mesh_qnode *n = mesh_qmesh_node(m, leaf);
-        if (!n || n->child != MESH_QMESH_NONE) continue;
-        if (!cache_tri_active(c, n->tri)) continue; /* unsampled roots: nothing to test yet */
-        if (seen_only && pixels && !pixels[n->tri]) continue; /* the next call schedules it */
-        float p = cache_leaf_priority(c, m, kind, leaf, n, pixels); /* 0: unseen and nothing gathers from it */
-        r = cache_sched_add(c, kind, leaf, p, err);
-    }
+    float *p = malloc((size_t)(limit ? limit : 1) * sizeof *p);
+    if (!p) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory scheduling refinement");
+    leaf_priority_job job = {c, m, kind, pixels, seen_only, p};
+    lm_parallel_for(lm_thread_count(0), limit, leaf_priority_one, &job);
+    lm_result r = LM_OK;
+    for (uint32_t leaf = 0; r == LM_OK && leaf < limit; ++leaf)
+        if (!(p[leaf] < 0.0f)) r = cache_sched_add(c, kind, leaf, p[leaf], err);
+    free(p);
     if (seen_only && pixels) c->sched.requeue[kind] = 1; /* the whole queue next time */
     return r;
 }
