@@ -122,17 +122,6 @@ static void changed_corners(const scene *s, const samp_radiance_mesh *cur, chang
     for (int k = 0; k < 3; ++k) bary_point(s, ct.t, b[2 * k], b[2 * k + 1], p[k]);
 }
 
-static uint64_t spread3(uint32_t v)
-{
-    uint64_t x = v & 0x1fffff;
-    x = (x | x << 32) & 0x1f00000000ffffULL;
-    x = (x | x << 16) & 0x1f0000ff0000ffULL;
-    x = (x | x << 8) & 0x100f00f00f00f00fULL;
-    x = (x | x << 4) & 0x10c30c30c30c30c3ULL;
-    x = (x | x << 2) & 0x1249249249249249ULL;
-    return x;
-}
-
 static int cmp_item(const void *a, const void *b)
 {
     const drift_item *x = a, *y = b;
@@ -205,7 +194,7 @@ static int drift_tree_make(drift_tree *t, const scene *s, const samp_radiance_me
             float u = span > 0.0f ? (t->item[j].c[k] - lo[k]) / span : 0.0f;
             q[k] = (uint32_t)(fminf(fmaxf(u, 0.0f), 1.0f) * 2097151.0f);
         }
-        t->item[j].key = spread3(q[0]) << 2 | spread3(q[1]) << 1 | spread3(q[2]);
+        t->item[j].key = cache_morton_key(q);
     }
     qsort(t->item, n, sizeof *t->item, cmp_item);
     /* Nodes in breadth order: node k's children are made when it is reached. */

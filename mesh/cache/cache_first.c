@@ -28,21 +28,8 @@
 #include "src/base/parallel.h"
 #include "src/base/vecmath.h"
 
-/* The 21 low bits of x at every third bit (bit b at bit 3b). */
-static uint64_t spread3(uint32_t x)
-{
-    uint64_t v = x & 0x1fffffu;
-    v = (v | v << 32) & 0x1f00000000ffffULL;
-    v = (v | v << 16) & 0x1f0000ff0000ffULL;
-    v = (v | v << 8) & 0x100f00f00f00f00fULL;
-    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
-    v = (v | v << 2) & 0x1249249249249249ULL;
-    return v;
-}
-
 /* A point's key along a Morton (Z-order) curve through the box lo + [0, span]³:
- * points close along the curve are close in space. The bits interleave from the
- * top, x's first: bit b of axis k is the key's bit 3b + 2 − k. */
+ * points close along the curve are close in space. */
 static uint64_t morton_key(const float p[3], const float lo[3], double span)
 {
     uint32_t q[3];
@@ -51,7 +38,7 @@ static uint64_t morton_key(const float p[3], const float lo[3], double span)
         u = u < 0.0 ? 0.0 : u > 1.0 ? 1.0 : u;
         q[k] = (uint32_t)(u * 2097151.0); /* 21 bits an axis */
     }
-    return spread3(q[0]) << 2 | spread3(q[1]) << 1 | spread3(q[2]);
+    return cache_morton_key(q);
 }
 
 typedef struct keyed_vertex {

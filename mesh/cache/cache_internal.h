@@ -807,6 +807,25 @@ int cache_leaf_below_sample(const cache *c, cache_kind kind, double px, const me
  * its test, its residual and the estimate (docs/cache.md, "Leaves smaller than a
  * pixel"). */
 static inline float cache_pixel_share(double px) { return px < 1.0 ? (float)px : 1.0f; }
+
+/* The Morton (Z-order) key of three 21-bit coordinates: their bits interleaved
+ * from the top, q[0]'s first (bit b of q[k] is the key's bit 3b + 2 − k). Points
+ * close along the curve are close in space (cache_first.c's picks,
+ * cache_drift.c's tree). */
+static inline uint64_t cache_morton_spread(uint32_t x)
+{
+    uint64_t v = x & 0x1fffffu;
+    v = (v | v << 32) & 0x1f00000000ffffULL;
+    v = (v | v << 16) & 0x1f0000ff0000ffULL;
+    v = (v | v << 8) & 0x100f00f00f00f00fULL;
+    v = (v | v << 4) & 0x10c30c30c30c30c3ULL;
+    v = (v | v << 2) & 0x1249249249249249ULL;
+    return v;
+}
+static inline uint64_t cache_morton_key(const uint32_t q[3])
+{
+    return cache_morton_spread(q[0]) << 2 | cache_morton_spread(q[1]) << 1 | cache_morton_spread(q[2]);
+}
 /* cache_refine (cache.h) on an initialised cache. */
 lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
 /* Leaf `node` (n) of mesh m queued at priority p; a second entry of a queued
