@@ -52,7 +52,7 @@ typedef struct keyed_vertex {
 static int sort_keyed(keyed_vertex *kv, uint32_t n)
 {
     if (n < 2) return 1;
-    keyed_vertex *tmp = malloc((size_t)(n ? n : 1) * sizeof *tmp);
+    keyed_vertex *tmp = malloc((size_t)n * sizeof *tmp);
     if (!tmp) return 0;
     keyed_vertex *from = kv, *to = tmp;
     for (int shift = 0; shift < 64; shift += 8) {

@@ -828,7 +828,7 @@ static inline uint64_t cache_morton_key(const uint32_t q[3])
 }
 /* cache_refine (cache.h) on an initialised cache. */
 lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refine_result *out, lm_error *err);
-/* Leaf `node` (n) of mesh m queued at priority p; a second entry of a queued
+/* Leaf `node` of mesh `kind` queued at priority p; a second entry of a queued
  * leaf is dropped when popped. */
 lm_result cache_sched_add(cache *c, cache_kind kind, uint32_t node, float p, lm_error *err);
 /* Priority of a leaf (§4.3.3): its pixels × (1 + the largest ΔE between its

@@ -259,7 +259,7 @@ typedef enum { CHILD_DONE, CHILD_STALLED, CHILD_OUT_OF_TIME, CHILD_NOT_FORKED } 
  * fork-safe, ASan's in Debian 12's GCC is not) is never released in the child.
  * ASan's blocking locks leave it asleep (it happened to `view`'s reload while
  * the worker refined); its spin locks leave it spinning, using CPU time until
- * the limit (rend_session_test in CI, the load after GL work: 1 run in 6 with
+ * the limit (rend_session_test in CI, the load after GL work: 1 run in 6-12 with
  * a cold Mesa shader cache, whose writer thread allocates). The CPU-time limit
  * ends a reader that loops or spins, not one that sleeps. */
 static child_outcome run_child(scene_builder *b, const char *what, int32_t material_override, scene_fill_fn fill,
