@@ -153,6 +153,45 @@ static int accept_all(const scene *s, uint32_t tri, void *user)
     return 1;
 }
 
+/* Whether `like` is roots alone (never split) over exactly the triangles that m
+ * chose (marked 0 in m->root_of_tri). */
+static int same_roots(const mesh_qmesh *m, const mesh_qmesh *like)
+{
+    if (like->node_hw != like->root_count || like->nodes_live != like->root_count) return 0;
+    uint32_t n = 0;
+    for (uint32_t t = 0; t < m->s->tri_count; ++t) {
+        const int mine = m->root_of_tri[t] != MESH_QMESH_NONE, theirs = like->root_of_tri[t] != MESH_QMESH_NONE;
+        if (mine != theirs) return 0;
+        n += (uint32_t)mine;
+    }
+    return n == like->root_count;
+}
+
+/* m's roots as like's, which are the same triangles (same_roots): the nodes, the
+ * corner ids and their use counts copied, one vertex-table reference taken per
+ * vertex. What the loop in mesh_qmesh_create makes, without its per-corner work
+ * (on a million-triangle scene 0.04-0.05 s a mesh instead of 0.07-0.08). */
+static lm_result clone_roots(mesh_qmesh *m, const mesh_qmesh *like, lm_error *err)
+{
+    const uint32_t n = like->root_count;
+    memcpy(m->nodes, like->nodes, (size_t)n * sizeof *m->nodes);
+    memcpy(m->root_of_tri, like->root_of_tri, (size_t)m->s->tri_count * sizeof *m->root_of_tri);
+    memcpy(m->inner_use, like->inner_use, ((size_t)m->s->tri_count + 1) * sizeof *m->inner_use);
+    uint32_t top = like->vcap;
+    while (top > 0 && like->use[top - 1] == 0) --top;
+    lm_result r = ensure_vcap(m, top, err);
+    for (uint32_t id = 0; r == LM_OK && id < top; ++id) {
+        if (!like->use[id]) continue;
+        r = mesh_vtable_retain(m->vt, id, err);
+        if (r != LM_OK) break; /* destroy releases the ids whose use is set */
+        m->use[id] = like->use[id];
+        m->used++;
+    }
+    if (r != LM_OK) return r;
+    m->root_count = m->node_hw = m->nodes_live = m->leaves = m->hist[0] = n;
+    return LM_OK;
+}
+
 lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_error *err)
 {
     if (out) *out = NULL;
@@ -219,6 +258,12 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
         goto fail;
     }
     const mesh_qmesh *like_mesh = desc->roots_like && desc->roots_like->vt == m->vt ? desc->roots_like : NULL;
+    if (like_mesh && same_roots(m, like_mesh)) {
+        r = clone_roots(m, like_mesh, err);
+        if (r != LM_OK) goto fail;
+        *out = m;
+        return LM_OK;
+    }
     /* Roots in triangle order, so node ids do not depend on root_tris order. */
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         if (m->root_of_tri[t] == MESH_QMESH_NONE) continue;

@@ -15,6 +15,7 @@
  * vertex keeps a probe to one memcmp-sized compare.
  */
 #include "mesh/vtable.h"
+#include "src/base/parallel.h"
 #include "src/base/vecmath.h" /* M_PI */
 
 #include <math.h>
@@ -138,18 +139,91 @@ static void uf_union(uint32_t *parent, uint32_t i, uint32_t j)
  * and — so that edge and vertex keys never disagree — the two corners at each
  * end of every MESH_EDGE_INTERIOR edge (geomesh found their normals agree, and
  * its tolerance may differ from ours). */
+/* The classes of the n corners L[0..n) at one vertex (sorted by triangle);
+ * parent and reps have room for n. */
+static void vertex_classes(mesh_vtable *vt, double cos_tol, const uint32_t *L, uint32_t n, uint32_t *parent,
+                           uint32_t *reps)
+{
+    const scene *s = vt->s;
+    uint32_t nreps = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        parent[i] = i;
+        if (!s->corner_normals) { /* no normals: one class */
+            parent[i] = 0;
+            continue;
+        }
+        const float *ni = s->corner_normals + 3 * (size_t)L[i];
+        uint32_t r2 = 0;
+        for (; r2 < nreps; ++r2)
+            if (normals_agree(ni, s->corner_normals + 3 * (size_t)L[reps[r2]], cos_tol)) break;
+        if (r2 < nreps) uf_union(parent, i, reps[r2]);
+        else reps[nreps++] = i;
+    }
+    for (uint32_t i = 0; vt->geo && i < n; ++i) {
+        const uint32_t t = L[i] / 3, c = L[i] % 3;
+        const int edges[2] = {(int)c, (int)((c + 2) % 3)}; /* the two edges at corner c */
+        for (int q = 0; q < 2; ++q) {
+            if (mesh_geo_edge_kind(vt->geo, t, edges[q]) != MESH_EDGE_INTERIOR) continue;
+            int32_t nb = mesh_geo_neighbor(vt->geo, t, edges[q]);
+            if (nb < 0) continue;
+            /* Binary search the neighbour among this vertex's corners (sorted by triangle). */
+            uint32_t lo = 0, hi = n;
+            while (lo < hi) {
+                uint32_t mid = (lo + hi) / 2;
+                if (L[mid] / 3 < (uint32_t)nb) lo = mid + 1;
+                else hi = mid;
+            }
+            if (lo < n && L[lo] / 3 == (uint32_t)nb) uf_union(parent, i, lo);
+        }
+    }
+    for (uint32_t i = 0; i < n; ++i) vt->normal_class[L[i]] = L[uf_find(parent, i)] / 3;
+}
+
+/* Vertices a chunk of classes_chunk takes. */
+#define CLASS_CHUNK 2048u
+
+typedef struct classes_job {
+    mesh_vtable *vt;         /* written: normal_class of its chunk's corners only */
+    double cos_tol;
+    const uint32_t *start;   /* [vertex_count + 1]: each vertex's corners in `corners` */
+    const uint32_t *corners;
+    uint8_t *failed;         /* [chunks]: out of memory */
+} classes_job;
+
+/* The classes at vertices [chunk·CLASS_CHUNK, ...): each vertex writes its own
+ * corners' entries, so chunks run on every core (a million-triangle scene's
+ * table took 0.2-0.3 s on one). */
+static void classes_chunk(void *user, uint32_t chunk)
+{
+    const classes_job *job = user;
+    const uint32_t nv = job->vt->s->vertex_count, v0 = chunk * CLASS_CHUNK;
+    const uint32_t v1 = nv - v0 < CLASS_CHUNK ? nv : v0 + CLASS_CHUNK;
+    uint32_t most = 1;
+    for (uint32_t v = v0; v < v1; ++v)
+        if (job->start[v + 1] - job->start[v] > most) most = job->start[v + 1] - job->start[v];
+    uint32_t *parent = malloc(2 * (size_t)most * sizeof *parent);
+    if (!parent) {
+        job->failed[chunk] = 1;
+        return;
+    }
+    for (uint32_t v = v0; v < v1; ++v)
+        vertex_classes(job->vt, job->cos_tol, job->corners + job->start[v], job->start[v + 1] - job->start[v], parent,
+                       parent + most);
+    free(parent);
+}
+
 static lm_result build_normal_classes(mesh_vtable *vt, double cos_tol, lm_error *err)
 {
     const scene *s = vt->s;
     const uint32_t nt = s->tri_count, nv = s->vertex_count;
     const size_t nc = 3 * (size_t)nt;
+    const uint32_t chunks = (uint32_t)(((size_t)nv + CLASS_CHUNK - 1) / CLASS_CHUNK);
     vt->normal_class = malloc((nc ? nc : 1) * sizeof *vt->normal_class);
     uint32_t *start = calloc((size_t)nv + 1, sizeof *start);
     uint32_t *corners = malloc((nc ? nc : 1) * sizeof *corners);
-    uint32_t *parent = malloc((nc ? nc : 1) * sizeof *parent);
-    uint32_t *reps = malloc((nc ? nc : 1) * sizeof *reps);
+    uint8_t *failed = calloc(chunks ? chunks : 1, 1);
     lm_result r = LM_OK;
-    if (!vt->normal_class || !start || !corners || !parent || !reps) {
+    if (!vt->normal_class || !start || !corners || !failed) {
         r = lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: out of memory for %u triangles", nt);
         goto done;
     }
@@ -159,48 +233,14 @@ static lm_result build_normal_classes(mesh_vtable *vt, double cos_tol, lm_error 
     for (size_t k = 0; k < nc; ++k) corners[start[s->tris[k / 3].v[k % 3]]++] = (uint32_t)k;
     for (uint32_t v = nv; v > 0; --v) start[v] = start[v - 1];
     start[0] = 0;
-
-    for (uint32_t v = 0; v < nv; ++v) {
-        const uint32_t *L = corners + start[v];
-        const uint32_t n = start[v + 1] - start[v];
-        uint32_t nreps = 0;
-        for (uint32_t i = 0; i < n; ++i) {
-            parent[i] = i;
-            if (!s->corner_normals) { /* no normals: one class */
-                parent[i] = 0;
-                continue;
-            }
-            const float *ni = s->corner_normals + 3 * (size_t)L[i];
-            uint32_t r2 = 0;
-            for (; r2 < nreps; ++r2)
-                if (normals_agree(ni, s->corner_normals + 3 * (size_t)L[reps[r2]], cos_tol)) break;
-            if (r2 < nreps) uf_union(parent, i, reps[r2]);
-            else reps[nreps++] = i;
-        }
-        for (uint32_t i = 0; vt->geo && i < n; ++i) {
-            const uint32_t t = L[i] / 3, c = L[i] % 3;
-            const int edges[2] = {(int)c, (int)((c + 2) % 3)}; /* the two edges at corner c */
-            for (int q = 0; q < 2; ++q) {
-                if (mesh_geo_edge_kind(vt->geo, t, edges[q]) != MESH_EDGE_INTERIOR) continue;
-                int32_t nb = mesh_geo_neighbor(vt->geo, t, edges[q]);
-                if (nb < 0) continue;
-                /* Binary search the neighbour among this vertex's corners (sorted by triangle). */
-                uint32_t lo = 0, hi = n;
-                while (lo < hi) {
-                    uint32_t mid = (lo + hi) / 2;
-                    if (L[mid] / 3 < (uint32_t)nb) lo = mid + 1;
-                    else hi = mid;
-                }
-                if (lo < n && L[lo] / 3 == (uint32_t)nb) uf_union(parent, i, lo);
-            }
-        }
-        for (uint32_t i = 0; i < n; ++i) vt->normal_class[L[i]] = L[uf_find(parent, i)] / 3;
-    }
+    lm_parallel_for(lm_thread_count(0), chunks, classes_chunk,
+                    &(classes_job){.vt = vt, .cos_tol = cos_tol, .start = start, .corners = corners, .failed = failed});
+    for (uint32_t k = 0; k < chunks; ++k)
+        if (failed[k]) r = lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: out of memory for %u triangles", nt);
 done:
     free(start);
     free(corners);
-    free(parent);
-    free(reps);
+    free(failed);
     return r;
 }
 

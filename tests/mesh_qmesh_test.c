@@ -635,6 +635,44 @@ static void test_roots_like(scene *s, mesh_vtable *vt)
         for (int k = 0; k < 3; ++k)
             same &= mesh_qmesh_node(b, mesh_qmesh_root(b, t))->v[k] == mesh_qmesh_node(c, mesh_qmesh_root(c, t))->v[k];
     CHECK(same);
+    /* The same roots as c's: copied whole (clone_roots), the mesh a look-up makes,
+     * node for node and count for count. Once c is split, roots_like still gives
+     * the same roots (by the corner loop). */
+    mesh_qmesh *d = NULL, *e = NULL;
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .channels = 3, .roots_like = c}, &d, &err) == LM_OK);
+    CHECK(mesh_qmesh_split(c, mesh_qmesh_root(c, 0), &err) == LM_OK);
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .roots_like = c}, &e, &err) == LM_OK);
+    if (d && e) {
+        mesh_qmesh_stats sb, sd, se;
+        mesh_qmesh_get_stats(b, &sb);
+        mesh_qmesh_get_stats(d, &sd);
+        mesh_qmesh_get_stats(e, &se);
+        CHECK(sd.roots == sb.roots && sd.nodes == sb.nodes && sd.leaves == sb.leaves && sd.leaves_at_depth[0] == sb.leaves);
+        CHECK(sd.vertices_used == sb.vertices_used && se.vertices_used == sb.vertices_used && se.nodes == sb.nodes);
+        int nodes_same = mesh_qmesh_node_limit(d) == mesh_qmesh_node_limit(b);
+        for (uint32_t t = 0; t < s->tri_count; ++t) {
+            const uint32_t rb = mesh_qmesh_root(b, t), rd = mesh_qmesh_root(d, t), re = mesh_qmesh_root(e, t);
+            nodes_same &= rd == rb && re == rb && memcmp(mesh_qmesh_node(d, rd), mesh_qmesh_node(b, rb), sizeof(mesh_qnode)) == 0 &&
+                          memcmp(mesh_qmesh_node(e, re), mesh_qmesh_node(b, rb), sizeof(mesh_qnode)) == 0;
+            for (int k = 0; k < 3; ++k) {
+                const uint32_t id = mesh_qmesh_node(b, rb)->v[k];
+                nodes_same &= mesh_qmesh_vertex_use(d, id) == mesh_qmesh_vertex_use(b, id) &&
+                              mesh_qmesh_vertex_use(e, id) == mesh_qmesh_vertex_use(b, id);
+            }
+        }
+        CHECK(nodes_same);
+        /* It refines like any mesh, and its vertices are its own. */
+        const float rgb[3] = {1, 2, 3};
+        float got[3];
+        const uint32_t root = mesh_qmesh_root(d, 0);
+        CHECK(mesh_qmesh_split(d, root, &err) == LM_OK);
+        const uint32_t mid = mesh_qmesh_node(d, mesh_qmesh_node(d, root)->child + 3)->v[0];
+        CHECK(mesh_qmesh_set_value(d, mid, rgb, &err) == LM_OK);
+        CHECK(mesh_qmesh_get_value(d, mid, got) == 1 && got[2] == 3.0f && mesh_qmesh_get_value(b, mid, NULL) == -1);
+        CHECK(mesh_qmesh_merge(d, root, &err) == LM_OK);
+    }
+    mesh_qmesh_destroy(d);
+    mesh_qmesh_destroy(e);
     mesh_qmesh_destroy(a);
     mesh_qmesh_destroy(c);
     int live = 1; /* b holds its own reference to every corner */

@@ -7,6 +7,7 @@
  * moved values through the cache_changed_fn it passes). Worker thread, like the
  * rest of the cache. */
 #include "mesh/cache/cache_internal.h"
+#include "src/base/util.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -15,6 +16,7 @@
 #include "mesh/geomesh.h"
 #include "sampling/analytic.h"
 #include "sampling/samp.h"
+#include "src/base/parallel.h"
 #include "src/base/vecmath.h"
 
 /* The source is a cut of the direct mesh of the roots and at most this many more
@@ -273,21 +275,6 @@ static lm_result grow_source(const scene *s, uint32_t **first, float **bary, flo
     return LM_OK;
 }
 
-/* Keeps the source just built as the previous one. */
-static lm_result keep_previous(cache *c, lm_error *err)
-{
-    const scene *s = c->s;
-    size_t n = c->src.rmesh.tri_count;
-    lm_result r = grow_source(s, &c->src.rp_first, &c->src.rp_bary, &c->src.rp_rad, &c->src.rp_cap, n, err);
-    if (r != LM_OK) return r;
-    memcpy(c->src.rp_first, c->src.rm_first, ((size_t)s->tri_count + 1) * sizeof *c->src.rp_first);
-    memcpy(c->src.rp_bary, c->src.rm_bary, n * 6 * sizeof *c->src.rp_bary);
-    memcpy(c->src.rp_rad, c->src.rm_rad, n * 9 * sizeof *c->src.rp_rad);
-    c->src.rp_count = n;
-    c->src.rp_valid = 1;
-    return LM_OK;
-}
-
 /* ---- the source ----------------------------------------------------------------- */
 
 int64_t cache_direct_changes(const cache *c)
@@ -297,35 +284,36 @@ int64_t cache_direct_changes(const cache *c)
     return mesh_qmesh_net_splits(c->direct) + (int64_t)c->vis.revised;
 }
 
-/* Builds the source: kd·L_dd, and with further bounces kd·(L_dd + E_m/π), E_m
- * first brought up to date with the direct mesh (cache_bounces_update, no ray);
- * track: compare it with the previous source and flag the values it moved. */
-static lm_result build_source(cache *c, int track, lm_error *err)
+/* Exchanges the current source's arrays with the previous one's. */
+static void swap_source_arrays(cache_source_state *st)
 {
+    uint32_t *first = st->rm_first;
+    float *bary = st->rm_bary, *rad = st->rm_rad;
+    size_t cap = st->rm_cap;
+    st->rm_first = st->rp_first, st->rm_bary = st->rp_bary, st->rm_rad = st->rp_rad, st->rm_cap = st->rp_cap;
+    st->rp_first = first, st->rp_bary = bary, st->rp_rad = rad, st->rp_cap = cap;
+}
+
+/* Source triangles a chunk of the fill (fill_source_chunk) takes. */
+#define SOURCE_FILL_CHUNK 4096u
+
+typedef struct fill_source_job {
+    cache *c;     /* read: the direct and bounce meshes, leaf_buf; written: rm_bary, rm_rad */
+    size_t count; /* source triangles */
+} fill_source_job;
+
+/* Corners and radiance of source triangles [chunk·SOURCE_FILL_CHUNK, ...): each
+ * triangle's own entries, from meshes only read, so the chunks run on every core
+ * (a million-triangle scene's source took 0.13-0.18 s on one). */
+static void fill_source_chunk(void *user, uint32_t chunk)
+{
+    const fill_source_job *job = user;
+    cache *c = job->c;
     const scene *s = c->s;
     const int with_em = c->indirect1 != NULL;
-    lm_result r = with_em ? cache_bounces_update(c, err) : LM_OK;
-    if (r == LM_OK) r = choose_cut(c, err);
-    size_t count = 0;
-    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
-        uint32_t root = mesh_qmesh_root(c->direct, t);
-        if (root != MESH_QMESH_NONE && cache_tri_active(c, t)) r = collect_source(c, root, &count, err);
-    }
-    if (r != LM_OK) return r;
-    /* The current index describes the previous source now (keep_previous copied
-     * the arrays it was made for): it moves there, and the new one is made below. */
-    samp_radiance_index_free(&c->src.rp_index);
-    c->src.rp_index = c->src.rm_index;
-    memset(&c->src.rm_index, 0, sizeof c->src.rm_index);
-    c->src.rmesh.index = NULL;
-    r = grow_source(s, &c->src.rm_first, &c->src.rm_bary, &c->src.rm_rad, &c->src.rm_cap, count, err);
-    if (r != LM_OK) return r;
-    /* Counting sort by scene triangle (the cut is collected in scene order already,
-     * so this keeps the order: leaf_buf[i] is source triangle i). */
-    memset(c->src.rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->src.rm_first);
-    for (size_t i = 0; i < count; ++i) c->src.rm_first[c->src.leaf_buf[i].tri + 1]++;
-    for (uint32_t t = 0; t < s->tri_count; ++t) c->src.rm_first[t + 1] += c->src.rm_first[t];
-    for (size_t i = 0; i < count; ++i) {
+    const size_t begin = (size_t)chunk * SOURCE_FILL_CHUNK;
+    const size_t end = begin + SOURCE_FILL_CHUNK < job->count ? begin + SOURCE_FILL_CHUNK : job->count;
+    for (size_t i = begin; i < end; ++i) {
         const mesh_qmesh_tri *lt = &c->src.leaf_buf[i];
         const float *kd = s->materials[s->tris[lt->tri].material].kd;
         for (int k = 0; k < 3; ++k) {
@@ -346,6 +334,43 @@ static lm_result build_source(cache *c, int track, lm_error *err)
                 c->src.rm_rad[9 * i + 3 * (size_t)k + (size_t)ch] = kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
         }
     }
+}
+
+/* Builds the source: kd·L_dd, and with further bounces kd·(L_dd + E_m/π), E_m
+ * first brought up to date with the direct mesh (cache_bounces_update, no ray);
+ * track: compare it with the previous source and flag the values it moved. */
+static lm_result build_source(cache *c, int track, lm_error *err)
+{
+    const scene *s = c->s;
+    const int with_em = c->indirect1 != NULL;
+    lm_result r = with_em ? cache_bounces_update(c, err) : LM_OK;
+    if (r == LM_OK) r = choose_cut(c, err);
+    size_t count = 0;
+    for (uint32_t t = 0; r == LM_OK && t < s->tri_count; ++t) {
+        uint32_t root = mesh_qmesh_root(c->direct, t);
+        if (root != MESH_QMESH_NONE && cache_tri_active(c, t)) r = collect_source(c, root, &count, err);
+    }
+    if (r != LM_OK) return r;
+    /* The source built last becomes the previous one, which the new one is
+     * compared with (cache_mark_outdated): its arrays and its index move there,
+     * and the new source is written over the arrays of the one before (they were
+     * copied, 0.1 s for a million-triangle scene's). */
+    samp_radiance_index_free(&c->src.rp_index);
+    c->src.rp_index = c->src.rm_index;
+    memset(&c->src.rm_index, 0, sizeof c->src.rm_index);
+    swap_source_arrays(&c->src);
+    c->src.rp_count = c->src.rmesh.tri_count;
+    c->src.rp_valid = c->src.rp_first != NULL && c->src.rmesh.first != NULL;
+    c->src.rmesh = (samp_radiance_mesh){0};
+    r = grow_source(s, &c->src.rm_first, &c->src.rm_bary, &c->src.rm_rad, &c->src.rm_cap, count, err);
+    if (r != LM_OK) return r;
+    /* Counting sort by scene triangle (the cut is collected in scene order already,
+     * so this keeps the order: leaf_buf[i] is source triangle i). */
+    memset(c->src.rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->src.rm_first);
+    for (size_t i = 0; i < count; ++i) c->src.rm_first[c->src.leaf_buf[i].tri + 1]++;
+    for (uint32_t t = 0; t < s->tri_count; ++t) c->src.rm_first[t + 1] += c->src.rm_first[t];
+    const uint32_t chunks = (uint32_t)((count + SOURCE_FILL_CHUNK - 1) / SOURCE_FILL_CHUNK);
+    lm_parallel_for(lm_thread_count(0), chunks, fill_source_chunk, &(fill_source_job){c, count});
     c->src.rmesh = (samp_radiance_mesh){.tri_count = (uint32_t)count, .first = c->src.rm_first, .bary = c->src.rm_bary,
                                     .radiance = c->src.rm_rad};
     /* Checked and indexed once here, not by every gather batch. */
@@ -361,7 +386,7 @@ static lm_result build_source(cache *c, int track, lm_error *err)
         r = cache_mark_outdated(c, err); /* and the glossy parts it may have moved visibly */
     else
         cache_glossy_outdate(c); /* untracked: every glossy part is taken again (cache_glossy.c) */
-    return r == LM_OK ? keep_previous(c, err) : r;
+    return r;
 }
 
 lm_result cache_update_radiance_source(cache *c, int force, lm_error *err)
