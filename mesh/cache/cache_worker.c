@@ -414,9 +414,7 @@ static void *worker_main(void *arg)
         if (r == LM_OK && w->calibrate_later && tighten) calibrate_now(w, c, &sp);
     }
     if (r != LM_OK) cache_publish_failure(w, ++generation, err.msg);
-    free(ps.buf);
-    free(ps.local);
-    free(ps.ids);
+    cache_publish_scratch_free(&ps);
     cache_destroy(c);
     samp_destroy(sp);
     samp_destroy(w->fallback);

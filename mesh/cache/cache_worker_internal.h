@@ -36,11 +36,19 @@ typedef struct mesh_store {
 /* The worker's scratch for publishing: a piece of one mesh's leaf triangles,
  * each vertex-table id's index in the mesh being published (UINT32_MAX: not yet
  * in it; set back after each mesh) and the ids published, in order. */
-typedef struct publish_scratch {
+/* One mesh's fill (cache_worker_publish.c, fill_mesh): its leaf triangles a
+ * piece at a time, and each vertex id's place in the snapshot. */
+typedef struct fill_scratch {
     mesh_qmesh_tri *buf;
     size_t buf_cap;
     uint32_t *local, *ids;
     size_t local_cap, ids_cap;
+} fill_scratch;
+
+/* The worker thread's; fill[1] is lent to the helper thread that fills the
+ * direct mesh beside it, for the length of cache_publish_snapshot. */
+typedef struct publish_scratch {
+    fill_scratch fill[2];
 } publish_scratch;
 
 /* Leaf triangles taken from a mesh at a time when publishing: the scratch stays
@@ -124,5 +132,7 @@ void cache_publish_commit(cache_worker *w);
 void cache_publish_failure(cache_worker *w, uint64_t generation, const char *msg);
 /* Frees a slot and every array behind it (NULL: nothing). */
 void cache_publish_store_free(snapshot_store *st);
+/* Frees the scratch's arrays (the worker thread, when it ends). */
+void cache_publish_scratch_free(publish_scratch *ps);
 
 #endif

@@ -41,7 +41,7 @@ static void fill_corners(cache_snapshot_corner *out, const mesh_qmesh *m, const 
 
 /* Appends the piece ps->buf[0..got) to ms as triangles count.. and vertices
  * *nv..: each vertex the first time a triangle uses it. */
-static lm_result append_piece(mesh_store *ms, publish_scratch *ps, int debug, const cache *c, const mesh_qmesh *m,
+static lm_result append_piece(mesh_store *ms, fill_scratch *ps, int debug, const cache *c, const mesh_qmesh *m,
                               size_t count, size_t got, uint32_t *nv, lm_error *err)
 {
     const size_t most = (size_t)*nv + 3 * got;
@@ -95,7 +95,7 @@ static void fit_array(void **p, size_t *cap, size_t used, size_t elem)
  * PUBLISH_PIECE triangles at a time. Without debug it does exactly what the
  * renderer needs: positions, values, scene triangles. */
 static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, const cache *c, const mesh_qmesh *m,
-                           publish_scratch *ps, lm_error *err)
+                           fill_scratch *ps, lm_error *err)
 {
     /* This slot already holds the mesh as it is (a slot is filled every third
      * publication, and one mesh often rests meanwhile: the indirect one while the
@@ -147,6 +147,38 @@ static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, c
     return LM_OK;
 }
 
+/* A mesh filled on a helper thread beside the worker's: the fills only read the
+ * cache (nothing writes it while a snapshot is made), and each writes its own
+ * slot arrays and scratch. A million-triangle scene's first snapshot, direct
+ * and indirect meshes of a million leaf triangles each, took 0.23 s on one core. */
+typedef struct fill_job {
+    mesh_store *ms;           /* written by the helper only */
+    cache_snapshot_mesh *sm;  /* written by the helper only */
+    int debug;
+    const cache *c;           /* read by both threads */
+    const mesh_qmesh *m;
+    fill_scratch *ps;         /* the helper's (publish_scratch.fill[1]) */
+    lm_result r;              /* the helper's result, read after the join */
+    lm_error err;
+} fill_job;
+
+static void *fill_main(void *arg)
+{
+    fill_job *job = arg;
+    job->r = fill_mesh(job->ms, job->sm, job->debug, job->c, job->m, job->ps, &job->err);
+    return NULL;
+}
+
+void cache_publish_scratch_free(publish_scratch *ps)
+{
+    for (int k = 0; k < 2; ++k) {
+        free(ps->fill[k].buf);
+        free(ps->fill[k].local);
+        free(ps->fill[k].ids);
+    }
+    memset(ps, 0, sizeof *ps);
+}
+
 /* publish_debug: every light's visibility mesh into snap.lights. */
 static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t light_count, publish_scratch *ps,
                                    lm_error *err)
@@ -162,7 +194,7 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
     }
     for (uint32_t l = 0; l < light_count; ++l) {
         lm_result r =
-            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, c, cache_light_mesh(c, l), ps, err);
+            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, c, cache_light_mesh(c, l), &ps->fill[0], err);
         if (r != LM_OK) return r;
     }
     st->snap.lights = st->light_snap;
@@ -177,12 +209,21 @@ lm_result cache_publish_snapshot(cache_worker *w, cache *c, const cache_estimate
     snapshot_store *st = w->back;
     st->snap.first_rounds_seconds = w->first_rounds_seconds;
     st->snap.first_publish_seconds = w->first_publish_seconds;
-    lm_result r = fill_mesh(&st->mesh[0], &st->snap.direct, debug, c, cache_direct_mesh(c), ps, err);
-    if (r == LM_OK)
-        r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), ps, err);
+    /* The direct mesh on a helper thread, the others on this one. */
+    fill_job job = {.ms = &st->mesh[0], .sm = &st->snap.direct, .debug = debug, .c = c, .m = cache_direct_mesh(c),
+                    .ps = &ps->fill[1], .r = LM_OK};
+    pthread_t helper;
+    const int helped = pthread_create(&helper, NULL, fill_main, &job) == 0;
+    if (!helped) fill_main(&job);
+    lm_result r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), &ps->fill[0], err);
     if (r == LM_OK && cache_specular_mesh(c))
-        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, c, cache_specular_mesh(c), ps, err);
+        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, c, cache_specular_mesh(c), &ps->fill[0], err);
     if (!cache_specular_mesh(c)) st->snap.specular = (cache_snapshot_mesh){0};
+    if (helped) pthread_join(helper, NULL);
+    if (r == LM_OK && job.r != LM_OK) {
+        *err = job.err;
+        r = job.r;
+    }
     if (r != LM_OK) return r;
     cache_get_stats(c, &st->snap.stats);
     st->snap.estimate = *estimate;
