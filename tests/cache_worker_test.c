@@ -167,7 +167,8 @@ static cache_worker *auto_worker(const scene *s, const uint32_t *pixels)
  * convergence, and the snapshots say so in their sampler's choice. */
 static void test_auto_deferred(const scene *s, const uint32_t *pixels)
 {
-    static const char before[] = "auto: Embree at its defaults until the first convergence, calibrated then";
+    static const char before[] = "auto: Embree with 576 gather rays until the first convergence, then at its defaults, "
+                                 "calibrated then";
     cache_worker *w = auto_worker(s, pixels);
     const cache_snapshot *snap = NULL;
     uint64_t gen = 0, refined_before = 0;

@@ -264,6 +264,13 @@ void cache_set_sampler(cache *c, samp_sampler *sp);
  * cache_refine calls, which gather the gathered values again and test the
  * borrowed ones (see coarse_gathers). */
 lm_result cache_regather_indirect(cache *c, lm_error *err);
+/* Flags for gathering again, by cache_refine a bounded number a call as above,
+ * every indirect value gathered at the plain count of its sampler (not the
+ * borrowed ones, nor those taken with more rays for their noise): after
+ * cache_set_sampler to a sampler with a larger plain count (the worker's start
+ * count giving way to Embree's default at the first convergence), they are the
+ * values whose noise is above what the new count allows. */
+lm_result cache_outdate_plain(cache *c, lm_error *err);
 /* The pixel counts given to cache_refine changed (a new view): every mesh's
  * leaves are scheduled again by the new priorities at the next cache_refine. */
 lm_result cache_requeue(cache *c, lm_error *err);

@@ -886,6 +886,18 @@ static lm_result outdate(cache *c, int gathered_only, lm_error *err)
 }
 
 lm_result cache_outdate_all(cache *c, lm_error *err) { return outdate(c, 0, err); }
+
+lm_result cache_outdate_plain(cache *c, lm_error *err)
+{
+    if (!c) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_outdate_plain: no cache");
+    const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
+    lm_result r = cache_grow_drift(&c->src, id_limit, err);
+    for (uint32_t vid = 0; r == LM_OK && vid < id_limit; ++vid)
+        if (mesh_qmesh_get_value(c->indirect, vid, NULL) == 1 && c->src.borrowed[vid] == 0.0f &&
+            c->src.gather_level[vid] == 0 && !c->src.outdated[vid])
+            r = cache_push_outdated(&c->src, vid, err);
+    return r;
+}
 lm_result cache_outdate_gathered(cache *c, lm_error *err) { return outdate(c, 1, err); }
 
 float cache_borrowed_de(const cache *c, uint32_t vid)

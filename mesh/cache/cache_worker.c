@@ -116,8 +116,20 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     if (sd.backend == SAMP_BACKEND_AUTO) {
         start.backend = SAMP_BACKEND_EMBREE;
         w->calibrate_later = 1;
+        /* Fewer rays a gather until the first convergence: the first image's
+         * values are all gathered again now, and with Embree's 1,024 rays the
+         * Veach door's picture stayed the quick start's until after 2 s in three
+         * runs of five (docs/cache.md, "The refining sampler's plain count"). */
+        if (!start.indirect_rays) {
+            start.indirect_rays = CACHE_WORKER_START_RAYS;
+            w->start_count = 1;
+        }
+        if (w->start_count)
+            snprintf(w->start_phrase, sizeof w->start_phrase, "Embree with %d gather rays", (int)CACHE_WORKER_START_RAYS);
+        else
+            snprintf(w->start_phrase, sizeof w->start_phrase, "Embree at its defaults");
         snprintf(w->calibration_note, sizeof w->calibration_note,
-                 "auto: Embree at its defaults until the first convergence, calibrated then");
+                 "auto: %s until the first convergence, then at its defaults, calibrated then", w->start_phrase);
     }
     if (r == LM_OK) r = samp_create(&start, sp, err);
     if (r == LM_OK) cache_set_sampler(*c, *sp);
@@ -164,6 +176,27 @@ static int gl_cannot_win(double gl_us, double embree_us)
     return gl_us >= 0.0 && gl_us > CHECK_SLOWER * embree_us;
 }
 
+/* At the first convergence (AUTO, refining on past it): the start's plain count
+ * gives way to Embree's default, which the deferred calibration then judges as
+ * before; worker_main has the values gathered with the start's count gathered
+ * again where the sampler kept takes more rays (Original's relMSE at 10 s was
+ * 20% higher without). */
+static lm_result leave_start_count(cache_worker *w, cache *c, samp_sampler **sp, lm_error *err)
+{
+    w->start_count = 0;
+    samp_desc d = w->desc.sampler;
+    d.scene = w->s;
+    if (!d.rt) d.rt = w->rt;
+    d.backend = SAMP_BACKEND_EMBREE;
+    samp_sampler *next = NULL;
+    lm_result r = samp_create(&d, &next, err);
+    if (r != LM_OK) return r;
+    cache_set_sampler(c, next);
+    samp_destroy(*sp);
+    *sp = next;
+    return LM_OK;
+}
+
 /* The deferred calibration (AUTO, at the first convergence): a calibrated sampler
  * that picks what the running Embree sampler is (both back ends Embree, the same
  * gather rays) is dropped; another replaces it, the Embree one kept as fallback.
@@ -185,16 +218,16 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
         char path[512];
         samp_record_path(path, sizeof path);
         snprintf(w->calibration_note, sizeof w->calibration_note,
-                 "auto: Embree at its defaults, not calibrated: GL's cheapest on this machine (%.1f / %.1f us a direct "
+                 "auto: %.60s until the first convergence, then at its defaults, not calibrated: GL's cheapest on this machine (%.1f / %.1f us a direct "
                  "/ indirect point, kept in %.200s) is over %.1fx Embree's here (%.1f / %.1f): kept",
-                 kept.direct_us, kept.indirect_us, path, CHECK_SLOWER, embree_us[0], embree_us[1]);
+                 w->start_phrase, kept.direct_us, kept.indirect_us, path, CHECK_SLOWER, embree_us[0], embree_us[1]);
         return;
     }
     samp_sampler *cal = NULL;
     lm_error why;
     if (samp_create(&sd, &cal, &why) != LM_OK) { /* refinement goes on with what it has */
         snprintf(w->calibration_note, sizeof w->calibration_note,
-                 "auto: Embree at its defaults; the calibration after the first convergence failed (%.300s): kept",
+                 "auto: %.60s until the first convergence, then at its defaults; the calibration failed (%.300s): kept", w->start_phrase,
                  why.msg);
         return;
     }
@@ -204,7 +237,7 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
     if (cs.backend == SAMP_BACKEND_EMBREE && cs.indirect_backend == SAMP_BACKEND_EMBREE &&
         samp_indirect_rays(cal) == samp_indirect_rays(*sp)) {
         snprintf(w->calibration_note, sizeof w->calibration_note,
-                 "auto: Embree at its defaults until the first convergence; then %.300s: the same, kept", cs.choice);
+                 "auto: %.60s until the first convergence; then %.300s: the same, kept", w->start_phrase, cs.choice);
         samp_destroy(cal);
         return;
     }
@@ -215,7 +248,7 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
     cache_set_sampler(c, cal);
     snprintf(w->calibrated_choice, sizeof w->calibrated_choice, "%s", cs.choice);
     snprintf(w->calibration_note, sizeof w->calibration_note,
-             "auto: Embree at its defaults until the first convergence; then %.300s: in use, on trial", cs.choice);
+             "auto: %.60s until the first convergence; then %.300s: in use, on trial", w->start_phrase, cs.choice);
 }
 
 /* The calibrated sampler's cost on the cache's own samples against the Embree
@@ -232,9 +265,9 @@ static void calibrated_check(cache_worker *w, cache *c, samp_sampler **sp)
     for (int k = 0; k < 2; ++k)
         slower |= now[k] > 0.0 && w->fallback_cost[k] > 0.0 && now[k] > CHECK_SLOWER * w->fallback_cost[k];
     snprintf(w->calibration_note, sizeof w->calibration_note,
-             "auto: Embree at its defaults until the first convergence; then %.300s; on the cache's samples %.1f / "
+             "auto: %.60s until the first convergence; then %.280s; on the cache's samples %.1f / "
              "%.1f us a direct / indirect point against Embree's %.1f / %.1f: %s",
-             w->calibrated_choice, 1e6 * now[0], 1e6 * now[1], 1e6 * w->fallback_cost[0], 1e6 * w->fallback_cost[1],
+             w->start_phrase, w->calibrated_choice, 1e6 * now[0], 1e6 * now[1], 1e6 * w->fallback_cost[0], 1e6 * w->fallback_cost[1],
              slower ? "slower, back to Embree" : "kept");
     if (slower) {
         cache_set_sampler(c, w->fallback);
@@ -411,7 +444,16 @@ static void *worker_main(void *arg)
         /* After the snapshot of the first convergence, when refinement goes on past
          * it (tighten): AUTO's deferred calibration. A worker that stops there
          * never calibrates: the Embree sampler did the whole job. */
-        if (r == LM_OK && w->calibrate_later && tighten) calibrate_now(w, c, &sp);
+        if (r == LM_OK && w->calibrate_later && tighten) {
+            const int from_start = w->start_count;
+            if (from_start) r = leave_start_count(w, c, &sp, &err);
+            if (r == LM_OK) calibrate_now(w, c, &sp);
+            /* The values of the start's count gathered again where the sampler
+             * now refining takes more rays (the calibration may pick fewer: Water's
+             * 144, and those values are then the better ones). */
+            if (r == LM_OK && from_start && samp_indirect_rays(sp) > CACHE_WORKER_START_RAYS)
+                r = cache_outdate_plain(c, &err);
+        }
     }
     if (r != LM_OK) cache_publish_failure(w, ++generation, err.msg);
     cache_publish_scratch_free(&ps);

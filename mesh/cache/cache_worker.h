@@ -43,6 +43,9 @@ extern "C" {
 
 enum {
     CACHE_WORKER_QUICK_RAYS = 64, /* gather rays per coarse vertex for the first snapshot (then gathered again) */
+    CACHE_WORKER_START_RAYS = 576, /* AUTO, no count asked: the plain gather count until the first convergence,
+                                      then Embree's default (1,024) and the values taken with it gathered
+                                      again (docs/cache.md, "The refining sampler's plain count") */
     CACHE_WORKER_FIRST_GATHERS = 128, /* most indirect gathers before the first snapshot (cache_desc.coarse_gathers;
                                          1,024, then 512 before: docs/cache.md has each measured) */
     CACHE_WORKER_FIRST_LIGHT_CORNERS = 1024 /* most corners sampled for light before it (cache_desc.coarse_lights;

@@ -111,6 +111,8 @@ struct cache_worker {
      * Embree sampler it replaced, kept until the calibrated one has shown its cost
      * on the cache's own samples (calibrated_check). */
     int calibrate_later;
+    int start_count;                  /* the running sampler gathers with CACHE_WORKER_START_RAYS */
+    char start_phrase[96];            /* AUTO: how refinement started, for the notes below */
     samp_sampler *fallback;
     double fallback_cost[2];          /* seconds per direct / indirect point of the fallback; 0: none */
     char calibration_note[512];       /* AUTO: the snapshots' sampler choice (what was decided, and why) */
