@@ -984,6 +984,22 @@ static scene *load_sphere(const char *name, double R, double rho, double ks, dou
  * and auto must stop within the JND of the whole sum ρ·I/R²/(1 − ρ). The
  * icosphere's flat facets move both by at most a known relative bound
  * (test_write_icosphere). */
+/* Refines c by pixels (64 a triangle of s) until nothing is left, at most 50
+ * calls of 4,096 leaves; the last call's result. */
+static cache_refine_result refine_sphere(cache *c, const scene *s)
+{
+    cache_refine_result res = {0};
+    lm_error err;
+    uint32_t *pixels = malloc(s->tri_count * sizeof *pixels);
+    for (uint32_t t = 0; pixels && t < s->tri_count; ++t) pixels[t] = 64;
+    for (int i = 0; i < 50 && c && pixels; ++i) {
+        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 4096}, &res, &err) == LM_OK);
+        if (res.remaining == 0) break;
+    }
+    free(pixels);
+    return res;
+}
+
 static void test_sphere_indirect(int bounces)
 {
     const double R = 2.0, rho = 0.5, I = 3.0;
@@ -996,13 +1012,7 @@ static void test_sphere_indirect(int bounces)
     CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 1024}, &sp, &err) ==
           LM_OK);
     CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp, .bounces = bounces, .jnd = 1.0f}, &c, &err) == LM_OK);
-    uint32_t *pixels = malloc(s->tri_count * sizeof *pixels);
-    for (uint32_t t = 0; t < s->tri_count; ++t) pixels[t] = 64;
-    cache_refine_result res = {0};
-    for (int i = 0; i < 50 && c; ++i) {
-        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 4096}, &res, &err) == LM_OK);
-        if (res.remaining == 0) break;
-    }
+    cache_refine_result res = refine_sphere(c, s);
     lm_rng g;
     lm_rng_seed(&g, 8, 0, 0);
     cache_stats st;
@@ -1054,7 +1064,6 @@ static void test_sphere_indirect(int bounces)
         CHECK_MSG(de <= 1.0f, "auto is ΔE %.3f from the whole series", (double)de);
         CHECK(shown > 2);
     }
-    free(pixels);
     cache_destroy(c);
     samp_destroy(sp);
     scene_destroy(s);
@@ -1164,23 +1173,14 @@ static void test_outdate_plain(void)
     CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 1024, .seed = 4},
                       &many, &err) == LM_OK);
     CHECK(cache_create(&(cache_desc){.scene = s, .sampler = few, .jnd = 4.0f}, &c, &err) == LM_OK);
-    uint32_t *pixels = malloc(s->tri_count * sizeof *pixels);
-    for (uint32_t t = 0; t < s->tri_count; ++t) pixels[t] = 64;
-    cache_refine_result res = {0};
-    for (int i = 0; i < 50 && c; ++i) {
-        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 4096}, &res, &err) == LM_OK);
-        if (res.remaining == 0) break;
-    }
+    cache_refine_result res = refine_sphere(c, s);
     const double want = rho * I / (R * R);
     cache_stats before, after;
     if (c) cache_get_stats(c, &before);
     const double rms_few = c ? sphere_ei_rms(c, s, want) : 0.0;
     if (c) cache_set_sampler(c, many);
     CHECK(c && cache_outdate_plain(c, &err) == LM_OK);
-    for (int i = 0; i < 50 && c; ++i) {
-        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 4096}, &res, &err) == LM_OK);
-        if (res.remaining == 0) break;
-    }
+    res = refine_sphere(c, s);
     if (c) cache_get_stats(c, &after);
     const double rms_many = c ? sphere_ei_rms(c, s, want) : 0.0;
     const uint64_t values = c ? before.indirect.mesh.vertices_sampled : 0, again = c ? after.regathered - before.regathered : 0;
@@ -1193,7 +1193,6 @@ static void test_outdate_plain(void)
     /* The rms holds the facets' deterministic error too (a uniform source gives
      * the gathers little noise): it falls, by less than the noise's 4x. */
     CHECK_MSG(rms_many < 0.8 * rms_few, "rms %.4f after, %.4f before", rms_many, rms_few);
-    free(pixels);
     cache_destroy(c);
     samp_destroy(few);
     samp_destroy(many);
