@@ -7,7 +7,6 @@
  * moved values through the cache_changed_fn it passes). Worker thread, like the
  * rest of the cache. */
 #include "mesh/cache/cache_internal.h"
-#include "src/base/util.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -125,7 +125,8 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
             w->start_count = 1;
         }
         if (w->start_count)
-            snprintf(w->start_phrase, sizeof w->start_phrase, "Embree with %d gather rays", (int)CACHE_WORKER_START_RAYS);
+            snprintf(w->start_phrase, sizeof w->start_phrase, "Embree with %d gather rays",
+                     (int)CACHE_WORKER_START_RAYS);
         else
             snprintf(w->start_phrase, sizeof w->start_phrase, "Embree at its defaults");
         snprintf(w->calibration_note, sizeof w->calibration_note,
@@ -218,8 +219,9 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
         char path[512];
         samp_record_path(path, sizeof path);
         snprintf(w->calibration_note, sizeof w->calibration_note,
-                 "auto: %.60s until the first convergence, then at its defaults, not calibrated: GL's cheapest on this machine (%.1f / %.1f us a direct "
-                 "/ indirect point, kept in %.200s) is over %.1fx Embree's here (%.1f / %.1f): kept",
+                 "auto: %.60s until the first convergence, then at its defaults, not calibrated: GL's cheapest on "
+                 "this machine (%.1f / %.1f us a direct / indirect point, kept in %.200s) is over %.1fx Embree's here "
+                 "(%.1f / %.1f): kept",
                  w->start_phrase, kept.direct_us, kept.indirect_us, path, CHECK_SLOWER, embree_us[0], embree_us[1]);
         return;
     }
@@ -227,8 +229,8 @@ static void calibrate_now(cache_worker *w, cache *c, samp_sampler **sp)
     lm_error why;
     if (samp_create(&sd, &cal, &why) != LM_OK) { /* refinement goes on with what it has */
         snprintf(w->calibration_note, sizeof w->calibration_note,
-                 "auto: %.60s until the first convergence, then at its defaults; the calibration failed (%.300s): kept", w->start_phrase,
-                 why.msg);
+                 "auto: %.60s until the first convergence, then at its defaults; the calibration failed (%.300s): kept",
+                 w->start_phrase, why.msg);
         return;
     }
     samp_stats cs, run;
@@ -267,8 +269,8 @@ static void calibrated_check(cache_worker *w, cache *c, samp_sampler **sp)
     snprintf(w->calibration_note, sizeof w->calibration_note,
              "auto: %.60s until the first convergence; then %.280s; on the cache's samples %.1f / "
              "%.1f us a direct / indirect point against Embree's %.1f / %.1f: %s",
-             w->start_phrase, w->calibrated_choice, 1e6 * now[0], 1e6 * now[1], 1e6 * w->fallback_cost[0], 1e6 * w->fallback_cost[1],
-             slower ? "slower, back to Embree" : "kept");
+             w->start_phrase, w->calibrated_choice, 1e6 * now[0], 1e6 * now[1], 1e6 * w->fallback_cost[0],
+             1e6 * w->fallback_cost[1], slower ? "slower, back to Embree" : "kept");
     if (slower) {
         cache_set_sampler(c, w->fallback);
         samp_destroy(*sp);
