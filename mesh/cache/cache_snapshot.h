@@ -89,6 +89,11 @@ typedef struct cache_snapshot {
     double first_publish_seconds; /* the first image's estimate and snapshot; 0 in the first snapshot
                                      itself (measured as it is made) */
     uint64_t tested;             /* leaves tested so far */
+    uint32_t owed;               /* indirect values still to be gathered again when it was made (the first
+                                    image's, or ones a rebuilt source moved); the quick start's first
+                                    snapshot: 1 (all of them are). A client may hold back work that would
+                                    share the cores until the first image's are done (`converge` and
+                                    `render` start their residual then) */
     int converged;               /* nothing was left to do and the estimate was below the cache's JND
                                     (cache_desc.jnd, cache_estimate_converged) when it was made, or
                                     earlier since the last edit or view (the worker then refines on

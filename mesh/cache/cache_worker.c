@@ -91,6 +91,7 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     if (r == LM_OK)
         r = cache_publish_snapshot(w, *c, &w->estimate, debug, ++*generation, w->first_tested, 0, ps, err);
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);
+    w->back->snap.owed = w->desc.no_quick_start ? 0 : 1; /* every value is gathered again next */
     w->first_publish_seconds = lm_now_seconds() - t;
     if (r == LM_OK) cache_publish_commit(w);
     /* A client that paused before it (the viewer, until it has drawn it) has the
@@ -423,6 +424,7 @@ static void *worker_main(void *arg)
             const double t0 = lm_now_seconds();
             r = cache_publish_snapshot(w, c, &w->estimate, debug, ++generation, tested, reached, &ps, &err);
             w->back->snap.finished = idle && !tighten;
+            w->back->snap.owed = owed;
             w->back->snap.converged_at = reached ? reached_at : 0;
             if (r == LM_OK) samp_get_stats(sp, &w->back->snap.sampler);
             if (r == LM_OK && w->calibration_note[0]) { /* AUTO, deferred: what happened, not "asked for" */

@@ -310,9 +310,14 @@ static lm_result run_lumesh(conv_ctx *c, const rend_session_desc *sd, double t0,
             if (interrupted || ar != LM_OK || (snap && snap->finished)) break;
             double now = clock_of(c, t0);
             if (now >= row->target) break;
-            if (snap && c->residual) {
+            if (snap && c->residual && (res || !snap->owed)) {
                 /* Beside the refining worker, in the background, until the
-                 * snapshot's time; then the latest snapshot is taken. */
+                 * snapshot's time; then the latest snapshot is taken. Not
+                 * before the first image's values are gathered again: until then
+                 * the picture is the quick start's, which its first samples cannot
+                 * correct yet, and the worker's regathers decide when it changes
+                 * (the Veach door's 2 s row: docs/cache.md, "The refining sampler's
+                 * plain count"). */
                 if (!res && (ar = residual_make(c, &res, err)) != LM_OK) break;
                 rend_residual_run(res, &interrupted, t0 + c->stopped + row->target);
                 continue;

@@ -72,7 +72,10 @@ typedef struct render_progress {
 static void show_progress(void *user, const cache_snapshot *snap)
 {
     render_progress *p = user;
-    rend_residual *rr = p->residual && snap && !snap->failed ? residual_for(p->residual, snap) : NULL;
+    /* Not before the first image's values are gathered again (cache_snapshot.owed). */
+    rend_residual *rr = p->residual && snap && !snap->failed && (p->residual->rr || !snap->owed)
+                            ? residual_for(p->residual, snap)
+                            : NULL;
     /* A slice of background passes: the wait looks at the worker again after it. */
     if (rr) rend_residual_run(rr, NULL, fmin(p->residual->until, lm_now_seconds() + 0.1));
     double now = lm_now_seconds();
