@@ -172,12 +172,13 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
     cache_worker *w = auto_worker(s, pixels);
     const cache_snapshot *snap = NULL;
     uint64_t gen = 0, refined_before = 0;
-    int wrong_before = 0, calibrated = 0;
+    int wrong_before = 0, calibrated = 0, first_owed = -1;
     double t0 = lm_now_seconds();
     while (w && lm_now_seconds() - t0 < 120.0) {
         snap = wait_newer(w, gen);
         if (!snap || snap->failed) break;
         gen = snap->generation;
+        if (gen == 1) first_owed = (int)snap->owed; /* the quick start's: every value is gathered again */
         if (!snap->converged && snap->tested > 0) { /* refining, not yet converged: Embree, no calibration */
             refined_before = snap->tested;
             wrong_before += snap->sampler.backend != SAMP_BACKEND_EMBREE || strcmp(snap->sampler.choice, before) != 0;
@@ -188,6 +189,9 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
     printf("auto, deferred: %llu leaves tested before converging, with Embree; then: %s\n",
            (unsigned long long)refined_before, snap ? snap->sampler.choice : "(no snapshot)");
     CHECK(snap && snap->finished && !snap->failed && snap->jnd == 1.0f);
+    printf("auto, deferred: the first snapshot owes %d\n", first_owed);
+    CHECK_MSG(first_owed == -1 || first_owed == 1, "the first snapshot owes %d", first_owed);
+    CHECK_MSG(snap && snap->owed == 0, "the finished snapshot owes %u", snap ? snap->owed : 0u);
     CHECK(refined_before > 0 && wrong_before == 0);
     CHECK_MSG(calibrated, "no calibration after converging: %s", snap ? snap->sampler.choice : "");
     cache_worker_destroy(w);
