@@ -1199,6 +1199,62 @@ static void test_outdate_plain(void)
     scene_destroy(s);
 }
 
+/* A value flagged by a rebuild of the source (cache_outdate_all here) is
+ * gathered again with the rays it had: half the sphere's values taken once more
+ * with 4x the rays (cache_regather_finer) keep that level through
+ * cache_regather_outdated, the rest stay at the plain count. Gathered again at
+ * the plain count, the slot's worst receiver swung between 5% and 32% while the
+ * source refined (docs/cache.md, "Drifted values keep their rays"). */
+static void test_outdated_keep_rays(void)
+{
+    const double R = 2.0, rho = 0.5, I = 3.0;
+    double bias;
+    scene *s = load_sphere("cache_sphere_keep", R, rho, 0.0, 1.0, I, &bias);
+    lm_error err;
+    if (!s) return;
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 64, .seed = 3}, &sp,
+                      &err) == LM_OK);
+    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp, .jnd = 4.0f}, &c, &err) == LM_OK);
+    if (!c) {
+        samp_destroy(sp);
+        scene_destroy(s);
+        return;
+    }
+    refine_sphere(c, s);
+    const uint32_t limit = mesh_vtable_id_limit(c->vt);
+    uint32_t *vids = malloc(limit * sizeof *vids), n = 0;
+    float *E = malloc(3 * (size_t)limit * sizeof *E);
+    for (uint32_t v = 0; vids && v < limit; ++v)
+        if (mesh_qmesh_get_value(c->indirect, v, NULL) == 1) vids[n++] = v;
+    CHECK(vids && E && n > 16);
+    if (vids && E && n > 16) {
+        uint32_t finer = n / 2, kept = 0, plain = 0;
+        CHECK(cache_regather_finer(c, vids, finer, E, &err) == LM_OK);
+        for (uint32_t i = 0; i < finer; ++i) CHECK(mesh_qmesh_set_value(c->indirect, vids[i], E + 3 * (size_t)i, &err) == LM_OK);
+        cache_stats before, after;
+        cache_get_stats(c, &before);
+        CHECK(cache_outdate_all(c, &err) == LM_OK);
+        CHECK(cache_regather_outdated(c, NULL, NULL, NULL, &err) == LM_OK);
+        cache_get_stats(c, &after);
+        for (uint32_t i = 0; i < n; ++i) {
+            kept += i < finer && cache_gather_level(c, vids[i]) == 1;
+            plain += i >= finer && cache_gather_level(c, vids[i]) == 0;
+        }
+        printf("outdated keep their rays: %u of %u values at 4x the rays after the regather, %u of %u at the plain "
+               "count; %llu gathered again\n",
+               kept, finer, plain, n - finer, (unsigned long long)(after.regathered - before.regathered));
+        CHECK(after.regathered - before.regathered == n);
+        CHECK_MSG(kept == finer && plain == n - finer, "%u of %u kept 4x, %u of %u plain", kept, finer, plain, n - finer);
+    }
+    free(vids);
+    free(E);
+    cache_destroy(c);
+    samp_destroy(sp);
+    scene_destroy(s);
+}
+
 static void test_sphere_glossy(int bounces)
 {
     const double R = 2.0, rho = 0.5, I = 3.0, ks = 0.3, n = 2.0;
@@ -1673,6 +1729,7 @@ int main(void)
     test_sphere_indirect(4);
     test_sphere_indirect(CACHE_BOUNCES_AUTO);
     test_outdate_plain();
+    test_outdated_keep_rays();
     test_sphere_glossy(1);
     test_sphere_glossy(2);
     test_room_bounces(0.05f, 1, 1);

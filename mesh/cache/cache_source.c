@@ -436,6 +436,19 @@ lm_result cache_settle_source(cache *c, lm_error *err)
  * pilot found no light at all. Elsewhere the stratified cosine rays are better. */
 #define GATHER_GAP_RATIO 4.0
 enum { GATHER_SCALE = 4, GATHER_FINER_LEVELS = 4 };
+/* A gather finer than the plain count that goes toward the source is guided by a
+ * pilot of its own with as many rays as it (k × k strata, k a power of two, at
+ * most GUIDE_K_MAX), not by the 16 × 16 one every gather traces: a slit fills
+ * a handful of the coarse strata, and only in part (samp_guide_mass dilates
+ * each by its neighbours), so most guided rays met the wall beside it. The
+ * slot's receivers, 32 gathers each, variance summed against the coarse guide,
+ * and rays a value counting the pilot (docs/cache.md, "Finer gathers, finer
+ * guides"): 1,024-ray gathers 0.31 (k = 32) and 0.12 (k = 64); 4,096-ray 0.32
+ * and 0.14; 16,384-ray 0.35 and 0.16, so the pilot's rays pay for themselves
+ * 2-5 times over. Not at the plain count: there it would double the rays of the
+ * first regathers, whose time decides the Veach door's 2 s picture. */
+enum { CACHE_PILOT_K = 16, GUIDE_K_MAX = 64, GUIDE_RAYS_MAX = GUIDE_K_MAX * GUIDE_K_MAX, GUIDE_BATCH = 64 };
+_Static_assert(CACHE_IMPORTANCE_RAYS == CACHE_PILOT_K * CACHE_PILOT_K, "the pilot's strata: k × k rays");
 
 void cache_indirect_likely_sigma(const cache *c, uint32_t vid, float out[3])
 {
@@ -546,14 +559,10 @@ static float gather_sigma(double var, double strat, double N)
  * samples, so where light fills part of a stratum it errs low: the value kept is
  * never below the gather's own sample error (gather_chunk_levels). Mirrors
  * samp_embree.c's guide_picks_make. */
-static void pilot_guided_var(const cache *c, uint32_t i, const float e[3], double var[3])
+static void pilot_guided_var(const cache *c, const float *y, int k, const float e[3], double var[3])
 {
-    const cache_source_state *st = &c->src;
-    enum { RAYS = CACHE_IMPORTANCE_RAYS };
-    const int k = (int)lround(sqrt((double)RAYS));
-    _Static_assert(RAYS == 256, "the guide's strata: a square number of pilot rays");
-    const float *y = st->pilot_stratum + (size_t)i * RAYS;
-    double mass[RAYS], total = 0.0;
+    const int RAYS = k * k;
+    double mass[GUIDE_RAYS_MAX], total = 0.0;
     for (int b = 0; b < k; ++b)
         for (int a = 0; a < k; ++a) {
             mass[b * k + a] = samp_guide_mass(y, k, a, b);
@@ -567,7 +576,7 @@ static void pilot_guided_var(const cache *c, uint32_t i, const float e[3], doubl
     /* The split of the plain count (finer counts split as the shares say). */
     const uint32_t rays = samp_indirect_rays(c->sp);
     int kc, ng, npw;
-    samp_toward_split(rays ? (int)lround(sqrt((double)rays)) : k, 1, 1, &kc, &ng, &npw);
+    samp_toward_split(rays ? (int)lround(sqrt((double)rays)) : CACHE_PILOT_K, 1, 1, &kc, &ng, &npw);
     const double all = (double)kc * kc + ng + npw, fc = kc * kc / all, fg = ng / all;
     double m1c = 0, m2c = 0, m1g = 0, m2g = 0;
     for (int q = 0; q < RAYS; ++q) {
@@ -589,10 +598,71 @@ typedef struct gather_chunk {
     uint32_t m0;
     uint8_t *level, *toward;
     float *predicted, *likely; /* RGB a point */
+    float *mean;               /* RGB a point: the pilot's E (pilot_moments) */
     uint32_t *pick;
     samp_point *lpts;
     float *lE, *lsig;
+    /* A finer gather's own guide (GUIDE_BATCH points of GUIDE_RAYS_MAX rays;
+     * allocated when first needed): the pilot's hits, strata and rows. */
+    uint32_t *gcount, *gtri, *grow;
+    float *gweight, *gstratum;
 } gather_chunk;
+
+/* The guide's strata per side for a gather of N rays at level lv: the coarse
+ * pilot's at the plain count, else the largest power of two whose square is at
+ * most N, up to GUIDE_K_MAX. */
+static int guide_k(int lv, double N)
+{
+    int k = CACHE_PILOT_K;
+    while (lv > 0 && k < GUIDE_K_MAX && (double)(2 * k) * (2 * k) <= N) k *= 2;
+    return k;
+}
+
+/* Points [j0, j1) of a level's picks (g->lpts, g->pick) gathered with N rays,
+ * those toward the source guided by a pilot of k × k rays of their own, whose
+ * prediction of their noise replaces the coarse pilot's (g->predicted, g->likely). */
+static lm_result guide_finer(cache *c, gather_chunk *g, uint32_t j0, uint32_t j1, int k, double N, uint32_t scale,
+                             lm_error *err)
+{
+    const uint32_t rays = (uint32_t)(k * k);
+    if (!g->gstratum) {
+        g->gcount = malloc(GUIDE_BATCH * sizeof *g->gcount);
+        g->grow = malloc(GUIDE_BATCH * sizeof *g->grow);
+        g->gtri = malloc((size_t)GUIDE_BATCH * GUIDE_RAYS_MAX * sizeof *g->gtri);
+        g->gweight = malloc((size_t)GUIDE_BATCH * GUIDE_RAYS_MAX * sizeof *g->gweight);
+        g->gstratum = malloc((size_t)GUIDE_BATCH * GUIDE_RAYS_MAX * sizeof *g->gstratum);
+        if (!g->gcount || !g->grow || !g->gtri || !g->gweight || !g->gstratum)
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory guiding indirect gathers");
+    }
+    samp_point pts[GUIDE_BATCH];
+    uint32_t t = 0;
+    for (uint32_t j = j0; j < j1; ++j) {
+        g->grow[j - j0] = 0;
+        if (!g->lpts[j].toward_source) continue;
+        g->grow[j - j0] = t;
+        pts[t++] = g->lpts[j];
+    }
+    lm_result r = t ? samp_indirect_sources(c->sp, &c->src.rmesh, pts, t,
+                                            &(samp_source_hits){.rays = rays, .count = g->gcount, .tri = g->gtri,
+                                                                .weight = g->gweight, .stratum = g->gstratum},
+                                            err)
+                    : LM_OK;
+    c->effort += (uint64_t)t * rays;
+    for (uint32_t j = j0; r == LM_OK && j < j1; ++j) {
+        if (!g->lpts[j].toward_source) continue;
+        const uint32_t i = g->pick[j];
+        double var[3];
+        pilot_guided_var(c, g->gstratum + (size_t)g->grow[j - j0] * rays, k, g->mean + 3 * (size_t)i, var);
+        if (!(var[0] + var[1] + var[2] > 0.0)) continue; /* the pilot saw nothing: the coarse prediction stays */
+        for (int ch = 0; ch < 3; ++ch)
+            g->predicted[3 * (size_t)i + (size_t)ch] = g->likely[3 * (size_t)i + (size_t)ch] = (float)sqrt(var[ch] / N);
+    }
+    const samp_guide guide = {.rays = rays, .stratum = g->gstratum, .index = g->grow};
+    if (r == LM_OK)
+        r = samp_indirect_guided(c->sp, &c->src.rmesh, g->lpts + j0, j1 - j0, 0, scale, &guide, g->lE + 3 * (size_t)j0,
+                                 g->lsig + 3 * (size_t)j0, err);
+    return r;
+}
 
 /* Gathers the chunk's points at their levels, guided by the chunk's pilot;
  * stores E, σ and the level. */
@@ -610,8 +680,12 @@ static lm_result gather_chunk_levels(cache *c, gather_chunk *g, float *E, lm_err
                 g->lpts[m++].toward_source = g->toward[i];
             }
         if (m == 0) continue;
-        r = samp_indirect_guided(c->sp, &c->src.rmesh, g->lpts, m, 0, (uint32_t)pow(GATHER_SCALE, lv), &guide,
-                                 g->lE, g->lsig, err);
+        const uint32_t scale = (uint32_t)pow(GATHER_SCALE, lv);
+        const int k = rays ? guide_k(lv, (double)rays * scale) : CACHE_PILOT_K;
+        if (k == CACHE_PILOT_K)
+            r = samp_indirect_guided(c->sp, &c->src.rmesh, g->lpts, m, 0, scale, &guide, g->lE, g->lsig, err);
+        for (uint32_t j0 = 0; k != CACHE_PILOT_K && r == LM_OK && j0 < m; j0 += GUIDE_BATCH)
+            r = guide_finer(c, g, j0, j0 + GUIDE_BATCH < m ? j0 + GUIDE_BATCH : m, k, (double)rays * scale, scale, err);
         c->effort += (uint64_t)m * (rays ? rays : CACHE_GL_GATHER_RAYS) * (uint64_t)pow(GATHER_SCALE, lv);
         for (uint32_t j = 0; r == LM_OK && j < m; ++j) {
             const uint32_t i = g->pick[j], vid = g->vids[i];
@@ -648,10 +722,10 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
     const uint32_t cn = n < CACHE_PILOT_CHUNK ? (n ? n : 1) : CACHE_PILOT_CHUNK;
     gather_chunk g = {.level = calloc(cn, 1), .toward = calloc(cn, 1),
                       .predicted = malloc(3 * (size_t)cn * sizeof(float)), .likely = malloc(3 * (size_t)cn * sizeof(float)),
-                      .pick = malloc(cn * sizeof(uint32_t)),
+                      .mean = malloc(3 * (size_t)cn * sizeof(float)), .pick = malloc(cn * sizeof(uint32_t)),
                       .lpts = malloc(cn * sizeof(samp_point)), .lE = malloc(3 * (size_t)cn * sizeof(float)),
                       .lsig = malloc(3 * (size_t)cn * sizeof(float))};
-    if (!g.level || !g.toward || !g.predicted || !g.likely || !g.pick || !g.lpts || !g.lE || !g.lsig)
+    if (!g.level || !g.toward || !g.predicted || !g.likely || !g.mean || !g.pick || !g.lpts || !g.lE || !g.lsig)
         r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
     for (uint32_t at = 0; r == LM_OK && at < n; at += CACHE_PILOT_CHUNK) {
         g.m0 = n - at < CACHE_PILOT_CHUNK ? n - at : CACHE_PILOT_CHUNK;
@@ -663,10 +737,11 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
             float e[3];
             double var[3], strat[3];
             pilot_moments(c, i, e, var, strat);
+            memcpy(g.mean + 3 * (size_t)i, e, sizeof e);
             const double esum = (double)e[0] + e[1] + e[2], vsum = var[0] + var[1] + var[2];
             g.toward[i] = !(esum > 0.0) || vsum > GATHER_GAP_RATIO * esum * esum;
             if (g.toward[i] && esum > 0.0) { /* guided: its own variance, for every count */
-                pilot_guided_var(c, i, e, var);
+                pilot_guided_var(c, c->src.pilot_stratum + (size_t)i * CACHE_IMPORTANCE_RAYS, CACHE_PILOT_K, e, var);
                 memcpy(strat, var, sizeof strat);
             }
             const int asked = min_level ? min_level[at + i] : 0;
@@ -686,8 +761,14 @@ static lm_result gather_displayed(cache *c, const uint32_t *vids, const samp_poi
     free(g.toward);
     free(g.predicted);
     free(g.likely);
+    free(g.mean);
     free(g.pick);
     free(g.lpts);
+    free(g.gcount);
+    free(g.grow);
+    free(g.gtri);
+    free(g.gweight);
+    free(g.gstratum);
     free(g.lE);
     free(g.lsig);
     return r;
@@ -821,7 +902,13 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
             if (mesh_qmesh_get_value(c->indirect, vid, tmp) == 1) ids[n++] = vid;
         }
         if (n == 0) continue;
-        r = cache_sample_indirect(c, ids, n, E, err);
+        /* With the rays each had: a value taken finer for its noise and gathered
+         * again at the plain count would come back with the noise the
+         * estimate had it taken again for, larger than the drift it was
+         * flagged for (the slot refined at JND 1: its worst receiver swung
+         * between 5% and 32% as the source's rebuilds undid the finer gathers;
+         * docs/cache.md, "Drifted values keep their rays"). */
+        r = cache_sample_indirect_like(c, ids, ids, n, E, err);
         if (allowance) *allowance -= n;
         uint32_t nm = 0;
         for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
