@@ -383,6 +383,78 @@ static void test_slot(void)
     scene_destroy(s);
 }
 
+/* ---- the first image's owed work waits for the source to settle --------------------- */
+
+/* The slot's rooms seen whole, with the quick start's budgets (cache_desc
+ * coarse_gathers, coarse_lights): after cache_regather_indirect the first
+ * image's values are owed. The far room's walls by the lamp are a few root
+ * triangles with a hot spot, so the first window of direct leaves moves the
+ * source's power by far more than the JND allows (cache_sched.owed_wait):
+ * while it does, a refine call of the worker's size gathers no owed value and
+ * tests direct leaves; once a window moves it less, the owed values are
+ * gathered, all of them, and refinement goes on. A caller that waits for the
+ * indirect values (wait_for_indirect) is not held. */
+static void test_owed_waits(void)
+{
+    static obj_buf o;
+    memset(&o, 0, sizeof o);
+    slot_rooms(&o);
+    scene *s = load("owed", &o,
+                    "{\"type\": \"quad\", \"corner\": [1.001, 0.6, 0.3], \"edge1\": [0, 0.3, 0], "
+                    "\"edge2\": [0, 0, 0.4], \"radiance\": [5000, 5000, 5000]}");
+    if (!s) return;
+    lm_error err;
+    uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
+    for (uint32_t t = 0; pixels && t < s->tri_count; ++t) pixels[t] = s->tris[t].light < 0 ? 2000 : 0;
+    for (int waits = 0; waits < 2; ++waits) {
+        samp_sampler *sp = NULL;
+        cache *c = NULL;
+        CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 64}, &sp, &err) ==
+              LM_OK);
+        CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp, .coarse_gathers = 16, .coarse_lights = 16}, &c,
+                           &err) == LM_OK);
+        if (!sp || !c || !pixels) {
+            cache_destroy(c);
+            samp_destroy(sp);
+            break;
+        }
+        CHECK(cache_init_seen(c, pixels, &err) == LM_OK);
+        CHECK(cache_regather_indirect(c, &err) == LM_OK);
+        cache_stats st0, st;
+        cache_get_stats(c, &st0);
+        cache_refine_result res = {0};
+        int held = 0, calls = 0;
+        uint64_t during = 0; /* indirect samples taken while held */
+        do {
+            cache_stats before;
+            cache_get_stats(c, &before);
+            CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = waits ? 512 : 64,
+                                                       .wait_for_indirect = !waits},
+                               &res, &err) == LM_OK);
+            cache_get_stats(c, &st);
+            if (c->sched.owed_wait) {
+                held++;
+                during += st.indirect.samples - before.indirect.samples;
+            }
+        } while (++calls < 200 && res.outdated > 0);
+        printf("owed work: %s, %d refine calls held it (%llu indirect samples taken meanwhile), all owed gathered "
+               "after %d calls; %llu direct leaves\n",
+               waits ? "the worker's steps" : "wait_for_indirect", held, (unsigned long long)during, calls,
+               (unsigned long long)st.direct.mesh.leaves);
+        CHECK(res.outdated == 0);
+        if (waits) {
+            CHECK_MSG(held >= 2, "held for %d calls", held);
+            CHECK(during == 0);
+        } else {
+            CHECK_MSG(held == 0, "a caller waiting for the indirect values held for %d calls", held);
+        }
+        cache_destroy(c);
+        samp_destroy(sp);
+    }
+    free(pixels);
+    scene_destroy(s);
+}
+
 /* ---- noise alone does not refine ------------------------------------------------------ */
 
 /* Leaves of the indirect mesh after refining the box room's floor (the only
@@ -997,5 +1069,6 @@ int main(void)
     test_noise_does_not_refine();
     test_estimate();
     test_slot();
+    test_owed_waits();
     return test_finish("cache_indirect_test");
 }

@@ -359,6 +359,77 @@ static int corners_parted(const cache *c, const mesh_qnode *n)
     return 0;
 }
 
+/* How much splitting direct leaf n moves the indirect source's power: the
+ * source is kd·L_dd linear over the leaves, so the four children hold
+ * A/12·(Σ corners + 3·Σ midpoints) against the leaf's A/3·Σ corners, a change
+ * of A/4·(Σ midpoints − Σ corners) a channel (A: the leaf's area). Channels
+ * averaged, as a magnitude. */
+static double split_power_change(const cache *c, const mesh_qmesh *m, const mesh_qnode *n, const uint32_t corner[3],
+                                 const uint32_t mid[3])
+{
+    const float *kd = c->s->materials[c->s->tris[n->tri].material].kd;
+    const double A = c->s->tri_areas[n->tri] / (double)(1ull << (2 * n->depth));
+    double sum[3] = {0, 0, 0};
+    for (int k = 0; k < 3; ++k) {
+        float a[3] = {0, 0, 0}, b[3] = {0, 0, 0};
+        mesh_qmesh_get_value(m, mid[k], a);
+        mesh_qmesh_get_value(m, corner[k], b);
+        for (int ch = 0; ch < 3; ++ch) sum[ch] += (double)a[ch] - b[ch];
+    }
+    double d = 0.0;
+    for (int ch = 0; ch < 3; ++ch) d += fabs(A / 4.0 * kd[ch] * sum[ch]) / 3.0;
+    return d;
+}
+
+/* The source's power: Σ area × mean radiance over its triangles (channels and
+ * corners averaged). */
+static double source_power(const cache *c)
+{
+    const samp_radiance_mesh *sm = &c->src.rmesh;
+    double P = 0.0;
+    for (uint32_t t = 0; sm->first && t < c->s->tri_count; ++t)
+        for (uint32_t i = sm->first[t]; i < sm->first[t + 1]; ++i) {
+            const float *b = sm->bary + 6 * (size_t)i, *L = sm->radiance + 9 * (size_t)i;
+            const double share = fabs((double)(b[2] - b[0]) * (b[5] - b[1]) - (double)(b[4] - b[0]) * (b[3] - b[1]));
+            double mean = 0.0;
+            for (int q = 0; q < 9; ++q) mean += L[q] / 9.0;
+            P += c->s->tri_areas[t] * share * mean;
+        }
+    return P;
+}
+
+/* May the first image's owed indirect work start (cache_sched.owed_wait)? Once
+ * a window of OWED_WINDOW direct leaf tests (one worker step) has moved the
+ * source's power by less than the relative error the JND allows at mid-grey (a
+ * relative error ε there is about 22·ε ΔE: docs/cache.md, "The slot, looked
+ * at"): gathered before, the values would draw from a source about to move. On
+ * the Veach door the first window after the first image moved it by 35% (the
+ * strip of lamp light the door lets onto the floor, the near room's main
+ * source), and values gathered before it were nearly all gathered again (2,197
+ * of about 2,600); on Water 6.7-7.1%, on CornellBox-Original 3.2%
+ * (docs/cache.md, "The owed work after the source settles"). Called at the
+ * start of each refine call; the first window only measures. */
+enum { OWED_WINDOW = 512 };
+static void owed_may_start(cache *c, const cache_refine_desc *desc, uint32_t budget)
+{
+    cache_sched *st = &c->sched;
+    if (!st->owed_wait) return;
+    /* A caller that holds the leaves back until the owed values are gathered
+     * (wait_for_indirect), or doles out fewer leaves than a window (a worker at
+     * its max_tested: only the owed work is left), gets the owed work first. */
+    if (desc->wait_for_indirect || budget < OWED_WINDOW) {
+        st->owed_wait = 0;
+        return;
+    }
+    if (st->owed_measured < OWED_WINDOW) return; /* not enough direct tests yet to say */
+    {
+        const double P = source_power(c);
+        if (!(P > 0.0) || st->source_moved < P * (double)c->desc.jnd / 22.0) st->owed_wait = 0;
+    }
+    st->owed_measured = 0;
+    st->source_moved = 0.0;
+}
+
 static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels, uint32_t max_leaves,
                               cache_refine_result *res, lm_error *err)
 {
@@ -540,6 +611,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             interp_err = kind == KIND_INDIRECT && !combined ? sqrtf(fmaxf(sum_de2 - sum_dn2, 0.0f) / (float)tested_mid)
                                                        : sum_de / (float)tested_mid;
         res->tested++;
+        if (kind == KIND_DIRECT) c->sched.owed_measured++;
         /* A surface standing on the leaf between two of its corners (a wall on a
          * floor that runs on under it into the next room, a box on the floor)
          * makes their interpolation a leak, whatever the midpoints say: the
@@ -553,6 +625,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             found = 1;
         predicted += leaves[i].picked;
         if (found || px > min_pixels) {
+            if (kind == KIND_DIRECT && c->sched.owed_wait) c->sched.source_moved += split_power_change(c, m, n, corner, leaves[i].mid);
             removed += unseen ? (double)seen_change : (double)px * interp_err;
             res->split++;
             uint32_t gen = unseen && cache_unseen_all_dark(c, n, leaves[i].mid)
@@ -735,6 +808,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * a gather on the 116k box; at one a value, the box's leaf tests waited 30 s
      * for them): their light is sampled and the values recomputed by the
      * revision below, before the indirect values are gathered from them. */
+    owed_may_start(c, desc, budget);
     if (r == LM_OK) r = cache_borrowed_to_regions(c, 16 * allowance, err);
     /* Values a rebuild left unbounded while unseen, seen now (a camera move). */
     if (r == LM_OK) r = cache_refresh_stale(c, desc->pixels, err);

@@ -130,6 +130,9 @@ lm_result cache_requeue_revise(cache *c, const uint32_t *pixels, uint64_t *allow
      * the source moves under them until it is (a million-triangle scene's first
      * rebuilds, bounded value by value, took 8 s each and flagged most values). */
     if (c->vis.borrowed_released && cache_borrowed_waiting(c)) return r;
+    /* And the first image's, while the direct leaves move the source (cache_sched.owed_wait). */
+    if (c->sched.owed_wait && c->sched.waiting[CACHE_KIND_DIRECT] + c->sched.waiting[CACHE_KIND_SPECULAR] > 0) return r;
+    c->sched.owed_wait = 0;
     if (r == LM_OK) r = cache_regather_outdated(c, requeue_changed, (void *)pixels, allowance, err);
     /* Glossy parts a rebuilt source (or a new eye) left stale (cache_glossy.c). */
     if (r == LM_OK) r = cache_glossy_refresh(c, requeue_changed, (void *)pixels, glossy_allowance, err);
