@@ -1159,21 +1159,34 @@ static double sphere_ei_rms(cache *c, const scene *s, double want)
  * when a sampler with 16x the rays takes over (what the worker does when its
  * start count gives way to Embree's default), are all gathered again by the
  * refine calls, and the error of E_i falls. */
+/* The point-lit sphere (R 2, ρ 0.5, I 3) with a cache of 64-ray gathers at JND 4,
+ * refined: what test_outdate_plain and test_outdated_keep_rays start from. */
+static scene *few_ray_sphere(const char *name, samp_sampler **sp, cache **c, double *bias)
+{
+    scene *s = load_sphere(name, 2.0, 0.5, 0.0, 1.0, 3.0, bias);
+    lm_error err;
+    *sp = NULL;
+    *c = NULL;
+    if (!s) return NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 64, .seed = 3}, sp,
+                      &err) == LM_OK);
+    CHECK(*sp && cache_create(&(cache_desc){.scene = s, .sampler = *sp, .jnd = 4.0f}, c, &err) == LM_OK);
+    if (*c) refine_sphere(*c, s);
+    return s;
+}
+
 static void test_outdate_plain(void)
 {
     const double R = 2.0, rho = 0.5, I = 3.0;
     double bias;
-    scene *s = load_sphere("cache_sphere_plain", R, rho, 0.0, 1.0, I, &bias);
-    lm_error err;
-    if (!s) return;
     samp_sampler *few = NULL, *many = NULL;
     cache *c = NULL;
-    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 64, .seed = 3}, &few,
-                      &err) == LM_OK);
+    scene *s = few_ray_sphere("cache_sphere_plain", &few, &c, &bias);
+    lm_error err;
+    if (!s) return;
     CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 1024, .seed = 4},
                       &many, &err) == LM_OK);
-    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = few, .jnd = 4.0f}, &c, &err) == LM_OK);
-    cache_refine_result res = refine_sphere(c, s);
+    cache_refine_result res = {0};
     const double want = rho * I / (R * R);
     cache_stats before, after;
     if (c) cache_get_stats(c, &before);
@@ -1207,22 +1220,17 @@ static void test_outdate_plain(void)
  * source refined (docs/cache.md, "Drifted values keep their rays"). */
 static void test_outdated_keep_rays(void)
 {
-    const double R = 2.0, rho = 0.5, I = 3.0;
     double bias;
-    scene *s = load_sphere("cache_sphere_keep", R, rho, 0.0, 1.0, I, &bias);
-    lm_error err;
-    if (!s) return;
     samp_sampler *sp = NULL;
     cache *c = NULL;
-    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 64, .seed = 3}, &sp,
-                      &err) == LM_OK);
-    CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp, .jnd = 4.0f}, &c, &err) == LM_OK);
+    scene *s = few_ray_sphere("cache_sphere_keep", &sp, &c, &bias);
+    lm_error err;
+    if (!s) return;
     if (!c) {
         samp_destroy(sp);
         scene_destroy(s);
         return;
     }
-    refine_sphere(c, s);
     const uint32_t limit = mesh_vtable_id_limit(c->vt);
     uint32_t *vids = malloc(limit * sizeof *vids), n = 0;
     float *E = malloc(3 * (size_t)limit * sizeof *E);
