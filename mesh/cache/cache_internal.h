@@ -12,8 +12,9 @@
  *                     (eq. 4), falsified light leaves
  *   cache_drift.c     the drift bound of indirect values over source rebuilds;
  *                     which are outdated
- *   cache_source.c    indirect light (eq. 7): the radiance source, gathers,
- *                     gathering outdated values again
+ *   cache_source.c    indirect light (eq. 7): the radiance source, gathering
+ *                     outdated values again
+ *   cache_gather.c    the gathers: pilots, ray counts, guides, standard errors
  *   cache_borrow.c    the first image's borrowed indirect values, tested
  *   cache_estimate.c  the cache's estimate of its error (cache_estimate_error);
  *                     the values whose noise is still seen
@@ -30,7 +31,7 @@
  * struct cache is a shared core (the scene, the sampler, the meshes; set by
  * cache.c) and one part per file that writes it: cache_light_state
  * (cache_light.c), cache_source_state (cache_source.c; its drift and outdated flags also
- * cache_drift.c), cache_outlines (cache_specular.c), cache_glossy_state
+ * cache_drift.c, its pilot, sigma and gather levels cache_gather.c), cache_outlines (cache_specular.c), cache_glossy_state
  * (cache_glossy.c), cache_borrow_state (cache_borrow.c), cache_sched (cache_refine.c). A part's fields are written by
  * its owner only; other files may read them where said.
  *
