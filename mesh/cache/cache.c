@@ -543,8 +543,8 @@ static lm_result regather_every_value(cache *c, lm_error *err)
     }
     c->desc.coarse_gathers = 0;
     cache_borrow_release(c);
-    c->sched.owed_wait = 1; /* until a step of direct leaves has shown the source settled (cache_refine.c) */
-    c->sched.owed_measured = 0;
+    c->sched.owed_wait = 1; /* until a window of direct leaves has shown the source settled (cache_refine.c) */
+    c->sched.owed_tested = 0;
     return cache_outdate_gathered(c, err);
 }
 

@@ -345,12 +345,12 @@ typedef struct cache_sched {
     double removed[CACHE_KINDS], predicted[CACHE_KINDS];
     /* The first image's owed indirect work (its values gathered again, its
      * borrowed ones tested) waits while the direct leaves move the source it
-     * would draw from: owed_wait is set when it is released (quick start) and
-     * cleared by the first refine call after one whose kept direct splits moved
-     * the source's power (source_moved: Σ |ΔP| over the call's splits, kd·L_dd
-     * × area, channels averaged) by less than the JND allows a value to be off
-     * (cache_refine.c, owed_may_start). */
-    int owed_wait, owed_measured;
+     * would draw from: owed_wait is set when that work is released (quick
+     * start) and cleared once a window of direct leaf tests (owed_tested of
+     * them) has moved the source's power (source_moved: Σ |ΔP| over the
+     * window's kept splits, kd·L_dd × area, channels averaged) by less than the
+     * JND allows a value to be off (cache_refine.c, owed_may_start). */
+    int owed_wait, owed_tested;
     double source_moved;
 } cache_sched;
 

@@ -421,12 +421,12 @@ static void owed_may_start(cache *c, const cache_refine_desc *desc, uint32_t bud
         st->owed_wait = 0;
         return;
     }
-    if (st->owed_measured < OWED_WINDOW) return; /* not enough direct tests yet to say */
+    if (st->owed_tested < OWED_WINDOW) return; /* not enough direct tests yet to say */
     {
         const double P = source_power(c);
         if (!(P > 0.0) || st->source_moved < P * (double)c->desc.jnd / 22.0) st->owed_wait = 0;
     }
-    st->owed_measured = 0;
+    st->owed_tested = 0;
     st->source_moved = 0.0;
 }
 
@@ -611,7 +611,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
             interp_err = kind == KIND_INDIRECT && !combined ? sqrtf(fmaxf(sum_de2 - sum_dn2, 0.0f) / (float)tested_mid)
                                                        : sum_de / (float)tested_mid;
         res->tested++;
-        if (kind == KIND_DIRECT) c->sched.owed_measured++;
+        if (kind == KIND_DIRECT && c->sched.owed_wait) c->sched.owed_tested++;
         /* A surface standing on the leaf between two of its corners (a wall on a
          * floor that runs on under it into the next room, a box on the floor)
          * makes their interpolation a leak, whatever the midpoints say: the

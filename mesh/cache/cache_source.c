@@ -502,31 +502,35 @@ static lm_result regather_mesh(cache *c, mesh_qmesh *m, lm_error *err)
     return r;
 }
 
-static lm_result outdate(cache *c, int gathered_only, lm_error *err)
+/* Which indirect values outdate() flags. */
+typedef enum outdate_which {
+    OUTDATE_ALL,      /* every value (from a rebuilt source) */
+    OUTDATE_GATHERED, /* every value not borrowed (from a rebuilt source) */
+    OUTDATE_PLAIN     /* values gathered at the plain count, not borrowed (the source as it is) */
+} outdate_which;
+
+static lm_result outdate(cache *c, outdate_which which, lm_error *err)
 {
     const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
-    lm_result r = build_source(c, 0, err);
+    lm_result r = which == OUTDATE_PLAIN ? LM_OK : build_source(c, 0, err);
     if (r == LM_OK) r = cache_grow_drift(&c->src, id_limit, err);
-    for (uint32_t vid = 0; r == LM_OK && vid < id_limit; ++vid)
-        if (mesh_qmesh_get_value(c->indirect, vid, NULL) == 1 && !(gathered_only && c->src.borrowed[vid] != 0.0f))
-            r = cache_push_outdated(&c->src, vid, err);
+    for (uint32_t vid = 0; r == LM_OK && vid < id_limit; ++vid) {
+        if (mesh_qmesh_get_value(c->indirect, vid, NULL) != 1) continue;
+        if (which != OUTDATE_ALL && c->src.borrowed[vid] != 0.0f) continue;
+        if (which == OUTDATE_PLAIN && c->src.gather_level[vid] != 0) continue;
+        r = cache_push_outdated(&c->src, vid, err); /* a value already flagged stays flagged once */
+    }
     return r;
 }
 
-lm_result cache_outdate_all(cache *c, lm_error *err) { return outdate(c, 0, err); }
+lm_result cache_outdate_all(cache *c, lm_error *err) { return outdate(c, OUTDATE_ALL, err); }
 
 lm_result cache_outdate_plain(cache *c, lm_error *err)
 {
     if (!c) return lm_fail(err, LM_ERR_INVALID_ARG, "cache_outdate_plain: no cache");
-    const uint32_t id_limit = mesh_vtable_id_limit(c->vt);
-    lm_result r = cache_grow_drift(&c->src, id_limit, err);
-    for (uint32_t vid = 0; r == LM_OK && vid < id_limit; ++vid)
-        if (mesh_qmesh_get_value(c->indirect, vid, NULL) == 1 && c->src.borrowed[vid] == 0.0f &&
-            c->src.gather_level[vid] == 0 && !c->src.outdated[vid])
-            r = cache_push_outdated(&c->src, vid, err);
-    return r;
+    return outdate(c, OUTDATE_PLAIN, err);
 }
-lm_result cache_outdate_gathered(cache *c, lm_error *err) { return outdate(c, 1, err); }
+lm_result cache_outdate_gathered(cache *c, lm_error *err) { return outdate(c, OUTDATE_GATHERED, err); }
 
 float cache_borrowed_de(const cache *c, uint32_t vid)
 {

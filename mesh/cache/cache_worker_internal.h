@@ -33,11 +33,10 @@ typedef struct mesh_store {
     int filled_debug;                 /* with the debug corners */
 } mesh_store;
 
-/* The worker's scratch for publishing: a piece of one mesh's leaf triangles,
- * each vertex-table id's index in the mesh being published (UINT32_MAX: not yet
- * in it; set back after each mesh) and the ids published, in order. */
-/* One mesh's fill (cache_worker_publish.c, fill_mesh): its leaf triangles a
- * piece at a time, and each vertex id's place in the snapshot. */
+/* One mesh's fill (cache_worker_publish.c, fill_mesh): a piece of its leaf
+ * triangles, each vertex-table id's index in the mesh being published
+ * (UINT32_MAX: not yet in it; set back after each mesh) and the ids published,
+ * in order. */
 typedef struct fill_scratch {
     mesh_qmesh_tri *buf;
     size_t buf_cap;
