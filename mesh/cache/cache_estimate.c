@@ -208,8 +208,20 @@ static void visit_noisy(const est_walk *w, uint32_t node, const mesh_qnode *n, d
     leaf_estimate(w, node, n, px, &interp, &noise);
     /* Worth rays only where the noise is what keeps the leaf above the JND: with
      * its interpolation error alone above it, the leaf needs a split (its next
-     * test), not a quieter value. */
-    if (!(leaf_combined(interp, noise) > w->jnd) || !(interp < w->jnd) || !(noise > NOISY_MIN_JND * w->jnd)) return;
+     * test), not a quieter value. Unless no test will split it (docs/cache.md,
+     * "Leaves the noise kept whole"): its own test ran and kept it whole, a
+     * midpoint ΔE above the JND that the noise explained (cache_refine.c,
+     * beyond_noise), or it is too small to test and its corners' contrast (its
+     * interpolation's guess) is no more than their noise. Left out, such leaves
+     * stayed above the JND with nothing left to do: the 116k box "stuck" at
+     * 2.05% of its pixels, and a 5σ value of a 4-ray gather on a leaf of one
+     * pixel kept for good. Quieter values let the next test tell, or lower the
+     * contrast. */
+    int tested = 0;
+    cache_sched_residual(&w->c->sched, w->kind, node, &tested);
+    const int blocked = tested || (cache_leaf_below_sample(w->c, w->kind, px, n) && noise >= interp);
+    if (!(leaf_combined(interp, noise) > w->jnd) || !(interp < w->jnd || blocked) || !(noise > NOISY_MIN_JND * w->jnd))
+        return;
     int any = 0;
     for (int k = 0; k < 3; ++k) any |= cache_gather_can_refine(w->c, n->v[k]);
     if (!any) return;
