@@ -18,7 +18,8 @@
  *   cache_borrow.c    the first image's borrowed indirect values, tested
  *   cache_estimate.c  the cache's estimate of its error (cache_estimate_error);
  *                     the values whose noise is still seen
- *   cache_refine.c    the refinement scheduler (§4.3)
+ *   cache_queue.c     the refinement's queues: leaf priorities, the next leaf (§4.3.3)
+ *   cache_refine.c    the refinement scheduler (§4.3): rounds, the edge test, keep or undo
  *   cache_reach.c     which triangles take part: what gathers from the seen ones
  *                     reach (cache_init_seen)
  *   cache_first.c     the first image from a budget of gathers and light samples
@@ -32,7 +33,7 @@
  * cache.c) and one part per file that writes it: cache_light_state
  * (cache_light.c), cache_source_state (cache_source.c; its drift and outdated flags also
  * cache_drift.c, its pilot, sigma and gather levels cache_gather.c), cache_outlines (cache_specular.c), cache_glossy_state
- * (cache_glossy.c), cache_borrow_state (cache_borrow.c), cache_sched (cache_refine.c). A part's fields are written by
+ * (cache_glossy.c), cache_borrow_state (cache_borrow.c), cache_sched (cache_refine.c and cache_queue.c). A part's fields are written by
  * its owner only; other files may read them where said.
  *
  * Threads: a cache and everything in it belongs to the thread that refines it
@@ -289,7 +290,7 @@ typedef struct cache_bounce_state {
     size_t bytes;
 } cache_bounce_state;
 
-/* The scheduler (written by cache_refine.c), per radiance mesh (cache_kind).
+/* The scheduler (written by cache_refine.c and cache_queue.c), per radiance mesh (cache_kind).
  * Heap: a max-heap of leaves, lazily invalidated, and per-node "done" flags.
  * Random (the paper's §4.3.3): per-node priorities, a leaf's own (> 0 waiting,
  * 0 done, < 0 being tested) and an inner node's the maximum of its children's;
@@ -793,7 +794,7 @@ lm_result cache_reach_take(cache *c, const uint32_t *seed, uint32_t nseed, uint3
  * point may see what the root corners did not. *out as cache_reach_take. */
 lm_result cache_reach_from_gathers(cache *c, uint32_t **out, uint32_t *nout, lm_error *err);
 
-/* ---- cache_refine.c: the scheduler ------------------------------------------------------ */
+/* ---- cache_queue.c and cache_refine.c: the scheduler ------------------------------------ */
 
 void cache_sched_init(cache_sched *st, uint32_t seed);
 void cache_sched_free(cache_sched *st);
@@ -817,6 +818,29 @@ int cache_leaf_below_sample(const cache *c, cache_kind kind, double px, const me
  * its test, its residual and the estimate (docs/cache.md, "Leaves smaller than a
  * pixel"). */
 static inline float cache_pixel_share(double px) { return px < 1.0 ? (float)px : 1.0f; }
+/* The pixels a leaf covers: its scene triangle's (pixels; NULL: 1e6) over 4^depth. */
+float cache_leaf_pixels(const uint32_t *pixels, const mesh_qnode *n);
+/* A mesh's heap (cache_queue.c): push, and pop the highest priority. */
+lm_result cache_queue_push(cache_queue *q, float priority, uint32_t node, uint32_t v0, lm_error *err);
+cache_queue_entry cache_queue_pop(cache_queue *q);
+/* The next leaf of `kind` to test and the priority it was picked at (heap or
+ * randomized scheduler); 0 when none is waiting. */
+int cache_sched_pick(cache *c, cache_kind kind, const uint32_t *pixels, uint32_t *out, float *picked);
+/* Room for node priorities up to `node` (the randomized scheduler's). */
+lm_result cache_sched_grow_prio(cache *c, int kind, uint32_t node, lm_error *err);
+/* Records a leaf's interpolation error (ΔE; cache_sched.resid), from its own
+ * test (tested) or its parent's. */
+lm_result cache_sched_set_residual(cache *c, cache_kind kind, uint32_t node, float delta_e, int tested, lm_error *err);
+/* A leaf whose test found nothing (its split undone): not picked again until requeued. */
+lm_result cache_sched_done(cache *c, cache_kind kind, uint32_t node, lm_error *err);
+/* Schedules every leaf of one mesh afresh (seen_only: the triangles with pixels
+ * now, the rest at the next call): heap, done flags and priorities rebuilt. */
+lm_result cache_sched_schedule(cache *c, cache_kind kind, const uint32_t *pixels, int seen_only, lm_error *err);
+/* The highest priority waiting in a mesh's heap (a guess: stale entries count). */
+float cache_sched_top_priority(const cache *c, int kind);
+/* A surface stands on the leaf between two of its corners (cache_refine.c): their
+ * interpolation would leak light through it. */
+int cache_corners_parted(const cache *c, const mesh_qnode *n);
 
 /* The Morton (Z-order) key of three 21-bit coordinates: their bits interleaved
  * from the top, q[0]'s first (bit b of q[k] is the key's bit 3b + 2 − k). Points
