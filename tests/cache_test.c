@@ -1129,6 +1129,23 @@ static double glossy_sphere_mean(const scene *s, int bounces, cache_glossy mode,
     CHECK_MSG(fabs(mean - want) / want <= 0.01 + (1.0 + 2.0 * n) * bias, "mean L_s %.5f vs %.5f", mean, want);
     CHECK_MSG(worst <= 0.03 + (1.0 + 2.0 * n) * bias, "L_s off by %.3e", worst);
     CHECK(mode == CACHE_GLOSSY_INDIRECT ? st.glossy_gathers > 0 && st.glossy_refreshed > 0 : st.glossy_gathers == 0);
+    if (c && mode == CACHE_GLOSSY_INDIRECT && !move && bounces == 1) {
+        /* A refresh's allowance counts gathers of up to 256 rays: a part at
+         * 4,096 rays takes 16 of it. Counted one a part, a worker step of the
+         * Veach door took 10.8 million glossy rays (docs/cache.md, "A step's
+         * regathers counted in rays"). */
+        const uint32_t limit = mesh_vtable_id_limit(c->vt);
+        for (uint32_t v = 0; v < limit && v < c->gls.cap; ++v) c->gls.level[v] = 4;
+        cache_glossy_outdate(c);
+        const uint64_t before = c->gls.refreshed;
+        uint64_t allowance = 64;
+        CHECK(cache_glossy_refresh(c, NULL, NULL, &allowance, &err) == LM_OK);
+        const uint64_t taken = c->gls.refreshed - before;
+        printf("glossy refresh under an allowance of 64 at 4,096 rays a part: %llu parts taken, %llu left\n",
+               (unsigned long long)taken, (unsigned long long)allowance);
+        CHECK_MSG(taken == 4 && allowance == 0, "%llu parts taken at 4,096 rays under an allowance of 64",
+                  (unsigned long long)taken);
+    }
     free(pixels);
     cache_destroy(c);
     samp_destroy(sp);
@@ -1255,6 +1272,27 @@ static void test_outdated_keep_rays(void)
                kept, finer, plain, n - finer, (unsigned long long)(after.regathered - before.regathered));
         CHECK(after.regathered - before.regathered == n);
         CHECK_MSG(kept == finer && plain == n - finer, "%u of %u kept 4x, %u of %u plain", kept, finer, plain, n - finer);
+        /* An allowance counts gathers of the plain count: a value at 4x the rays
+         * takes 4 of it. Counted by values, one worker step of the Veach door
+         * took 3.7 s (docs/cache.md, "A step's regathers counted in rays").
+         * Every value one level finer first (1 or 2: 4 or 16 of it each). */
+        CHECK(cache_regather_finer(c, vids, n, E, &err) == LM_OK);
+        for (uint32_t i = 0; i < n; ++i) CHECK(mesh_qmesh_set_value(c->indirect, vids[i], E + 3 * (size_t)i, &err) == LM_OK);
+        CHECK(cache_outdate_all(c, &err) == LM_OK);
+        uint64_t allowance = 40, cost = 0;
+        uint32_t taken = 0;
+        CHECK(cache_regather_outdated(c, NULL, NULL, &allowance, &err) == LM_OK);
+        for (uint32_t i = 0; i < n; ++i)
+            if (!c->src.outdated[vids[i]]) {
+                taken++;
+                cost += cache_gather_cost(c, vids[i]);
+            }
+        printf("outdated under an allowance of 40: %u values gathered again, %llu plain gathers' worth, %llu left\n",
+               taken, (unsigned long long)cost, (unsigned long long)allowance);
+        CHECK_MSG(taken > 0 && taken <= 10 && cost <= 40 && cost + allowance == 40 && allowance < 16,
+                  "%u values taken for %llu of an allowance of 40, %llu left", taken, (unsigned long long)cost,
+                  (unsigned long long)allowance);
+        CHECK(cache_regather_outdated(c, NULL, NULL, NULL, &err) == LM_OK); /* the rest */
     }
     free(vids);
     free(E);

@@ -197,8 +197,9 @@ typedef struct cache_estimate {
 typedef struct cache_refine_desc {
     const uint32_t *pixels;   /* per scene triangle, pixels it covers (rend_id); NULL: all 1e6 */
     uint32_t budget;          /* leaves to test in this call; 0 = 256 */
-    uint32_t regather;        /* at most this many outdated indirect values gathered again first;
-                                 0 = CACHE_REGATHER_PER_LEAF × budget. A caller that caps the leaf
+    uint32_t regather;        /* at most this many gathers of the plain count of outdated indirect
+                                 values gathered again first (a value gathered with 4^L times the
+                                 rays counts 4^L); 0 = CACHE_REGATHER_PER_LEAF × budget. A caller that caps the leaf
                                  tests (a total to reach) keeps this at its step's size: the values
                                  are owed to the coarse cache, not leaf tests */
     int seen_only;            /* non-zero with pixels: a queue not yet made is made of the leaves of

@@ -455,6 +455,13 @@ int cache_gather_level(const cache *c, uint32_t vid)
     return vid < c->src.drift_cap ? c->src.gather_level[vid] : 0;
 }
 
+uint64_t cache_gather_cost(const cache *c, uint32_t vid)
+{
+    uint64_t cost = 1;
+    for (int lv = cache_gather_level(c, vid); lv > 0; --lv) cost *= GATHER_SCALE;
+    return cost;
+}
+
 int cache_gather_can_refine(const cache *c, uint32_t vid)
 {
     if (c->desc.single_mesh || !samp_indirect_rays(c->sp)) return 0; /* no σ to reduce (GL: exact) */

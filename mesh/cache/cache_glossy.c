@@ -244,6 +244,19 @@ uint32_t cache_glossy_waiting(const cache *c)
     return c->gls.cursor < limit ? limit - c->gls.cursor : 0;
 }
 
+/* What taking a part again at `level` costs of a refresh's allowance: one up to
+ * GLOSSY_REFRESH_UNIT_RAYS rays, a dearer gather its rays over that. Counted one
+ * a part, a worker step of the Veach door took 8,192 parts at up to 4,096 rays,
+ * 10.8 million rays and 2.8 s with no snapshot (docs/cache.md, "A step's
+ * regathers counted in rays"); the cheap parts of the first seconds count as
+ * before. */
+enum { GLOSSY_REFRESH_UNIT_RAYS = 256 };
+static uint64_t refresh_cost(uint8_t level)
+{
+    const uint64_t rays = (uint64_t)CACHE_GLOSSY_RAYS << (2 * level);
+    return rays > GLOSSY_REFRESH_UNIT_RAYS ? rays / GLOSSY_REFRESH_UNIT_RAYS : 1;
+}
+
 lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance, lm_error *err)
 {
     enum { BATCH = 1024 };
@@ -262,6 +275,7 @@ lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, u
         /* The sweep: stale values of the specular mesh, in id order (ascending,
          * as changed's look-up wants them). A value no pixel sees is taken as it
          * is: the specular mesh is made again when the view moves. */
+        uint64_t cost = 0;
         for (; st->cursor < limit && n < most; ++st->cursor) {
             const uint32_t vid = st->cursor;
             if (st->gen[vid] == st->gen_now || !mesh_qmesh_vertex_use(c->specular, vid)) continue;
@@ -270,6 +284,9 @@ lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, u
                 st->gen[vid] = st->gen_now;
                 continue;
             }
+            const uint64_t one = refresh_cost(st->level[vid]);
+            if (allowance && n > 0 && cost + one > *allowance) break; /* this one waits for the next call */
+            cost += one;
             lv[n] = st->level[vid];
             ids[n++] = vid;
         }
@@ -294,7 +311,7 @@ lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, u
             r = mesh_qmesh_set_value(c->specular, ids[i], v, err);
         }
         st->refreshed += n;
-        if (allowance) *allowance = *allowance > n ? *allowance - n : 0;
+        if (allowance) *allowance = *allowance > cost ? *allowance - cost : 0;
         if (r == LM_OK && nm) r = changed(c, CACHE_KIND_SPECULAR, NULL, 0, moved, nm, user, err);
     }
     free(ids);

@@ -594,7 +594,8 @@ int cache_glossy_fresh(const cache *c, uint32_t vid);
  * (cache_drift.c). Not thread-safe: one vertex after another. */
 void cache_glossy_drift(cache *c, uint32_t vid, const float bound[3]);
 /* Gathers stale glossy parts again from the sweep's cursor, at most *allowance
- * (spent), updates their specular values and has `changed` requeue their leaves. */
+ * (spent: a part of up to 256 rays counts one, a dearer one its rays / 256),
+ * updates their specular values and has `changed` requeue their leaves. */
 lm_result cache_glossy_refresh(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance, lm_error *err);
 /* Vertex ids the sweep has still to look at (work left: no convergence before). */
 uint32_t cache_glossy_waiting(const cache *c);
@@ -648,6 +649,9 @@ int cache_vertex_on_open_edge(const cache *c, uint32_t vid);
 /* The level vertex vid's displayed value was last gathered at (0: the plain
  * count, or none; GATHER_SCALE times the rays a level). */
 int cache_gather_level(const cache *c, uint32_t vid);
+/* What gathering vertex vid again with the rays it had costs, in gathers of the
+ * plain count: GATHER_SCALE^level. */
+uint64_t cache_gather_cost(const cache *c, uint32_t vid);
 /* Could vertex vid's displayed value be gathered with more rays (cache_regather_finer)? */
 int cache_gather_can_refine(const cache *c, uint32_t vid);
 /* Displayed values gathered again with GATHER_SCALE times the rays they last had
@@ -662,8 +666,9 @@ lm_result cache_settle_source(cache *c, lm_error *err);
 /* Gathers again, in batches, the indirect values the source's rebuilds may have
  * moved by more than the JND (flagged by cache_update_radiance_source); calls
  * `changed` (regions NULL) with the vertices whose value changed. allowance
- * (NULL: none): at most that many gathers, taken off it; what is left stays
- * flagged (c->src.outdated_n) for the next call. */
+ * (NULL: none): at most that many gathers of the plain count (a value taken with
+ * 4^L times the rays counts 4^L: cache_gather_cost), taken off it; what is left
+ * stays flagged (c->src.outdated_n) for the next call. */
 lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user, uint64_t *allowance,
                                   lm_error *err);
 /* A borrowed value's state (cache_source_state.borrowed: 0 gathered, INFINITY

@@ -494,8 +494,8 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * worker (the first image waits for the first). What is left waits for the
      * next call, which does nothing else until it is done. */
     uint64_t allowance = desc->regather ? desc->regather : (uint64_t)CACHE_REGATHER_PER_LEAF * budget;
-    /* Glossy parts taken again: a glossy gather is CACHE_GLOSSY_RAYS rays, an
-     * indirect one ~1,024. */
+    /* Glossy parts taken again: a glossy gather is CACHE_GLOSSY_RAYS to 4,096
+     * rays, counted by 256 (cache_glossy_refresh); an indirect one ~1,024. */
     uint64_t glossy_allowance = 16 * allowance;
     /* The first image's borrowed direct and specular roots (cache_first.c),
      * sixteen a value gathered again (a light sample costs about a fifteenth of

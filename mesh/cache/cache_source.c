@@ -434,14 +434,28 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
             }
         }
         /* Take up to a batch (and no more than the allowance) from the end of the
-         * list (still flagged, still in the mesh). */
-        const uint32_t most = allowance && *allowance < BATCH ? (uint32_t)*allowance : BATCH;
-        while (n < most && c->src.outdated_n) {
-            uint32_t vid = c->src.outdated_list[--c->src.outdated_n];
+         * list (still flagged, still in the mesh). The allowance counts gathers
+         * of the plain count: a value taken with 4^L times the rays costs 4^L of
+         * it (at least one value a batch). Counted by values, a worker step of
+         * the Veach door took 512 values at their levels, up to 64 times the
+         * plain rays each: 3.7 s with no snapshot (docs/cache.md, "A step's
+         * regathers counted in rays"). */
+        uint64_t cost = 0;
+        while (n < BATCH && c->src.outdated_n) {
+            uint32_t vid = c->src.outdated_list[c->src.outdated_n - 1];
             float tmp[3];
-            if (!c->src.outdated[vid]) continue; /* gathered meanwhile */
+            if (!c->src.outdated[vid]) { /* gathered meanwhile */
+                c->src.outdated_n--;
+                continue;
+            }
+            const uint64_t one = cache_gather_cost(c, vid);
+            if (allowance && n > 0 && cost + one > *allowance) break;
+            c->src.outdated_n--;
             c->src.outdated[vid] = 0;
-            if (mesh_qmesh_get_value(c->indirect, vid, tmp) == 1) ids[n++] = vid;
+            if (mesh_qmesh_get_value(c->indirect, vid, tmp) == 1) {
+                ids[n++] = vid;
+                cost += one;
+            }
         }
         if (n == 0) continue;
         /* With the rays each had: a value taken finer for its noise and gathered
@@ -451,7 +465,7 @@ lm_result cache_regather_outdated(cache *c, cache_changed_fn changed, void *user
          * between 5% and 32% as the source's rebuilds undid the finer gathers;
          * docs/cache.md, "Drifted values keep their rays"). */
         r = cache_sample_indirect_like(c, ids, ids, n, E, err);
-        if (allowance) *allowance -= n;
+        if (allowance) *allowance = cost < *allowance ? *allowance - cost : 0;
         uint32_t nm = 0;
         for (uint32_t i = 0; r == LM_OK && i < n; ++i) {
             float old[3];
