@@ -109,8 +109,6 @@ float cache_leaf_priority(const cache *c, const mesh_qmesh *m, cache_kind kind, 
 
 /* ---- scheduling ---------------------------------------------------------------- */
 
-static const mesh_qmesh *mesh_of(const cache *c, cache_kind kind) { return cache_kind_mesh(c, kind); }
-
 lm_result cache_sched_grow_prio(cache *c, int kind, uint32_t node, lm_error *err)
 {
     cache_sched *st = &c->sched;
@@ -123,7 +121,7 @@ lm_result cache_sched_grow_prio(cache *c, int kind, uint32_t node, lm_error *err
  * (§4.3.3). Keeps the count of waiting leaves. */
 static lm_result set_leaf_priority(cache *c, cache_kind kind, uint32_t node, float p, lm_error *err)
 {
-    const mesh_qmesh *m = mesh_of(c, kind);
+    const mesh_qmesh *m = cache_kind_mesh(c, kind);
     lm_result r = cache_sched_grow_prio(c, kind, node, err);
     if (r != LM_OK) return r;
     float *prio = c->sched.prio[kind];
@@ -148,7 +146,7 @@ lm_result cache_sched_add(cache *c, cache_kind kind, uint32_t node, float p, lm_
     if (c->desc.scheduler == CACHE_SCHED_RANDOM) return set_leaf_priority(c, kind, node, p, err);
     if (!(p > 0.0f)) return LM_OK;
     c->sched.waiting[kind]++;
-    return cache_queue_push(&c->sched.q[kind], p, node, mesh_qmesh_node(mesh_of(c, kind), node)->v[0], err);
+    return cache_queue_push(&c->sched.q[kind], p, node, mesh_qmesh_node(cache_kind_mesh(c, kind), node)->v[0], err);
 }
 
 /* Records a leaf's interpolation error (ΔE; cache_sched.resid): from its own
@@ -179,7 +177,7 @@ lm_result cache_sched_done(cache *c, cache_kind kind, uint32_t node, lm_error *e
 /* The next leaf to test and the priority it was picked at; 0 when none is waiting. */
 int cache_sched_pick(cache *c, cache_kind kind, const uint32_t *pixels, uint32_t *out, float *picked)
 {
-    const mesh_qmesh *m = mesh_of(c, kind);
+    const mesh_qmesh *m = cache_kind_mesh(c, kind);
     if (c->desc.scheduler != CACHE_SCHED_RANDOM) {
         cache_queue *q = &c->sched.q[kind];
         while (q->n) {
