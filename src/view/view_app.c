@@ -396,6 +396,10 @@ static lm_result run_script(view_state *v, lm_error *err)
             view_app_report_of(v, &rep);
             int shown = rep.peer_spp > 0 && !rep.peer_earlier && (c->kind == VIEW_CMD_PEER_PREVIEW || rep.peer_grid == 1);
             if (!shown && lm_now_seconds() - v->cmd_t0 < c->a) return LM_OK;
+            /* The report is the last frame's: were the next frame to take the
+             * peer's newer pass, a screenshot after this would not show the picture
+             * waited for (a preview's grid replaced by a whole pass meanwhile). */
+            v->residual_hold = shown;
             break;
         }
         case VIEW_CMD_LIGHT: r = set_light_scale(v, (uint32_t)c->a, (float)c->b, err); break;
@@ -530,8 +534,8 @@ static lm_result residual_buffers(view_state *v, size_t n, lm_error *err)
  * picture) into residual_tex, shown from now on. */
 static void upload_residual(view_state *v, const scene_camera *cam)
 {
-    if (!view_residual_take(v->residual, v->residual_rgb, &v->residual_seq, &v->residual_info,
-                            &v->residual_current)) {
+    if (v->residual_hold ||
+        !view_residual_take(v->residual, v->residual_rgb, &v->residual_seq, &v->residual_info, &v->residual_current)) {
         if (v->residual_shown) v->shown = v->residual_tex;
         return;
     }
@@ -855,6 +859,7 @@ static lm_result frame(view_state *v, lm_error *err)
     if (v->first_image < 0 && v->snap) v->first_image = lm_now_seconds() - v->t_open;
     if (v->snap) end_start_pause(v); /* drawn: refinement goes on */
     if (v->shot[0]) r = view_app_take_screenshot(v, err);
+    v->residual_hold = 0; /* one frame: the one a screenshot after the wait is taken of */
     if (r == LM_OK && v->window_shot[0]) {
         uint8_t *rgb = malloc((size_t)w * (size_t)h * 3);
         r = rgb ? view_hud_read_window(v->hud, w, h, rgb, err)

@@ -101,6 +101,8 @@ typedef struct view_state {
     GLuint residual_tex;            /* the correction shown (RGB32F); 0 = none made */
     int residual_shown;             /* residual_tex holds a correction of residual_key (or the peer's picture) */
     int residual_current;           /* ...of residual_key's camera, not of one before it (a peer's moving view) */
+    int residual_hold;              /* a script's peer-picture/peer-preview was met: the next frame keeps the
+                                     * picture it was met by (its screenshot shows that one, not a newer pass) */
     ref_estimator indirect;         /* I: the cache (PATHS), or the peer shown at rest (VPL, BDIR) */
     ref_vpl_visibility indirect_visibility; /* the peer's visibility: shadow rays or imperfect shadow maps */
     int peer_on;                    /* the residual's thread renders the peer for residual_key, */
