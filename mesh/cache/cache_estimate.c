@@ -244,7 +244,7 @@ static int cmp_u32(const void *a, const void *b)
     return (x > y) - (x < y);
 }
 
-lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t max, uint32_t **out, uint32_t *count,
+lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint64_t max_cost, uint32_t **out, uint32_t *count,
                                lm_error *err)
 {
     *out = NULL;
@@ -265,16 +265,27 @@ lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t 
         free(nw.leaves);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory choosing values to gather again");
     }
-    /* The worst leaves' corners, until max distinct vertices (a corner is shared by
-     * up to six leaves: duplicates are dropped as the list grows). */
-    for (size_t i = 0; i < nw.n && m < max; ++i) {
-        for (int k = 0; k < 3 && m < max; ++k)
-            if (cache_gather_can_refine(c, nw.leaves[i].v[k])) v[m++] = nw.leaves[i].v[k];
-        if (m >= max || i + 1 == nw.n || (i & 63) == 63) {
+    /* The worst leaves' corners, until their rays at the next level are max_cost
+     * plain gathers' worth (a corner is shared by up to six leaves: duplicates
+     * are dropped, and the cost counted again, as the list grows). Counted in
+     * rays, not values: 512 values at the fourth level are 134 million rays,
+     * 15 s in which the viewer's worker would not answer a move. */
+    uint64_t cost = 0;
+    for (size_t i = 0; i < nw.n && cost < max_cost; ++i) {
+        for (int k = 0; k < 3; ++k)
+            if (cache_gather_can_refine(c, nw.leaves[i].v[k])) {
+                v[m++] = nw.leaves[i].v[k];
+                cost += cache_gather_finer_cost(c, nw.leaves[i].v[k]);
+            }
+        if (cost >= max_cost || i + 1 == nw.n || (i & 63) == 63) {
             qsort(v, m, sizeof *v, cmp_u32);
             uint32_t u = 0;
+            cost = 0;
             for (uint32_t j = 0; j < m; ++j)
-                if (u == 0 || v[u - 1] != v[j]) v[u++] = v[j];
+                if (u == 0 || v[u - 1] != v[j]) {
+                    v[u++] = v[j];
+                    cost += cache_gather_finer_cost(c, v[j]);
+                }
             m = u;
         }
     }

@@ -462,6 +462,11 @@ uint64_t cache_gather_cost(const cache *c, uint32_t vid)
     return cost;
 }
 
+uint64_t cache_gather_finer_cost(const cache *c, uint32_t vid)
+{
+    return GATHER_SCALE * cache_gather_cost(c, vid);
+}
+
 int cache_gather_can_refine(const cache *c, uint32_t vid)
 {
     if (c->desc.single_mesh || !samp_indirect_rays(c->sp)) return 0; /* no σ to reduce (GL: exact) */

@@ -654,6 +654,9 @@ int cache_gather_level(const cache *c, uint32_t vid);
 uint64_t cache_gather_cost(const cache *c, uint32_t vid);
 /* Could vertex vid's displayed value be gathered with more rays (cache_regather_finer)? */
 int cache_gather_can_refine(const cache *c, uint32_t vid);
+/* What cache_regather_finer costs for vertex vid, in gathers of the plain count:
+ * GATHER_SCALE^(level + 1). */
+uint64_t cache_gather_finer_cost(const cache *c, uint32_t vid);
 /* Displayed values gathered again with GATHER_SCALE times the rays they last had
  * (their noise halved): E as cache_sample_indirect. */
 lm_result cache_regather_finer(cache *c, const uint32_t *vids, uint32_t n, float *E, lm_error *err);
@@ -779,9 +782,10 @@ size_t cache_borrow_bytes(const cache_borrow_state *b);
 float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node, int *tested);
 /* The distinct vertices of the visible indirect leaves whose estimated error
  * exceeds the JND with noise in it, and that could be gathered with more rays,
- * the leaves with the most pixels × noise first; at most max. *out: malloc'ed,
- * the caller frees it. */
-lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint32_t max, uint32_t **out, uint32_t *count,
+ * the leaves with the most pixels × noise first; as many as max_cost plain
+ * gathers pay for at their next level (cache_gather_finer_cost), at least one.
+ * *out: malloc'ed, the caller frees it. */
+lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint64_t max_cost, uint32_t **out, uint32_t *count,
                                lm_error *err);
 
 /* ---- cache_reach.c: what takes part ------------------------------------------------------- */
@@ -905,7 +909,8 @@ lm_result cache_unseen_schedule_important(cache *c, const cache_site *sites, uin
 lm_result cache_requeue_revise(cache *c, const uint32_t *pixels, uint64_t *allowance, uint64_t *glossy_allowance,
                                lm_error *err);
 /* Indirect values whose noise keeps a visible leaf above the JND gathered again
- * with more rays (at most budget; *done counts them), their leaves queued again. */
+ * with more rays (as many as a few plain gathers a leaf of the budget pay for;
+ * *done counts them), their leaves queued again. */
 lm_result cache_requeue_noisy(cache *c, const uint32_t *pixels, uint32_t budget, uint32_t *done, lm_error *err);
 
 #endif

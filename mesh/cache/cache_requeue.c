@@ -141,14 +141,21 @@ lm_result cache_requeue_revise(cache *c, const uint32_t *pixels, uint64_t *allow
     return r;
 }
 
+/* Plain gathers' worth of finer regathers a call takes per leaf of its budget:
+ * the first level (4× the rays) goes as many values as leaves, as it did when
+ * values were counted; deeper levels fewer (a worker's step of 512 leaves: 32
+ * values at 64×, 2 million rays with Embree's 1,024, not 134 million at 256×). */
+enum { FINER_COST_PER_LEAF = 4 };
+
 /* Gathers again with more rays (cache_regather_finer) the indirect values whose
- * noise keeps a visible leaf above the JND (cache_noisy_vertices), at most
- * `budget`, and queues their leaves to be tested again. */
+ * noise keeps a visible leaf above the JND (cache_noisy_vertices), as many as
+ * FINER_COST_PER_LEAF × `budget` plain gathers pay for, and queues their leaves
+ * to be tested again. */
 lm_result cache_requeue_noisy(cache *c, const uint32_t *pixels, uint32_t budget, uint32_t *done, lm_error *err)
 {
     if (!c->indirect || c->desc.single_mesh) return LM_OK;
     uint32_t *vids, n;
-    lm_result r = cache_noisy_vertices(c, pixels, budget, &vids, &n, err);
+    lm_result r = cache_noisy_vertices(c, pixels, (uint64_t)FINER_COST_PER_LEAF * budget, &vids, &n, err);
     if (r != LM_OK || n == 0) {
         free(vids);
         return r;
