@@ -566,6 +566,40 @@ static void test_noise_does_not_refine(void)
 /* The box room's floor refined with `rays` a gather: the cache's estimate of its
  * mean ΔE (cache_estimate_error) and the ΔE measured against gathers of 65,536
  * rays from the same source at 16 points a seen triangle (pixel-weighted). */
+/* The noisy values gathered again with more rays are chosen by their rays: at
+ * their next level (4^(L+1) plain gathers each), as many as the cost given pays
+ * for. Counted by values, a worker's step of 512 at the fourth level was 134
+ * million rays, 15 s in which the viewer's worker would not answer a move
+ * (docs/cache.md, "The finer regathers counted in rays"). */
+static void check_noisy_cost(const cache *c, const uint32_t *pixels)
+{
+    lm_error err;
+    uint32_t *all = NULL, *some = NULL, na = 0, ns = 0;
+    CHECK(cache_noisy_vertices(c, pixels, UINT64_MAX, &all, &na, &err) == LM_OK);
+    CHECK(cache_noisy_vertices(c, pixels, 40, &some, &ns, &err) == LM_OK);
+    uint64_t cost_all = 0, cost_some = 0, most = 0;
+    uint32_t finer = 0;
+    for (uint32_t i = 0; i < na; ++i) {
+        cost_all += cache_gather_finer_cost(c, all[i]);
+        finer += cache_gather_level(c, all[i]) > 0;
+    }
+    for (uint32_t i = 0; i < ns; ++i) {
+        const uint64_t one = cache_gather_finer_cost(c, some[i]);
+        cost_some += one;
+        most = one > most ? one : most;
+    }
+    printf("noisy values: %u, %u of them already finer (%llu plain gathers' worth at their next level); for 40: %u "
+           "(%llu)\n",
+           na, finer, (unsigned long long)cost_all, ns, (unsigned long long)cost_some);
+    CHECK_MSG(finer > 0 && cost_all > 200, "%u noisy values (%u finer), %llu plain gathers' worth: too few to test", na,
+              finer, (unsigned long long)cost_all);
+    /* A leaf's corners go together: the last leaf may add up to three. */
+    CHECK_MSG(ns > 0 && ns < na && cost_some >= 40 && cost_some < 40 + 3 * most,
+              "%u of %u values for 40 plain gathers' worth: %llu", ns, na, (unsigned long long)cost_some);
+    free(all);
+    free(some);
+}
+
 static void floor_estimate(const scene *s, const uint32_t *pixels, int rays, cache_estimate *est, double *measured,
                            int *converged)
 {
@@ -586,6 +620,10 @@ static void floor_estimate(const scene *s, const uint32_t *pixels, int rays, cac
         return;
     }
     CHECK(cache_init(c, &err) == LM_OK);
+    if (rays == 4) { /* noisy values in plenty: before the first finer regathers */
+        refine_all(c, pixels, 1);
+        check_noisy_cost(c, pixels);
+    }
     *converged = refine_all(c, pixels, 0);
     CHECK(cache_estimate_error(c, pixels, est, &err) == LM_OK);
     CHECK(*converged == cache_estimate_converged(est));
