@@ -179,6 +179,18 @@ static void centroid(const scene *s, uint32_t t, float out[3])
     }
 }
 
+/* The two rooms joined by the slit (slot_rooms), the far one lit by a quad on the
+ * wall's far face, facing +x (edge1 × edge2 = y × z). */
+static scene *load_slot(const char *name)
+{
+    static obj_buf o;
+    memset(&o, 0, sizeof o);
+    slot_rooms(&o);
+    return load(name, &o,
+                "{\"type\": \"quad\", \"corner\": [1.001, 0.6, 0.3], \"edge1\": [0, 0.3, 0], "
+                "\"edge2\": [0, 0, 0.4], \"radiance\": [5000, 5000, 5000]}");
+}
+
 /* Refines until nothing is left to do (or 2,000 rounds); returns whether it
  * said it converged. tests_only: until no leaf is left to test, before the cache
  * gathers noisy values again with more rays (regathered_finer). */
@@ -202,13 +214,7 @@ static int refine_all(cache *c, const uint32_t *pixels, int tests_only)
 
 static void test_slot(void)
 {
-    static obj_buf o;
-    memset(&o, 0, sizeof o);
-    slot_rooms(&o);
-    /* the light: on the wall's far face, facing +x (edge1 × edge2 = y × z) */
-    scene *s = load("slot", &o,
-                    "{\"type\": \"quad\", \"corner\": [1.001, 0.6, 0.3], \"edge1\": [0, 0.3, 0], "
-                    "\"edge2\": [0, 0, 0.4], \"radiance\": [5000, 5000, 5000]}");
+    scene *s = load_slot("slot");
     if (!s) return;
     lm_error err;
     /* Seen: the near room's triangles (x of the centroid < WALL_NEAR), 4,000 pixels each
@@ -396,12 +402,7 @@ static void test_slot(void)
  * indirect values (wait_for_indirect) is not held. */
 static void test_owed_waits(void)
 {
-    static obj_buf o;
-    memset(&o, 0, sizeof o);
-    slot_rooms(&o);
-    scene *s = load("owed", &o,
-                    "{\"type\": \"quad\", \"corner\": [1.001, 0.6, 0.3], \"edge1\": [0, 0.3, 0], "
-                    "\"edge2\": [0, 0, 0.4], \"radiance\": [5000, 5000, 5000]}");
+    scene *s = load_slot("owed");
     if (!s) return;
     lm_error err;
     uint32_t *pixels = calloc(s->tri_count, sizeof *pixels);
