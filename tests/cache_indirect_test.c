@@ -576,8 +576,8 @@ static void check_noisy_cost(const cache *c, const uint32_t *pixels)
 {
     lm_error err;
     uint32_t *all = NULL, *some = NULL, na = 0, ns = 0;
-    CHECK(cache_noisy_vertices(c, pixels, UINT64_MAX, &all, &na, &err) == LM_OK);
-    CHECK(cache_noisy_vertices(c, pixels, 40, &some, &ns, &err) == LM_OK);
+    CHECK(cache_noisy_vertices(c, pixels, UINT64_MAX, &all, &na, NULL, &err) == LM_OK);
+    CHECK(cache_noisy_vertices(c, pixels, 40, &some, &ns, NULL, &err) == LM_OK);
     uint64_t cost_all = 0, cost_some = 0, most = 0;
     uint32_t finer = 0;
     for (uint32_t i = 0; i < na; ++i) {
@@ -624,6 +624,12 @@ static void floor_estimate(const scene *s, const uint32_t *pixels, int rays, cac
     if (rays == 4) { /* noisy values in plenty: before the first finer regathers */
         refine_all(c, pixels, 1);
         check_noisy_cost(c, pixels);
+        /* They compete with the leaf tests by their rate (visible error removed
+         * per ray): none at a rate no value reaches, some at any rate. */
+        uint32_t none = 0, some = 0;
+        CHECK(cache_requeue_noisy(c, pixels, 256, INFINITY, &none, &err) == LM_OK);
+        CHECK(cache_requeue_noisy(c, pixels, 256, 0.0, &some, &err) == LM_OK);
+        CHECK_MSG(none == 0 && some > 0, "quieter values at an unreachable rate: %u, at any rate: %u", none, some);
     }
     *converged = refine_all(c, pixels, 0);
     CHECK(cache_estimate_error(c, pixels, est, &err) == LM_OK);

@@ -245,10 +245,11 @@ static int cmp_u32(const void *a, const void *b)
 }
 
 lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint64_t max_cost, uint32_t **out, uint32_t *count,
-                               lm_error *err)
+                               cache_noisy_top *top, lm_error *err)
 {
     *out = NULL;
     *count = 0;
+    if (top) *top = (cache_noisy_top){0.0f, 0};
     noisy_walk nw = {{c, CACHE_KIND_INDIRECT, c->indirect, c->desc.jnd, NULL}, NULL, 0, 0, 0};
     for (uint32_t t = 0; t < c->s->tri_count && !nw.failed; ++t) {
         uint32_t root = mesh_qmesh_root(c->indirect, t);
@@ -260,6 +261,11 @@ lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint64_t 
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory choosing values to gather again");
     }
     if (nw.n) qsort(nw.leaves, nw.n, sizeof *nw.leaves, cmp_noisy); /* (qsort of NULL: undefined) */
+    if (top && nw.n) {
+        top->priority = nw.leaves[0].priority;
+        for (int k = 0; k < 3; ++k)
+            if (cache_gather_can_refine(c, nw.leaves[0].v[k])) top->cost += cache_gather_finer_cost(c, nw.leaves[0].v[k]);
+    }
     uint32_t *v = malloc(3 * (nw.n ? nw.n : 1) * sizeof *v), m = 0;
     if (!v) {
         free(nw.leaves);

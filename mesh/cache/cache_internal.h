@@ -303,6 +303,11 @@ typedef struct cache_sched {
     float pick_floor;
     int first_image_round;
     cache_queue set_aside;
+    /* The quieter values' turn against the leaf tests (cache_sched_refine): calls
+     * left before the next look (a look walks every visible indirect leaf), and
+     * the wait after one that found none worth their rays (doubled each time,
+     * up to NOISY_WAIT_MAX; 1 after one that gathered). */
+    uint32_t noisy_skip, noisy_wait;
     uint8_t *done[CACHE_KINDS];
     size_t done_cap[CACHE_KINDS];
     float *prio[CACHE_KINDS];
@@ -784,9 +789,15 @@ float cache_sched_residual(const cache_sched *st, cache_kind kind, uint32_t node
  * exceeds the JND with noise in it, and that could be gathered with more rays,
  * the leaves with the most pixels × noise first; as many as max_cost plain
  * gathers pay for at their next level (cache_gather_finer_cost), at least one.
- * *out: malloc'ed, the caller frees it. */
+ * *out: malloc'ed, the caller frees it. top (may be NULL): the first leaf's
+ * pixels × noise ΔE and what its corners cost at their next level, in plain
+ * gathers (0, 0: none). */
+typedef struct cache_noisy_top {
+    float priority;
+    uint64_t cost;
+} cache_noisy_top;
 lm_result cache_noisy_vertices(const cache *c, const uint32_t *pixels, uint64_t max_cost, uint32_t **out, uint32_t *count,
-                               lm_error *err);
+                               cache_noisy_top *top, lm_error *err);
 
 /* ---- cache_reach.c: what takes part ------------------------------------------------------- */
 
@@ -910,7 +921,10 @@ lm_result cache_requeue_revise(cache *c, const uint32_t *pixels, uint64_t *allow
                                lm_error *err);
 /* Indirect values whose noise keeps a visible leaf above the JND gathered again
  * with more rays (as many as a few plain gathers a leaf of the budget pay for;
- * *done counts them), their leaves queued again. */
-lm_result cache_requeue_noisy(cache *c, const uint32_t *pixels, uint32_t budget, uint32_t *done, lm_error *err);
+ * *done counts them), their leaves queued again; nothing unless the worst such
+ * leaf's noise removed per ray is at least min_rate (the leaf tests' rate, in
+ * the units of next_kind, cache_refine.c: pixels × ΔE per ray). */
+lm_result cache_requeue_noisy(cache *c, const uint32_t *pixels, uint32_t budget, double min_rate, uint32_t *done,
+                              lm_error *err);
 
 #endif

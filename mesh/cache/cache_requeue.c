@@ -147,16 +147,26 @@ lm_result cache_requeue_revise(cache *c, const uint32_t *pixels, uint64_t *allow
  * values at 64×, 2 million rays with Embree's 1,024, not 134 million at 256×). */
 enum { FINER_COST_PER_LEAF = 4 };
 
+/* The share of a leaf's noise ΔE that 4 times the rays at its corners remove
+ * (their standard errors halve). */
+#define FINER_REMOVES 0.125
+
 /* Gathers again with more rays (cache_regather_finer) the indirect values whose
  * noise keeps a visible leaf above the JND (cache_noisy_vertices), as many as
  * FINER_COST_PER_LEAF × `budget` plain gathers pay for, and queues their leaves
- * to be tested again. */
-lm_result cache_requeue_noisy(cache *c, const uint32_t *pixels, uint32_t budget, uint32_t *done, lm_error *err)
+ * to be tested again: when the worst leaf's noise removed per ray (its pixels ×
+ * noise ΔE × FINER_REMOVES, over its corners' rays at their next level and a
+ * test of the leaf) is at least min_rate. */
+lm_result cache_requeue_noisy(cache *c, const uint32_t *pixels, uint32_t budget, double min_rate, uint32_t *done,
+                              lm_error *err)
 {
     if (!c->indirect || c->desc.single_mesh) return LM_OK;
     uint32_t *vids, n;
-    lm_result r = cache_noisy_vertices(c, pixels, (uint64_t)FINER_COST_PER_LEAF * budget, &vids, &n, err);
-    if (r != LM_OK || n == 0) {
+    cache_noisy_top top;
+    lm_result r = cache_noisy_vertices(c, pixels, (uint64_t)FINER_COST_PER_LEAF * budget, &vids, &n, &top, err);
+    const double rays = (double)top.cost * samp_indirect_rays(c->sp) + c->sched.leaf_rays[CACHE_KIND_INDIRECT];
+    const double rate = rays > 0.0 ? FINER_REMOVES * top.priority / rays : 0.0;
+    if (r != LM_OK || n == 0 || rate < min_rate) {
         free(vids);
         return r;
     }
