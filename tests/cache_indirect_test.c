@@ -192,8 +192,10 @@ static scene *load_slot(const char *name)
 }
 
 /* Refines until nothing is left to do (or 2,000 rounds); returns whether it
- * said it converged. tests_only: until no leaf is left to test, before the cache
- * gathers noisy values again with more rays (regathered_finer). */
+ * said it converged. tests_only: until the first call that gathers noisy values
+ * again with more rays (regathered_finer): once no leaf is left to test, or
+ * before, once their visible error per ray beats the leaf tests' (docs/cache.md,
+ * "Quieter values by their rate"). */
 static int refine_all(cache *c, const uint32_t *pixels, int tests_only)
 {
     lm_error err;
