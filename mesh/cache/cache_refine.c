@@ -447,6 +447,14 @@ double cache_sched_yield(const cache *c, cache_kind kind)
     return st->predicted[kind] > 0.0 ? st->removed[kind] / st->predicted[kind] : 1.0;
 }
 
+/* A mesh's top priority times its yield per ray of its leaf tests; INFINITY
+ * before its cost is known. */
+static double kind_rate(const cache *c, int k)
+{
+    const double cost = c->sched.leaf_rays[k];
+    return cost > 0.0 ? (double)cache_sched_top_priority(c, k) * cache_sched_yield(c, (cache_kind)k) / cost : INFINITY;
+}
+
 /* The mesh the heap scheduler tests next, or -1 when no leaf is waiting or the
  * budget is spent: the highest top priority (pixels × ΔE its test may remove)
  * times its mesh's yield (what its tests have removed per unit of priority:
@@ -457,14 +465,6 @@ double cache_sched_yield(const cache *c, cache_kind kind)
  * the leaves (a fifth to indirect) gave the gathers 70% of the time and left the
  * door's strip of direct light waiting (docs/cache.md, "Leaves shared by cost").
  * A mesh not tested yet goes first, so that its cost is known. */
-/* A mesh's top priority times its yield per ray of its leaf tests; INFINITY
- * before its cost is known. */
-static double kind_rate(const cache *c, int k)
-{
-    const double cost = c->sched.leaf_rays[k];
-    return cost > 0.0 ? (double)cache_sched_top_priority(c, k) * cache_sched_yield(c, (cache_kind)k) / cost : INFINITY;
-}
-
 static int next_kind(const cache *c, uint32_t total_left, int indirect_too)
 {
     if (!total_left) return -1;
