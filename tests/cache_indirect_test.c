@@ -566,9 +566,6 @@ static void test_noise_does_not_refine(void)
 
 /* ---- the error estimate against the error ------------------------------------------- */
 
-/* The box room's floor refined with `rays` a gather: the cache's estimate of its
- * mean ΔE (cache_estimate_error) and the ΔE measured against gathers of 65,536
- * rays from the same source at 16 points a seen triangle (pixel-weighted). */
 /* The noisy values gathered again with more rays are chosen by their rays: at
  * their next level (4^(L+1) plain gathers each), as many as the cost given pays
  * for. Counted by values, a worker's step of 512 at the fourth level was 134
@@ -603,6 +600,9 @@ static void check_noisy_cost(const cache *c, const uint32_t *pixels)
     free(some);
 }
 
+/* The box room's floor refined with `rays` a gather: the cache's estimate of its
+ * mean ΔE (cache_estimate_error) and the ΔE measured against gathers of 65,536
+ * rays from the same source at 16 points a seen triangle (pixel-weighted). */
 static void floor_estimate(const scene *s, const uint32_t *pixels, int rays, cache_estimate *est, double *measured,
                            int *converged)
 {
