@@ -20,8 +20,10 @@
  *              the back of a surface sends nothing. Each value carries its
  *              standard error; where that could be seen it is gathered again with
  *              more rays, and the edge test ignores what the noise explains;
- *              once nothing is left to test, values whose noise keeps a leaf
- *              above the JND are gathered again with more rays (cache_estimate).
+ *              values whose noise keeps a leaf above the JND are gathered again
+ *              with more rays (cache_estimate), competing with the leaf tests
+ *              by the visible error removed per ray, and once nothing is left
+ *              to test.
  *              Visible gathers record where they draw from (importance), and the
  *              direct mesh on triangles no pixel sees is refined by the visible
  *              change it can cause through them (docs/cache.md). When a rebuilt source may have moved a gathered value by
