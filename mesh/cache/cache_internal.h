@@ -305,8 +305,8 @@ typedef struct cache_sched {
     cache_queue set_aside;
     /* The quieter values' turn against the leaf tests (cache_sched_refine): calls
      * left before the next look (a look walks every visible indirect leaf), and
-     * the wait after one that found none worth their rays (doubled each time,
-     * up to NOISY_WAIT_MAX; 1 after one that gathered). */
+     * the wait after one that found none worth their rays (1, then doubled each
+     * time, up to NOISY_WAIT_MAX; 0 after one that gathered: the next call looks). */
     uint32_t noisy_skip, noisy_wait;
     uint8_t *done[CACHE_KINDS];
     size_t done_cap[CACHE_KINDS];

@@ -535,7 +535,7 @@ lm_result cache_sched_refine(cache *c, const cache_refine_desc *desc, cache_refi
      * 0.43 ΔE of its 0.71; docs/cache.md, "Quieter values by their rate"). */
     if (r == LM_OK && by_cost && !desc->first_image && !c->src.outdated_n && !cache_borrow_pending(c)) {
         /* The look walks every visible indirect leaf: after one that found no
-         * value worth its rays the next waits 2, 4, ... calls (the 116k box,
+         * value worth its rays the next waits 1, 2, 4, ... calls (the 116k box,
          * whose noise never wins: 10% longer to converge with a look a call). */
         if (c->sched.noisy_skip) {
             c->sched.noisy_skip--;
