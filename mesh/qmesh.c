@@ -574,7 +574,7 @@ typedef struct emitter {
 static void emit(emitter *e, pt a, pt b, pt c)
 {
     if (e->r != LM_OK) return;
-    if (e->count == *e->cap && !LM_GROW(*e->buf, *e->cap, e->count + 1)) {
+    if (e->count == *e->cap && !LM_GROW_RAW(*e->buf, *e->cap, e->count + 1)) { /* appended */
         e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu triangles", e->count + 1);
         return;
     }
@@ -587,7 +587,7 @@ static void emit(emitter *e, pt a, pt b, pt c)
 static void line_push(emitter *e, pt p)
 {
     if (e->r != LM_OK) return;
-    if (e->line_len == e->line_cap && !LM_GROW(e->line, e->line_cap, e->line_len + 1)) {
+    if (e->line_len == e->line_cap && !LM_GROW_RAW(e->line, e->line_cap, e->line_len + 1)) {
         e->r = lm_fail(e->err, LM_ERR_NO_MEMORY, "cache mesh: out of memory");
         return;
     }

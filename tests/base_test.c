@@ -1,5 +1,5 @@
 /* base_test.c — the foundation layer's helpers: growing arrays (lm_grow_capacity,
- * lm_realloc_array, LM_GROW), lm_sleep_seconds and the random number generator
+ * lm_realloc_array, LM_GROW and their _raw forms), lm_sleep_seconds and the random number generator
  * (lm_rng). */
 #include "src/base/rng.h"
 #include "src/base/util.h"
@@ -49,6 +49,37 @@ static void test_grow_array(void)
     free(v);
 }
 
+/* The raw forms grow alike and keep what was written, without zeroing (what
+ * the new room holds is not looked at: reading it is undefined). */
+static void test_grow_array_raw(void)
+{
+    uint32_t *v = NULL;
+    size_t cap = 0, n = 0, reallocs = 0;
+    for (uint32_t i = 0; i < 10000; ++i) {
+        size_t before = cap;
+        CHECK(LM_GROW_RAW(v, cap, n + 1));
+        reallocs += cap != before;
+        CHECK(cap >= n + 1);
+        v[n++] = i * 5u;
+    }
+    CHECK(reallocs == 11 && cap == 16384); /* the same doubling as LM_GROW */
+    int all = 1;
+    for (uint32_t i = 0; i < 10000; ++i) all &= v[i] == i * 5u;
+    CHECK(all);
+    uint32_t *keep = v;
+    CHECK(!LM_GROW_RAW(v, cap, SIZE_MAX / 2));
+    CHECK(v == keep && cap == 16384);
+    CHECK(!lm_realloc_array_raw(&v, cap, SIZE_MAX / 2, sizeof *v));
+    CHECK(v == keep);
+    CHECK(lm_realloc_array_raw(&v, cap, 8, sizeof *v));
+    CHECK(v[7] == 35u);
+    CHECK(lm_realloc_array_raw(&v, 8, 1 << 20, sizeof *v)); /* grown again: the prefix kept */
+    all = 1;
+    for (uint32_t i = 0; i < 8; ++i) all &= v[i] == i * 5u;
+    CHECK(all);
+    free(v);
+}
+
 static void test_rng(void)
 {
     lm_rng a, b, c;
@@ -86,6 +117,7 @@ int main(void)
     test_sleep();
     test_grow_capacity();
     test_grow_array();
+    test_grow_array_raw();
     test_rng();
     return test_finish("base_test");
 }

@@ -228,7 +228,7 @@ static lm_result emit_source(cache *c, uint32_t tri, uint32_t leaf, const mesh_b
         for (int k = 0; r == LM_OK && k < 4; ++k) r = emit_source(c, tri, leaf, cb[k], cv[k], levels - 1, count, err);
         return r;
     }
-    if (*count == c->src.leaf_cap && !LM_GROW(c->src.leaf_buf, c->src.leaf_cap, *count + 1))
+    if (*count == c->src.leaf_cap && !LM_GROW_RAW(c->src.leaf_buf, c->src.leaf_cap, *count + 1))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
     mesh_qmesh_tri *t = &c->src.leaf_buf[(*count)++];
     t->tri = tri;
@@ -268,7 +268,8 @@ static lm_result grow_source(const scene *s, uint32_t **first, float **bary, flo
         if (!*first) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
     }
     if (n <= *cap) return LM_OK;
-    if (!lm_realloc_array(bary, *cap, n, 6 * sizeof **bary) || !lm_realloc_array(rad, *cap, n, 9 * sizeof **rad))
+    /* filled whole for the n triangles (fill_source_chunk) */
+    if (!lm_realloc_array_raw(bary, *cap, n, 6 * sizeof **bary) || !lm_realloc_array_raw(rad, *cap, n, 9 * sizeof **rad))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
     *cap = n;
     return LM_OK;

@@ -45,9 +45,12 @@ static lm_result append_piece(mesh_store *ms, fill_scratch *ps, int debug, const
                               size_t count, size_t got, uint32_t *nv, lm_error *err)
 {
     const size_t most = (size_t)*nv + 3 * got;
-    if (!LM_GROW(ms->index, ms->index_cap, 3 * (count + got)) || !LM_GROW(ms->tris, ms->tris_cap, count + got) ||
-        (debug && !LM_GROW(ms->corners, ms->corners_cap, 3 * (count + got))) ||
-        !LM_GROW(ms->verts, ms->verts_cap, most) || !LM_GROW(ps->ids, ps->ids_cap, most))
+    /* Written before read, each up to its count: not zeroed (a vertex's room is
+     * reserved for three a triangle, several times what is used). */
+    if (!LM_GROW_RAW(ms->index, ms->index_cap, 3 * (count + got)) ||
+        !LM_GROW_RAW(ms->tris, ms->tris_cap, count + got) ||
+        (debug && !LM_GROW_RAW(ms->corners, ms->corners_cap, 3 * (count + got))) ||
+        !LM_GROW_RAW(ms->verts, ms->verts_cap, most) || !LM_GROW_RAW(ps->ids, ps->ids_cap, most))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
     const mesh_vtable *vt = cache_vtable(c);
     const int pad = mesh_qmesh_channels(m) < 3; /* a light mesh: V, then zeros */
@@ -69,7 +72,7 @@ static lm_result append_piece(mesh_store *ms, fill_scratch *ps, int debug, const
      * vertex, three corners a triangle of a 65,536-triangle piece: 6 MB
      * reserved a fill; heaptrack put 8 MB of Water's heap peak there). */
     if (m == cache_specular_mesh(c) && *nv > first_new) {
-        if (!LM_GROW(ms->lobes, ms->lobes_cap, *nv))
+        if (!LM_GROW_RAW(ms->lobes, ms->lobes_cap, *nv))
             return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
         for (uint32_t v = first_new; v < *nv; ++v) cache_get_lobe(c, ps->ids[v], &ms->lobes[v]);
     }

@@ -170,7 +170,7 @@ size_t lm_grow_capacity(size_t cap, size_t need, size_t first, size_t max)
     return c;
 }
 
-int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size)
+static int realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size, int zero)
 {
     /* No object is larger than PTRDIFF_MAX bytes (and GCC refuses a realloc that could be). */
     if (elem_size && count > (size_t)PTRDIFF_MAX / elem_size) return 0;
@@ -179,18 +179,38 @@ int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t el
     size_t bytes = count * elem_size;
     void *p = realloc(old, bytes ? bytes : 1);
     if (!p) return 0;
-    if (count > old_count) memset((char *)p + old_count * elem_size, 0, (count - old_count) * elem_size);
+    if (zero && count > old_count) memset((char *)p + old_count * elem_size, 0, (count - old_count) * elem_size);
     memcpy(ptr_to_ptr, &p, sizeof p);
     return 1;
 }
 
-int lm_grow_array(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size)
+static int grow_array(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size, int zero)
 {
     if (need <= *cap) return 1;
     size_t c = lm_grow_capacity(*cap, need, 16, (size_t)PTRDIFF_MAX / (elem_size ? elem_size : 1));
-    if (!c || !lm_realloc_array(ptr_to_ptr, *cap, c, elem_size)) return 0;
+    if (!c || !realloc_array(ptr_to_ptr, *cap, c, elem_size, zero)) return 0;
     *cap = c;
     return 1;
+}
+
+int lm_realloc_array(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size)
+{
+    return realloc_array(ptr_to_ptr, old_count, count, elem_size, 1);
+}
+
+int lm_realloc_array_raw(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size)
+{
+    return realloc_array(ptr_to_ptr, old_count, count, elem_size, 0);
+}
+
+int lm_grow_array(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size)
+{
+    return grow_array(ptr_to_ptr, cap, need, elem_size, 1);
+}
+
+int lm_grow_array_raw(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size)
+{
+    return grow_array(ptr_to_ptr, cap, need, elem_size, 0);
 }
 
 /* ---- lm_write_file: a file replaced whole or not at all ------------------ */

@@ -284,12 +284,18 @@ static void restart_with_huge_pages(char **argv)
 int main(int argc, char **argv)
 {
     restart_with_huge_pages(argv);
-    /* At most two malloc arenas (glibc makes up to 8 per core, one per thread that
-     * allocates: the refinement worker, Embree's and llvmpipe's threads), each
-     * keeping its freed memory: 39 MB less peak on the 116k-triangle box over
-     * 20 s, no slower (docs/memory.md). Before any thread starts; the
+    /* One malloc arena for every thread. glibc makes up to 8 per core, one per
+     * thread that allocates (the refinement worker, Embree's and llvmpipe's
+     * threads), each keeping its freed memory: two instead cut the 116k-triangle
+     * box's peak by 39 MB (docs/memory.md). One, because the huge pages asked for
+     * above reach the main arena's heap and mapped blocks but not a second
+     * arena's heap: the worker's small blocks there were faulted in 4 KiB at a
+     * time, 26,000 faults before the 116k box's first snapshot against 13,400
+     * in the main arena, and its first image came at 0.65-0.69 s against
+     * 0.51-0.53 s (docs/cache.md, "The worker's memory in huge pages"); peaks
+     * and refinement times the same. Before any thread starts; the
      * MALLOC_ARENA_MAX variable, when set, decides instead. */
-    if (!getenv("MALLOC_ARENA_MAX")) mallopt(M_ARENA_MAX, 2);
+    if (!getenv("MALLOC_ARENA_MAX")) mallopt(M_ARENA_MAX, 1);
     /* Blocks of 1 MiB and more mapped on their own and given back when freed.
      * glibc's default threshold climbs to the largest block freed so far (up to
      * 32 MiB), after which a big scene's many 1-30 MB arrays (grown by doubling,
