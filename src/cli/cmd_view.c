@@ -5,10 +5,13 @@
  * kept going across a camera move (the view-independent caches are kept) and
  * that a light edit took no light sample. */
 #include <math.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
+#include "sampling/rt_scene.h"
+#include "src/base/fork_guard.h"
 #include "src/cli/app_stats.h"
 #include "src/cli/cli.h"
 #include "src/render/rend_session.h"
@@ -106,6 +109,18 @@ static void release(void *user, const scene *old)
     c->pending = NULL;
 }
 
+/* The process's Embree device, made on a helper thread while the scene loads;
+ * inside the fork guard, since the load may fork Assimp's reader meanwhile and
+ * TBB starts threads (src/base/fork_guard.h). */
+static void *warm_embree(void *unused)
+{
+    (void)unused;
+    lm_fork_guard_enter();
+    rt_device_warm();
+    lm_fork_guard_leave();
+    return NULL;
+}
+
 int cmd_view(const app_command *cmd, int argc, char **argv)
 {
     const char *sampler = NULL, *gl_name = NULL, *bounces = NULL, *script = NULL, *stats = NULL, *camera = NULL,
@@ -151,7 +166,12 @@ int cmd_view(const app_command *cmd, int argc, char **argv)
     if (r != LM_OK) return app_report(r, &err);
     scene *s = NULL;
     double t_load_start = lm_now_seconds();
+    /* Embree's device made beside the load, as converge's early helper does
+     * (rt_device_warm): the worker's first step then pays only for its scene. */
+    pthread_t warm;
+    const int warming = pthread_create(&warm, NULL, warm_embree, NULL) == 0;
     r = scene_load(&(scene_load_desc){.path = npos ? pos[0] : NULL, .require_light = 1}, &s, &err);
+    if (warming) pthread_join(warm, NULL);
     double t_scene = lm_now_seconds();
     if (r == LM_OK && isfinite(exposure)) s->exposure = (float)exposure; /* where + and − start */
     int ci = r == LM_OK ? scene_find_camera(s, camera) : 0;
