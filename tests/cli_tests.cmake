@@ -55,7 +55,7 @@ lumesh_cli_test(info_builtin 0 ARGS info
 # Pending engines: arguments and scene are checked, then a plain "not available yet".
 lumesh_cli_test(render_png 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/render.png --width 64 --height 64 --seconds 20 --residual off
   --stats ${CMAKE_CURRENT_BINARY_DIR}/render.json
-  OUT "^wrote .*render\\.png: 64x64, [0-9.]+ s, (converged|stopped) after [0-9]+ leaves tested")
+  OUT "^wrote .*render\\.png: 64x64, [0-9.]+ s, (converged \\(at [0-9.]+ s\\)|stopped) after [0-9]+ leaves tested")
 # With --seconds, what is left after the cache has finished corrects the picture with
 # path samples (the built-in box at 32x32 finishes in about 0.4 s here).
 lumesh_cli_test(render_residual 0 ARGS render -o ${CMAKE_CURRENT_BINARY_DIR}/residual.png --width 32 --height 32

@@ -125,6 +125,10 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNumberToObject(j, "first_image_seconds", d->first_image_seconds);
     else
         cJSON_AddNullToObject(j, "first_image_seconds");
+    if (d->converged_seconds > 0)
+        cJSON_AddNumberToObject(j, "converged_seconds", d->converged_seconds);
+    else
+        cJSON_AddNullToObject(j, "converged_seconds");
     if (d->phase_count > 0)
         app_stats_add_phases(j, "first_image_phases", d->phase_names, d->phase_seconds, d->phase_count);
     cJSON_AddNumberToObject(j, "leaves_tested", (double)snap->tested);

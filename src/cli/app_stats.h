@@ -26,6 +26,8 @@ typedef struct app_stats_desc {
     int supersample;              /* samples per pixel edge of the final image; 0 = 1 */
     double seconds;               /* wall time from the scene loaded to the statistics */
     double first_image_seconds;   /* from the scene loaded to the first image drawn; < 0 = not measured */
+    double converged_seconds;     /* from the scene loaded to the cache's first convergence claim (the
+                                     snapshot's converged_at); 0 = never or not measured (null) */
     const cache_snapshot *snap;   /* the last snapshot drawn (required) */
     double id_seconds;            /* the ID pass */
     const rend_frame_times *frame;/* the last frame's passes; NULL = none drawn */

@@ -695,7 +695,9 @@ int cmd_converge(const app_command *cmd, int argc, char **argv)
         stats = app_stats_json(&(app_stats_desc){.command = "converge", .scene = c.s->source, .width = c.w,
                                                  .height = c.h, .supersample = c.supersample,
                                                  .seconds = c.final_seconds,
-                                                 .first_image_seconds = c.first_image, .snap = &c.final,
+                                                 .first_image_seconds = c.first_image,
+                                                 .converged_seconds = c.converged_at > 0 ? c.converged_at : 0,
+                                                 .snap = &c.final,
                                                  .id_seconds = c.id_seconds, .frame = &c.frame_times,
                                                  .frames = c.frames});
     c.interrupted = interrupted != 0;

@@ -323,26 +323,32 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
      * 131 MB) is loaded only after the cache and the GL images are gone, so it does
      * not add to the peak (docs/memory.md). */
     cJSON *json = NULL;
+    /* When the cache claimed convergence, apart from `seconds`, which also counts
+     * the final picture's k×k supersampled draws (3.2 s of the 116k box's 15). */
+    const double converged_s = r == LM_OK && snap && snap->converged_at > 0 ? snap->converged_at - t0 : 0.0;
     if (r == LM_OK && stats) {
         rend_session_info in;
         rend_session_get_info(rs, &in);
         json = app_stats_json(&(app_stats_desc){.command = "render", .scene = s->source, .width = w, .height = h,
                                                 .supersample = (int)supersample, .seconds = elapsed,
-                                                .first_image_seconds = -1, .snap = snap, .id_seconds = in.id_seconds,
+                                                .first_image_seconds = -1, .converged_seconds = converged_s,
+                                                .snap = snap, .id_seconds = in.id_seconds,
                                                 .frame = &in.times[REND_SESSION_FINAL], .frames = 1,
                                                 .residual = corrected ? &res : NULL});
         if (!json) r = lm_fail(&err, LM_ERR_NO_MEMORY, "out of memory for the statistics");
     }
-    char summary[1024] = "";
+    char summary[1024] = "", converged_at_text[48] = "";
+    if (converged_s > 0) snprintf(converged_at_text, sizeof converged_at_text, " (at %.2f s)", converged_s);
     if (r == LM_OK) {
         const cache_stats *st = &snap->stats;
         uint64_t light = 0;
         for (uint32_t l = 0; l < st->light_count; ++l) light += st->lights[l].samples;
         snprintf(summary, sizeof summary,
-                 "%dx%d, %.2f s, %s after %llu leaves tested; samples: %llu light, %llu indirect; %u direct, "
+                 "%dx%d, %.2f s, %s%s after %llu leaves tested; samples: %llu light, %llu indirect; %u direct, "
                  "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND it "
                  "refines to (dE %.3g), %.1f%% untested%s",
-                 w, h, elapsed, snap->converged ? "converged" : "stopped", (unsigned long long)snap->tested,
+                 w, h, elapsed, snap->converged ? "converged" : "stopped", converged_at_text,
+                 (unsigned long long)snap->tested,
                  (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
                  snap->indirect.triangle_count, snap->specular.triangle_count, snap->estimate.mean,
                  100.0 * snap->estimate.above_jnd, (double)snap->jnd, 100.0 * snap->estimate.untested,

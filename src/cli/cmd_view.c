@@ -59,7 +59,12 @@ static lm_result finished(const view_app_report *rep, void *user, lm_error *err)
     cJSON *j = app_stats_json(&(app_stats_desc){.command = "view", .scene = rep->scene->source, .width = rep->width,
                                                .height = rep->height, .supersample = 1,
                                                .seconds = lm_now_seconds() - c->t_load_start,
-                                               .first_image_seconds = rep->first_image_seconds, .snap = rep->snap,
+                                               .first_image_seconds = rep->first_image_seconds,
+                                               .converged_seconds = rep->snap->converged_at > 0
+                                                                        ? rep->snap->converged_at - c->t_load_start -
+                                                                              rep->startup.load
+                                                                        : 0,
+                                               .snap = rep->snap,
                                                .id_seconds = rep->id_seconds, .frame = rep->frame,
                                                .frames = rep->frames, .phase_names = phase_names,
                                                .phase_seconds = phases, .phase_count = 6});
