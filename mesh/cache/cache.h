@@ -185,6 +185,9 @@ typedef struct cache_estimate {
                                  the estimate means little until this is near 0 */
     float jnd;                /* the JND it was measured against */
     float exposure;           /* the display's exposure it was measured at (stops: cache_set_exposure) */
+    int measured;             /* 1: made (cache_estimate_error); 0: none yet, the fields above are 0 but
+                                 untested (1), jnd and exposure: a worker's first snapshot, published
+                                 before any leaf is tested, carries none (cache_worker.h) */
 } cache_estimate;
 
 /* Indirect values a rebuilt source moved that one cache_refine call gathers

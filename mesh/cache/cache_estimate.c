@@ -159,6 +159,7 @@ lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_est
     memset(out, 0, sizeof *out);
     out->jnd = c->desc.jnd;
     out->exposure = cache_get_exposure(c);
+    out->measured = 1;
     cache_mesh_estimate *per[CACHE_KINDS] = {&out->direct, &out->indirect, &out->specular};
     double sum = 0.0, above = 0.0, untested = 0.0;
     for (uint32_t t = 0; t < c->s->tri_count; ++t) out->pixels += pixels ? (double)pixels[t] : 1e6;
@@ -183,7 +184,10 @@ lm_result cache_estimate_error(const cache *c, const uint32_t *pixels, cache_est
     return LM_OK;
 }
 
-int cache_estimate_converged(const cache_estimate *e) { return e->above_jnd <= CACHE_CONVERGED_ABOVE_JND; }
+int cache_estimate_converged(const cache_estimate *e)
+{
+    return e->measured && e->above_jnd <= CACHE_CONVERGED_ABOVE_JND;
+}
 
 /* ---- where more rays would help ---------------------------------------------------- */
 

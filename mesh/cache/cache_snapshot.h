@@ -80,7 +80,8 @@ typedef struct cache_snapshot {
     cache_stats stats;           /* stats.lights points into the snapshot */
     const float *light_radiance; /* stats.light_count × RGB: each light's radiance (area) or intensity
                                     (point) as the cache uses it (cache_get_light_radiance) */
-    cache_estimate estimate;     /* the cache's estimate of its error over the worker's pixel counts */
+    cache_estimate estimate;     /* the cache's estimate of its error over the worker's pixel counts; none
+                                    (estimate.measured 0) in a worker's first snapshot */
     samp_stats sampler;          /* the worker's sampler when it was made: back ends, samples, seconds */
     samp_stats quick_sampler;    /* the quick start's sampler (the coarse cache); zero without one */
     double published_at;         /* lm_now_seconds() when it was committed */

@@ -86,8 +86,13 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
     pthread_mutex_lock(&w->lock);
     int debug = w->debug_wanted;
     pthread_mutex_unlock(&w->lock);
-    if (r == LM_OK) r = cache_estimate_error(*c, w->pixels, &w->estimate, err);
-    w->estimate_at = lm_now_seconds();
+    /* No estimate in the first snapshot: its leaves are untested (the estimate
+     * says little until they are: cache_estimate.untested), and making it came
+     * before the first image (Water: 8 ms of its ~100). The next step makes it
+     * (estimate_at 0: ESTIMATE_SECONDS have passed). */
+    if (r == LM_OK)
+        w->estimate = (cache_estimate){.untested = 1.0, .jnd = cache_get_jnd(*c), .exposure = cache_get_exposure(*c)};
+    w->estimate_at = 0.0;
     if (r == LM_OK)
         r = cache_publish_snapshot(w, *c, &w->estimate, debug, ++*generation, w->first_tested, 0, ps, err);
     if (r == LM_OK) samp_get_stats(first, &w->back->snap.sampler);

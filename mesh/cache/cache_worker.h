@@ -93,7 +93,9 @@ void cache_worker_destroy(cache_worker *w); /* cancels the refinement, joins the
  * nothing. Display thread; NULL is a no-op. */
 void cache_worker_retire(cache_worker *w);
 
-/* The latest committed snapshot, or NULL before the first commit. */
+/* The latest committed snapshot, or NULL before the first commit. The first
+ * carries no error estimate (cache_estimate.measured 0): every leaf of it is
+ * untested; the next one does. */
 const cache_snapshot *cache_worker_acquire(cache_worker *w);
 
 /* pause returns once the worker is between steps and waiting. The step in

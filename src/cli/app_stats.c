@@ -133,7 +133,8 @@ cJSON *app_stats_json(const app_stats_desc *d)
         app_stats_add_phases(j, "first_image_phases", d->phase_names, d->phase_seconds, d->phase_count);
     cJSON_AddNumberToObject(j, "leaves_tested", (double)snap->tested);
     cJSON_AddBoolToObject(j, "converged", snap->converged);
-    cJSON *est = cJSON_AddObjectToObject(j, "estimated_error");
+    cJSON *est = snap->estimate.measured ? cJSON_AddObjectToObject(j, "estimated_error") : NULL;
+    if (!snap->estimate.measured) cJSON_AddNullToObject(j, "estimated_error"); /* a first snapshot's: none */
     if (est) {
         const cache_estimate *e = &snap->estimate;
         cJSON_AddNumberToObject(est, "jnd", e->jnd);

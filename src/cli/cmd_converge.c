@@ -137,6 +137,7 @@ static void snapshot_samples(const conv_ctx *c, const cache_snapshot *snap, conv
     row->est_delta_e = snap->estimate.mean * share;
     row->est_above_jnd = snap->estimate.above_jnd * share;
     row->est_untested = snap->estimate.untested * share;
+    row->est_measured = snap->estimate.measured;
     row->jnd = snap->jnd;
 }
 

@@ -87,9 +87,11 @@ static void show_progress(void *user, const cache_snapshot *snap)
     app_progress_bar(p->limit > 0 ? t / p->limit : 0, bar);
     uint64_t light = 0;
     for (uint32_t l = 0; l < snap->stats.light_count; ++l) light += snap->stats.lights[l].samples;
-    fprintf(stderr, "\rrender [%s] %.1f s  %llu leaves  %llu light + %llu indirect samples  est. dE %.2f (JND %.3g)%s   ",
+    char est[32] = "est. dE -"; /* the first snapshot has none (cache_worker_acquire) */
+    if (snap->estimate.measured) snprintf(est, sizeof est, "est. dE %.2f", snap->estimate.mean);
+    fprintf(stderr, "\rrender [%s] %.1f s  %llu leaves  %llu light + %llu indirect samples  %s (JND %.3g)%s   ",
             bar, t, (unsigned long long)snap->tested, (unsigned long long)light,
-            (unsigned long long)snap->stats.indirect.samples, snap->estimate.mean, (double)snap->jnd,
+            (unsigned long long)snap->stats.indirect.samples, est, (double)snap->jnd,
             snap->converged ? " converged" : "");
     fflush(stderr);
 }

@@ -45,6 +45,8 @@ typedef struct conv_row {
     double est_delta_e;       /* lumesh: the cache's own estimate of delta_e_mean (cache_estimate, over the image) */
     double est_above_jnd;     /* lumesh: its estimated fraction of pixels above the JND */
     double est_untested;      /* lumesh: the fraction of pixels in leaves not tested yet (the estimate a guess) */
+    int est_measured;         /* lumesh: the snapshot had an estimate (not the first: cache_worker_acquire);
+                                 0: the three above are not written (empty in the CSV, null in the JSON) */
     double jnd;               /* lumesh: the JND the cache refined to (below the scene's once converged) */
     cmp_result m;
     char image[64];           /* file name in DIR (EXR; the PNG beside it) */

@@ -53,7 +53,10 @@ lm_result conv_write_csv(const conv_ctx *c, const conv_run *runs, int nrun, lm_e
                 w->m.psnr, w->m.mean_abs_error,
                 w->m.max_abs_error, w->m.delta_e_mean, w->m.delta_e_p99, w->m.delta_e_max);
             OUT("%.5f,", w->m.delta_e_above_jnd);
-            if (!pt) OUT("%.4f,%.5f,%.5f,%.4g", w->est_delta_e, w->est_above_jnd, w->est_untested, w->jnd);
+            if (!pt && w->est_measured)
+                OUT("%.4f,%.5f,%.5f,%.4g", w->est_delta_e, w->est_above_jnd, w->est_untested, w->jnd);
+            else if (!pt)
+                OUT(",,,%.4g", w->jnd);
             else OUT(",,,");
             if (!pt && w->spp_max) OUT(",%.4f,%.4f,%.4g", w->residual_weight, w->residual_corrected, w->residual_est);
             else OUT(",,,");
@@ -94,7 +97,9 @@ static cJSON *row_json(const conv_ctx *c, const conv_run *run, const conv_row *w
     } else {
         cJSON_AddStringToObject(o, "state", conv_state_names[w->state]);
         cJSON_AddNumberToObject(o, "leaves_tested", (double)w->tested);
-        if ((m = cJSON_AddObjectToObject(o, "estimated_error"))) {
+        if (!w->est_measured) {
+            cJSON_AddNullToObject(o, "estimated_error"); /* the first snapshot's: none made */
+        } else if ((m = cJSON_AddObjectToObject(o, "estimated_error"))) {
             cJSON_AddNumberToObject(m, "delta_e_mean", rounded(w->est_delta_e, 1e-5));
             cJSON_AddNumberToObject(m, "fraction_above_jnd", rounded(w->est_above_jnd, 1e-6));
             cJSON_AddNumberToObject(m, "fraction_untested", rounded(w->est_untested, 1e-6));

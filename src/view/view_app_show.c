@@ -159,11 +159,15 @@ void view_app_hud_text(view_state *v, char *out, size_t size)
                             : s->converged                ? "converged, sharpening"
                             : s->finished                 ? "finished (the estimate is still above the JND)"
                                                           : "running";
-        k += (size_t)snprintf(out + k, size - k,
-                              "refinement: %s, %.0f samples/s, %.1f MB; estimated mean dE %.2f, %.1f%% above the JND "
-                              "(%.3g), %.0f%% untested\n",
-                              state, v->rate, s->stats.bytes / 1048576.0, s->estimate.mean,
-                              100.0 * s->estimate.above_jnd, (double)s->jnd, 100.0 * s->estimate.untested);
+        if (s->estimate.measured)
+            k += (size_t)snprintf(out + k, size - k,
+                                  "refinement: %s, %.0f samples/s, %.1f MB; estimated mean dE %.2f, %.1f%% above the "
+                                  "JND (%.3g), %.0f%% untested\n",
+                                  state, v->rate, s->stats.bytes / 1048576.0, s->estimate.mean,
+                                  100.0 * s->estimate.above_jnd, (double)s->jnd, 100.0 * s->estimate.untested);
+        else /* the first snapshot: none made yet (cache_worker_acquire) */
+            k += (size_t)snprintf(out + k, size - k, "refinement: %s, %.1f MB; error not estimated yet (JND %.3g)\n",
+                                  state, s->stats.bytes / 1048576.0, (double)s->jnd);
         view_app_report rep;
         view_app_report_of(v, &rep);
         if (rep.rest_draws && k < size) /* the resting picture (view_app.c, draw_picture) */
