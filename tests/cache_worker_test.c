@@ -453,6 +453,10 @@ int main(void)
         CHECK(first != NULL);
         cache_worker_pause(w); /* returns once the worker is parked: at the first snapshot */
         uint64_t g0 = first ? first->generation : 0, t_first = first ? first->tested : 0;
+        /* The first snapshot carries no error estimate (its leaves are untested);
+         * it claims no convergence either. */
+        CHECK(first && !first->estimate.measured && first->estimate.untested == 1.0 &&
+              first->estimate.jnd > 0.0f && !cache_estimate_converged(&first->estimate));
         sleep_ms(200);
         const cache_snapshot *still = cache_worker_acquire(w);
         uint64_t g1 = still ? still->generation : 0;
@@ -468,6 +472,8 @@ int main(void)
                (unsigned long long)g0, (unsigned long long)t_first, (unsigned long long)g1, (unsigned long long)g2);
         CHECK(g0 == 1 && g1 == g0);
         CHECK(g2 > g1);
+        const cache_snapshot *next = cache_worker_acquire(w); /* the next step makes one */
+        CHECK(next && next->generation > 1 && next->estimate.measured && next->estimate.pixels > 0.0);
         cache_worker_destroy(w);
     }
     /* A pause within a step cuts it short: with one step of any length (a budget
