@@ -95,10 +95,10 @@ int lm_grow_array(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size);
  * for arrays whose elements are written before they are read (appended to, or
  * filled whole). Zeroing the spare part of a doubled array touches every page
  * of it at once; on this project's measuring machine a first touch costs
- * ~5-10 µs a 4 KiB page, and the 116k-triangle box's first snapshot zeroed
- * tens of MB it never used (docs/cache.md, "The worker's memory in huge
- * pages"). Untouched, a block big enough to be mapped gets its pages when
- * they are written. */
+ * ~5-10 µs a 4 KiB page, and a snapshot's publication zeroed several MB a
+ * mesh that it then gave back unused (docs/cache.md, "The worker's memory in
+ * huge pages"). Untouched, a block big enough to be mapped gets its pages
+ * when they are written. */
 int lm_realloc_array_raw(void *ptr_to_ptr, size_t old_count, size_t count, size_t elem_size);
 int lm_grow_array_raw(void *ptr_to_ptr, size_t *cap, size_t need, size_t elem_size);
 #define LM_GROW_RAW(ptr, cap, need) lm_grow_array_raw(&(ptr), &(cap), (need), sizeof *(ptr))
