@@ -51,9 +51,12 @@ typedef struct publish_scratch {
 } publish_scratch;
 
 /* Leaf triangles taken from a mesh at a time when publishing: the scratch stays
- * at ~4.5 MB (68 bytes a triangle) however big the mesh (a million-triangle
- * scene's whole mesh at once held 70 MB more at the peak; docs/memory.md). */
-enum { PUBLISH_PIECE = 1 << 16 };
+ * at ~0.56 MB (68 bytes a triangle) however big the mesh (a million-triangle
+ * scene's whole mesh at once held 70 MB more at the peak; docs/memory.md). It
+ * was 65,536 (4.5 MB a fill, two fills): the first snapshot's first touch of
+ * it and the vertex room reserved for a piece cost the 116k box's first image
+ * 10-30 ms (docs/cache.md, "Pieces of 8,192 leaf triangles"). */
+enum { PUBLISH_PIECE = 1 << 13 };
 
 /* Buffers behind one snapshot; owned by whichever side holds the slot. */
 typedef struct snapshot_store {
