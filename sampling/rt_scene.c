@@ -7,6 +7,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "src/base/fork_guard.h"
+
 struct rt_scene {
     RTCScene scene;
     float epsilon;     /* the largest of tri_eps: for points on no known triangle */
@@ -34,40 +36,6 @@ static void on_embree_error(void *user, enum RTCError code, const char *str)
     if (!build_error.msg[0]) lm_fail(&build_error, LM_ERR_RUNTIME, "Embree error %d: %s", (int)code, str ? str : "");
 }
 
-/* The shared device, made if it is not yet; under device_lock. */
-static int have_device(void)
-{
-    if (shared_device) return 1;
-    shared_device = rtcNewDevice(NULL);
-    if (shared_device) rtcSetDeviceErrorFunction(shared_device, on_embree_error, NULL);
-    return shared_device != NULL;
-}
-
-void rt_device_warm(void)
-{
-    pthread_mutex_lock(&device_lock);
-    static int warmed; /* guarded by device_lock */
-    if (!warmed && have_device()) {
-        warmed = 1;
-        memset(&build_error, 0, sizeof build_error);
-        RTCScene sc = rtcNewScene(shared_device);
-        RTCGeometry geom = rtcNewGeometry(shared_device, RTC_GEOMETRY_TYPE_TRIANGLE);
-        float *vb = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), 3);
-        unsigned *ib = rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned), 1);
-        if (vb && ib) {
-            const float p[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
-            memcpy(vb, p, sizeof p);
-            ib[0] = 0, ib[1] = 1, ib[2] = 2;
-        }
-        rtcCommitGeometry(geom);
-        rtcAttachGeometryByID(sc, geom, 0);
-        rtcReleaseGeometry(geom);
-        rtcCommitScene(sc);
-        rtcReleaseScene(sc);
-    }
-    pthread_mutex_unlock(&device_lock);
-}
-
 lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *err)
 {
     *out = NULL;
@@ -76,11 +44,15 @@ lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *e
     rt_scene *rt = calloc(1, sizeof *rt);
     if (!rt) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the ray tracing scene");
     pthread_mutex_lock(&device_lock);
-    if (!have_device()) {
-        pthread_mutex_unlock(&device_lock);
-        free(rt);
-        return lm_fail(err, LM_ERR_RUNTIME, "Embree could not create a device (error %d)",
-                       (int)rtcGetDeviceError(NULL));
+    if (!shared_device) {
+        shared_device = rtcNewDevice(NULL);
+        if (!shared_device) {
+            pthread_mutex_unlock(&device_lock);
+            free(rt);
+            return lm_fail(err, LM_ERR_RUNTIME, "Embree could not create a device (error %d)",
+                           (int)rtcGetDeviceError(NULL));
+        }
+        rtcSetDeviceErrorFunction(shared_device, on_embree_error, NULL);
     }
     memset(&build_error, 0, sizeof build_error);
     rt->scene = rtcNewScene(shared_device);
@@ -133,6 +105,20 @@ lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *e
     rt->epsilon = fmaxf(extent, 1e-6f) * RT_EPSILON_REL;
     *out = rt;
     return LM_OK;
+}
+
+void rt_device_warm(void)
+{
+    /* A stand-in scene through rt_scene_create itself: the device, its error
+     * callback and a build (TBB's threads) exactly as the first real scene's. */
+    float positions[9] = {0.0f, 0.0f, 0.0f, 1.0f, 0.0f, 0.0f, 0.0f, 1.0f, 0.0f};
+    scene_tri tri = {.v = {0, 1, 2}, .light = -1};
+    scene stand_in = {.positions = positions, .vertex_count = 3, .tris = &tri, .tri_count = 1};
+    rt_scene *rt = NULL;
+    lm_error ignored;
+    lm_fork_guard_enter();
+    if (rt_scene_create(&(rt_scene_desc){.scene = &stand_in}, &rt, &ignored) == LM_OK) rt_scene_destroy(rt);
+    lm_fork_guard_leave();
 }
 
 void rt_scene_destroy(rt_scene *rt)

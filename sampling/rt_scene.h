@@ -43,8 +43,10 @@ typedef struct rt_scene rt_scene;
 lm_result rt_scene_create(const rt_scene_desc *desc, rt_scene **out, lm_error *err);
 /* Makes the process's Embree device and starts its thread pool (a one-triangle
  * scene built and dropped), so that the first rt_scene_create pays for neither
- * (7-10 ms and 5-8 ms here): for a helper thread while a scene loads. Any
- * thread, any number of times; what fails is left for rt_scene_create to say. */
+ * (7-10 ms and 5-8 ms here): for a helper thread while a scene loads. Inside
+ * the fork guard (src/base/fork_guard.h): TBB starts threads and C++ statics
+ * while the load may fork Assimp's reader. Any thread, any number of times;
+ * what fails is left for rt_scene_create to say. */
 void rt_device_warm(void);
 void rt_scene_destroy(rt_scene *rt); /* NULL is a no-op */
 

@@ -11,7 +11,6 @@
 #include <string.h>
 
 #include "sampling/rt_scene.h"
-#include "src/base/fork_guard.h"
 #include "src/cli/app_stats.h"
 #include "src/cli/cli.h"
 #include "src/render/rend_session.h"
@@ -114,15 +113,11 @@ static void release(void *user, const scene *old)
     c->pending = NULL;
 }
 
-/* The process's Embree device, made on a helper thread while the scene loads;
- * inside the fork guard, since the load may fork Assimp's reader meanwhile and
- * TBB starts threads (src/base/fork_guard.h). */
+/* The process's Embree device, made on a helper thread while the scene loads. */
 static void *warm_embree(void *unused)
 {
     (void)unused;
-    lm_fork_guard_enter();
     rt_device_warm();
-    lm_fork_guard_leave();
     return NULL;
 }
 

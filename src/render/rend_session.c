@@ -110,11 +110,8 @@ static void *early_gl_main(void *user)
      * built-in functions) and its first draw the variants (~40 ms): both are
      * paid here, while the client loads. */
     /* Embree's device and thread pool too (rt_device_warm): 13-18 ms of
-     * Water's first image otherwise, in the worker before its first ray. Inside
-     * the fork guard: TBB starts threads and C++ statics. */
-    lm_fork_guard_enter();
+     * Water's first image otherwise, in the worker before its first ray. */
     rt_device_warm();
-    lm_fork_guard_leave();
     if (e->r == LM_OK) {
         lm_fork_guard_enter();
         if (rend_frame_create(glctx_gl(e->ctx),
