@@ -191,7 +191,8 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
     /* As the viewer does: the worker publishes the first snapshot and rests until
      * it is drawn, so the draw has both cores (docs/viewer.md). */
     cache_worker_request_pause(rend_session_worker(rs));
-    lm_result r = rend_session_renderer(rs, REND_SESSION_PREVIEW, NULL, err);
+    rend_frame *preview = NULL;
+    lm_result r = rend_session_renderer(rs, REND_SESSION_PREVIEW, &preview, err);
     /* The geometry alone first, as the viewer shows it until the first snapshot
      * (view_app.c): its material image depends on the camera and the scene only,
      * and the draw with the snapshot keeps it. On the 116k box that pass is 26-48
@@ -204,7 +205,11 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
         r = rend_session_wait(rs, &(rend_session_wait_desc){.first = 1, .stop = &interrupted, .nap = 0.001}, &snap,
                               err);
     c->phase[2] = lm_now_seconds() - t0;
+    /* As the viewer draws it: the highlights per pixel one draw later
+     * (rend_frame_defer_highlights; docs/renderer.md, "The first image's
+     * highlights one draw later"). */
     if (r == LM_OK && snap) {
+        rend_frame_defer_highlights(preview);
         r = rend_session_draw(rs, REND_SESSION_PREVIEW, cam, NULL, err); /* a viewer shows it from the GPU */
         c->first_image = lm_now_seconds() - t0;
         c->frames++;
@@ -217,6 +222,7 @@ static lm_result first_image(conv_ctx *c, rend_session *rs, double t0, float *rg
         const double begun = lm_now_seconds();
         char path[SCENE_PATH_MAX + 32];
         snprintf(path, sizeof path, "%s/first-image.exr", c->dir);
+        rend_frame_defer_highlights(preview); /* read back as it was shown, not drawn again */
         r = rend_session_draw(rs, REND_SESSION_PREVIEW, cam, rgb, err);
         if (r == LM_OK)
             r = img_write(&(img_write_desc){.path = path, .width = c->w, .height = c->h, .channels = 3, .pixels = rgb},

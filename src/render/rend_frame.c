@@ -378,6 +378,8 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
     if (!f->images_ok)
         return lm_fail(err, LM_ERR_RUNTIME, "renderer: its %dx%d images could not be made (rend_frame_resize)",
                        f->desc.width, f->desc.height);
+    const int defer = f->defer_highlights; /* for this draw only */
+    f->defer_highlights = 0;
     const GladGLContext *gl = f->gl;
     const scene *s = f->desc.scene;
     int w = f->desc.width, h = f->desc.height;
@@ -439,6 +441,8 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
     rect dirty[TERMS];
     int uploads = 0;
     lm_result r = update_snapshot(f, snap, vp, same_camera, dirty, &uploads, err);
+    for (int t = 0; t < TERMS; ++t) /* drawn without its highlights last time: whole again, with them */
+        if (f->term[t].highlights_owed && !defer) dirty[t] = (rect){0, 0, f->sw, f->sh};
     tt->upload_reused = uploads == 0;
     tt->upload = lap(gl, &t0);
 
@@ -490,6 +494,10 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
         redrawn += (double)(d.x1 - d.x0) * (double)(d.y1 - d.y0) / ((double)f->sw * (double)f->sh);
         ts->drawn = 1;
         drew = 1;
+        /* Deferred (rend_frame_defer_highlights): the lobes' mesh through the
+         * plain program, which reads its positions and values only. */
+        const int per_pixel = ts->lobes && !defer;
+        ts->highlights_owed = ts->lobes && defer;
         GLuint target = f->val_fbo ? f->val_fbo : ts->fbo;
         for (int y0 = 0; y0 < f->sh; y0 += f->band) {
             /* The dirty rows of this band, in its own rows (whole pixels: the
@@ -507,7 +515,7 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
             gl->ClearNamedFramebufferfv(target, GL_COLOR, 0, zero);
             gl->ClearNamedFramebufferfv(target, GL_DEPTH, 0, &far_depth);
             gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, target);
-            if (ts->lobes) {
+            if (per_pixel) {
                 gl->UseProgram(f->prog_highlight);
                 gl->UniformMatrix4fv(f->loc_hl_vp, 1, GL_FALSE, vp);
                 gl->Uniform3fv(f->loc_hl_eye, 1, cam->position);
@@ -519,7 +527,7 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
             }
             gl->BindVertexArray(ts->vao);
             gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * ts->copy.triangle_count), GL_UNSIGNED_INT, NULL);
-            if (ts->lobes)
+            if (per_pixel)
                 for (GLuint b = 0; b < 3; ++b) gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1 + b, 0);
             if (!f->val_fbo) {
                 if (part) gl->Disable(GL_SCISSOR_TEST);
@@ -627,6 +635,8 @@ void rend_frame_jitter_pattern(int i, int k, int s, float *jx, float *jy)
     *jx = (((float)(i % k) + 0.5f) / (float)k - 0.5f) * cell;
     *jy = (((float)(i / k) + 0.5f) / (float)k - 0.5f) * cell;
 }
+
+void rend_frame_defer_highlights(rend_frame *f) { f->defer_highlights = 1; }
 
 void rend_frame_set_jitter(rend_frame *f, float jx, float jy)
 {

@@ -207,6 +207,14 @@ lm_result rend_frame_set_emission(rend_frame *f, uint32_t material, const float 
 /* Forgets what the images hold: the next draw does every pass and uploads the
  * snapshot again. */
 void rend_frame_invalidate(rend_frame *f);
+/* The next draw shows the specular term's lights' part as the specular mesh
+ * interpolates it, not per pixel (rend_value.frag, HIGHLIGHT), and the draw
+ * after it redraws that term per pixel, even with the same snapshot and camera:
+ * for a first image that has to come soon. On CornellBox-Water at 640×480 the
+ * per-pixel pass is 20-25 ms of a first draw of 35-40 ms on llvmpipe, and the
+ * interpolated highlights' image has mean ΔE 1.98 against 1.84
+ * (docs/renderer.md, "The first image's highlights one draw later"). */
+void rend_frame_defer_highlights(rend_frame *f);
 
 #ifdef __cplusplus
 }

@@ -46,6 +46,7 @@ typedef struct term_state {
     cache_lobe *copy_lobes;
     uint32_t copy_lcap;
     int lobes;                     /* the mesh drawn came with lobes: drawn by prog_highlight */
+    int highlights_owed;           /* tex drawn without them (rend_frame_defer_highlights): redrawn next */
     int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
 } term_state;
 
@@ -66,6 +67,7 @@ struct rend_frame {
     GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
     unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
     float jitter[2];                 /* rend_frame_set_jitter: output pixels, right and down */
+    int defer_highlights;            /* rend_frame_defer_highlights: for the next draw only */
     int comp_valid;                  /* the output holds the composite of the current inputs ... */
     unsigned comp_terms;             /* ... drawn with these terms (u_terms) */
     /* Sample images (s·width × s·height). Only the material codes are kept

@@ -414,5 +414,5 @@ void rend_frame_invalidate(rend_frame *f)
 {
     if (!f) return;
     f->mat_valid = f->val_valid = f->snap_valid = f->comp_valid = 0;
-    for (int t = 0; t < TERMS; ++t) f->term[t].drawn = 0;
+    for (int t = 0; t < TERMS; ++t) f->term[t].drawn = f->term[t].highlights_owed = 0;
 }

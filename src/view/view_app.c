@@ -843,6 +843,10 @@ static lm_result frame(view_state *v, lm_error *err)
     rend_frame_get_output(f, &o);
     cam.width = o.width;
     cam.height = o.height;
+    /* The first snapshot's picture with the highlights the specular mesh
+     * interpolates; the next frame draws them per pixel (docs/renderer.md, "The
+     * first image's highlights one draw later"). */
+    if (v->first_image < 0 && v->snap) rend_frame_defer_highlights(f);
     r = draw_picture(v, f, &cam, &o, err);
     tm_desc tm = {.exposure = v->exposure};
     if (r == LM_OK) r = view_tm_draw(v->tm, &(view_tm_target){.width = w, .height = h}, v->shown, &tm, err);
