@@ -13,6 +13,14 @@
  * Why keys are stored rather than recomputed from (tri, bary): computing a key
  * needs the normal-class table and an edge-kind query; storing 20 bytes per
  * vertex keeps a probe to one memcmp-sized compare.
+ *
+ * Scene vertices (two zero weights) are not hashed: each normal class has a
+ * first corner (the class's smallest triangle's corner at the vertex), and
+ * class_vertex, by that corner's index, holds the class's live vertex. Every
+ * cache mesh's roots look their three corners up, a million-triangle scene's
+ * about three million times at start-up: hashed, those probes were random
+ * reads in a table of a million slots (docs/cache.md, "Scene vertices without
+ * the hash map").
  */
 #include "mesh/vtable.h"
 #include "src/base/parallel.h"
@@ -37,12 +45,17 @@ typedef struct vslot {
 struct mesh_vtable {
     const scene *s;
     const mesh_geo *geo;
-    uint32_t *normal_class; /* 3 per scene triangle: the corner's vertex normal class */
+    /* 3 per scene triangle (corner index 3·tri + c): the first corner of the
+     * corner's normal class at its vertex (its triangle is the class's smallest);
+     * and, by such a first corner, the class's live vertex (MESH_VTABLE_NONE: none). */
+    uint32_t *class_corner;
+    uint32_t *class_vertex;
 
     mesh_vertex *v;  /* [cap], by id */
     vkey *keys;      /* [cap], by id */
     uint32_t *freed; /* stack of recycled ids, [cap] */
     uint32_t cap, id_limit, free_count, live;
+    uint32_t hashed; /* live vertices in slots (not scene vertices) */
 
     vslot *slots;
     uint32_t mask; /* slots - 1 */
@@ -176,14 +189,14 @@ static void vertex_classes(mesh_vtable *vt, double cos_tol, const uint32_t *L, u
             if (lo < n && L[lo] / 3 == (uint32_t)nb) uf_union(parent, i, lo);
         }
     }
-    for (uint32_t i = 0; i < n; ++i) vt->normal_class[L[i]] = L[uf_find(parent, i)] / 3;
+    for (uint32_t i = 0; i < n; ++i) vt->class_corner[L[i]] = L[uf_find(parent, i)];
 }
 
 /* Vertices a chunk of classes_chunk takes. */
 #define CLASS_CHUNK 2048u
 
 typedef struct classes_job {
-    mesh_vtable *vt;         /* written: normal_class of its chunk's corners only */
+    mesh_vtable *vt;         /* written: class_corner of its chunk's corners only */
     double cos_tol;
     const uint32_t *start;   /* [vertex_count + 1]: each vertex's corners in `corners` */
     const uint32_t *corners;
@@ -218,12 +231,13 @@ static lm_result build_normal_classes(mesh_vtable *vt, double cos_tol, lm_error 
     const uint32_t nt = s->tri_count, nv = s->vertex_count;
     const size_t nc = 3 * (size_t)nt;
     const uint32_t chunks = (uint32_t)(((size_t)nv + CLASS_CHUNK - 1) / CLASS_CHUNK);
-    vt->normal_class = malloc((nc ? nc : 1) * sizeof *vt->normal_class);
+    vt->class_corner = malloc((nc ? nc : 1) * sizeof *vt->class_corner);
+    vt->class_vertex = malloc((nc ? nc : 1) * sizeof *vt->class_vertex);
     uint32_t *start = calloc((size_t)nv + 1, sizeof *start);
     uint32_t *corners = malloc((nc ? nc : 1) * sizeof *corners);
     uint8_t *failed = calloc(chunks ? chunks : 1, 1);
     lm_result r = LM_OK;
-    if (!vt->normal_class || !start || !corners || !failed) {
+    if (!vt->class_corner || !vt->class_vertex || !start || !corners || !failed) {
         r = lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: out of memory for %u triangles", nt);
         goto done;
     }
@@ -231,6 +245,7 @@ static lm_result build_normal_classes(mesh_vtable *vt, double cos_tol, lm_error 
     for (size_t k = 0; k < nc; ++k) start[s->tris[k / 3].v[k % 3] + 1]++;
     for (uint32_t v = 0; v < nv; ++v) start[v + 1] += start[v];
     for (size_t k = 0; k < nc; ++k) corners[start[s->tris[k / 3].v[k % 3]]++] = (uint32_t)k;
+    memset(vt->class_vertex, 0xff, nc * sizeof *vt->class_vertex); /* MESH_VTABLE_NONE */
     for (uint32_t v = nv; v > 0; --v) start[v] = start[v - 1];
     start[0] = 0;
     lm_parallel_for(lm_thread_count(0), chunks, classes_chunk,
@@ -256,8 +271,9 @@ static void key_of(const mesh_vtable *vt, uint32_t tri, mesh_bary p, vkey *k, me
     if (zeros == 2) {
         int c = r.w[0] ? 0 : r.w[1] ? 1 : 2;
         k->a = tv[c];
-        k->b = vt->normal_class[3 * (size_t)tri + (size_t)c];
-        k->c = k->d = 0;
+        k->c = vt->class_corner[3 * (size_t)tri + (size_t)c]; /* the class's first corner */
+        k->b = k->c / 3;                                      /* its triangle: the class */
+        k->d = 0;
         k->kd = (uint32_t)KIND_VERTEX << 8;
     } else if (zeros == 1) {
         int z = r.w[0] == 0 ? 0 : r.w[1] == 0 ? 1 : 2;
@@ -374,7 +390,8 @@ lm_result mesh_vtable_create(const mesh_vtable_desc *desc, mesh_vtable **out, lm
 void mesh_vtable_destroy(mesh_vtable *vt)
 {
     if (!vt) return;
-    free(vt->normal_class);
+    free(vt->class_corner);
+    free(vt->class_vertex);
     free(vt->v);
     free(vt->keys);
     free(vt->freed);
@@ -444,20 +461,21 @@ lm_result mesh_vtable_acquire(mesh_vtable *vt, uint32_t tri, mesh_bary p, uint32
     vkey k;
     mesh_bary red;
     key_of(vt, tri, p, &k, &red);
-    const uint32_t h = key_hash(&k);
-    int found;
-    uint32_t i = probe(vt, &k, h, &found);
-    if (found) {
-        mesh_vertex *v = &vt->v[vt->slots[i].id];
+    const int hashed = k.kd >> 8 != KIND_VERTEX;
+    const uint32_t h = hashed ? key_hash(&k) : 0;
+    int found = 0;
+    uint32_t i = hashed ? probe(vt, &k, h, &found) : 0;
+    const uint32_t known = hashed ? (found ? vt->slots[i].id : MESH_VTABLE_NONE) : vt->class_vertex[k.c];
+    if (known != MESH_VTABLE_NONE) {
+        mesh_vertex *v = &vt->v[known];
         if (v->refs == UINT32_MAX)
-            return lm_fail(err, LM_ERR_RUNTIME, "vertex table: vertex %u has 2^32-1 references",
-                           vt->slots[i].id);
+            return lm_fail(err, LM_ERR_RUNTIME, "vertex table: vertex %u has 2^32-1 references", known);
         v->refs++;
-        *out_id = vt->slots[i].id;
+        *out_id = known;
         return LM_OK;
     }
     /* New vertex: make room first, so a failure leaves the table untouched. */
-    if ((double)(vt->live + 1) > 0.7 * (double)(vt->mask + 1)) {
+    if (hashed && (double)(vt->hashed + 1) > 0.7 * (double)(vt->mask + 1)) {
         if (vt->mask + 1 >= (1u << 31))
             return lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: hash map is at its size limit");
         r = grow_slots(vt, 2 * (vt->mask + 1), err);
@@ -474,8 +492,13 @@ lm_result mesh_vtable_acquire(mesh_vtable *vt, uint32_t tri, mesh_bary p, uint32
     fill_vertex(vt, tri, red, &vt->v[id]);
     vt->v[id].refs = 1;
     vt->keys[id] = k;
-    vt->slots[i].id = id;
-    vt->slots[i].h = h;
+    if (hashed) {
+        vt->slots[i].id = id;
+        vt->slots[i].h = h;
+        vt->hashed++;
+    } else {
+        vt->class_vertex[k.c] = id;
+    }
     vt->live++;
     vt->created++;
     *out_id = id;
@@ -488,6 +511,7 @@ uint32_t mesh_vtable_find(const mesh_vtable *vt, uint32_t tri, mesh_bary p)
     vkey k;
     mesh_bary red;
     key_of(vt, tri, p, &k, &red);
+    if (k.kd >> 8 == KIND_VERTEX) return vt->class_vertex[k.c];
     int found;
     uint32_t i = probe(vt, &k, key_hash(&k), &found);
     return found ? vt->slots[i].id : MESH_VTABLE_NONE;
@@ -507,10 +531,24 @@ lm_result mesh_vtable_retain(mesh_vtable *vt, uint32_t id, lm_error *err)
     return LM_OK;
 }
 
+/* A freed id: its key cleared, the id stacked for reuse. */
+static lm_result forget(mesh_vtable *vt, uint32_t id)
+{
+    memset(&vt->keys[id], 0, sizeof vt->keys[id]);
+    vt->freed[vt->free_count++] = id;
+    vt->live--;
+    vt->destroyed++;
+    return LM_OK;
+}
+
 lm_result mesh_vtable_release(mesh_vtable *vt, uint32_t id, lm_error *err)
 {
     if (!is_live(vt, id)) return lm_fail(err, LM_ERR_INVALID_ARG, "vertex table: release of dead id %u", id);
     if (--vt->v[id].refs > 0) return LM_OK;
+    if (vt->keys[id].kd >> 8 == KIND_VERTEX) {
+        vt->class_vertex[vt->keys[id].c] = MESH_VTABLE_NONE;
+        return forget(vt, id);
+    }
     /* Last reference: remove the slot by backward shift, so no tombstone remains. */
     const uint32_t h = key_hash(&vt->keys[id]);
     uint32_t i = h & vt->mask;
@@ -527,11 +565,8 @@ lm_result mesh_vtable_release(mesh_vtable *vt, uint32_t id, lm_error *err)
     }
     vt->slots[i].id = MESH_VTABLE_NONE;
     vt->slots[i].h = 0;
-    memset(&vt->keys[id], 0, sizeof vt->keys[id]);
-    vt->freed[vt->free_count++] = id;
-    vt->live--;
-    vt->destroyed++;
-    return LM_OK;
+    vt->hashed--;
+    return forget(vt, id);
 }
 
 const mesh_vertex *mesh_vtable_vertex(const mesh_vtable *vt, uint32_t id)
@@ -547,7 +582,7 @@ static size_t table_bytes(const mesh_vtable *vt)
 {
     return sizeof *vt + (size_t)vt->cap * (sizeof *vt->v + sizeof *vt->keys + sizeof *vt->freed) +
            ((size_t)vt->mask + 1) * sizeof *vt->slots +
-           3 * (size_t)vt->s->tri_count * sizeof *vt->normal_class;
+           3 * (size_t)vt->s->tri_count * (sizeof *vt->class_corner + sizeof *vt->class_vertex);
 }
 
 void mesh_vtable_get_stats(const mesh_vtable *vt, mesh_vtable_stats *out)
@@ -573,7 +608,7 @@ void mesh_vtable_get_stats(const mesh_vtable *vt, mesh_vtable_stats *out)
 double mesh_vtable_bytes_per_vertex(const mesh_vtable *vt)
 {
     if (!vt || vt->live == 0) return 0.0;
-    return (double)(table_bytes(vt) - 3 * (size_t)vt->s->tri_count * sizeof *vt->normal_class -
+    return (double)(table_bytes(vt) - 3 * (size_t)vt->s->tri_count * (sizeof *vt->class_corner + sizeof *vt->class_vertex) -
                     sizeof *vt) /
            (double)vt->live;
 }

@@ -280,6 +280,37 @@ static void test_refcount_and_recycling(void)
 
 /* A million interior points of one triangle at depth 11: every key new, no two
  * conflated (ids 0..N-1 in order, found again), ten-odd rehashes, exact positions. */
+/* Scene vertices are kept by normal class, outside the hash map (vtable.c): the
+ * same counting, freeing and recycling as any other point, and the hash map
+ * holds none of them. */
+static void test_scene_vertex_recycling(void)
+{
+    toy t;
+    toy_init(&t, k_square, 4, k_square_tris, 2, k_up2, NULL);
+    mesh_vtable *vt = make_vt(&t.s, 4);
+    if (!vt) return;
+    lm_error err = {{0}};
+    /* Vertex 0: corner 0 of both triangles; vertex 2: corner 2 of the first, 1 of the second. */
+    uint32_t a = get(vt, 0, 1, 0, 0, 0);
+    CHECK(a != MESH_VTABLE_NONE && get(vt, 1, 1, 0, 0, 0) == a && get(vt, 0, 4, 0, 0, 2) == a && refs(vt, a) == 3);
+    uint32_t c = get(vt, 0, 0, 0, 1, 0);
+    CHECK(c != a && get(vt, 1, 0, 2, 0, 1) == c && refs(vt, c) == 2);
+    mesh_vtable_stats st;
+    mesh_vtable_get_stats(vt, &st);
+    CHECK(st.live == 2 && st.max_probe == 0); /* no slot holds either */
+    for (int k = 0; k < 3; ++k) CHECK(mesh_vtable_release(vt, a, &err) == LM_OK);
+    CHECK(mesh_vtable_vertex(vt, a) == NULL && mesh_vtable_find(vt, 1, (mesh_bary){{1, 0, 0}, 0}) == MESH_VTABLE_NONE);
+    CHECK(mesh_vtable_find(vt, 1, (mesh_bary){{0, 1, 0}, 0}) == c);
+    /* Made again, from the other triangle: the recycled id, found from both. */
+    uint32_t b = get(vt, 1, 1, 0, 0, 0);
+    CHECK(b == a && refs(vt, b) == 1 && mesh_vtable_find(vt, 0, (mesh_bary){{2, 0, 0}, 1}) == b);
+    const mesh_vertex *vb = mesh_vtable_vertex(vt, b);
+    CHECK(vb && vb->tri == 1 && vb->position[0] == 0.0f && vb->position[1] == 0.0f);
+    mesh_vtable_get_stats(vt, &st);
+    CHECK(st.live == 2 && st.created == 3 && st.freed == 1);
+    mesh_vtable_destroy(vt);
+}
+
 static void test_growth(void)
 {
     enum { N = 1000000, D = 11 };
@@ -357,6 +388,7 @@ int main(void)
     test_crease();
     test_box_corner();
     test_refcount_and_recycling();
+    test_scene_vertex_recycling();
     test_growth();
     return test_finish("mesh_vtable_test");
 }
