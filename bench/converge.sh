@@ -65,9 +65,10 @@ for r in lm:
     net_ratio = "%.2f" % (net(pe) / net(e)) if pe and net(e) > 0 else "-"
     res = r.get("residual")
     est = "%.3g / %.3g" % (res["estimated_relmse"], net(e)) if res and "estimated_relmse" in res else "-"
-    print("| %g s (at %.2f) | %.3g | %s | %s | %s | %.3f | %s | %g | %s | %s | %s |" % (
+    est_err = r.get("estimated_error") # null in the first snapshot: no estimate yet
+    print("| %g s (at %.2f) | %.3g | %s | %s | %s | %.3f | %s | %s | %s | %s | %s |" % (
         r["target_seconds"], r["seconds"], e["relmse"], "%.3g" % pe["relmse"] if pe else "-", ratio, net_ratio,
-        e["delta_e_mean"], "%.3f" % pe["delta_e_mean"] if pe else "-", r["estimated_error"]["jnd"], r["state"],
+        e["delta_e_mean"], "%.3f" % pe["delta_e_mean"] if pe else "-", "%g" % est_err["jnd"] if est_err else "-", r["state"],
         "%d..%d" % (res["spp_min"], res["spp_max"]) if res else "-", est))
 noise = lm[0]["error"].get("relmse_reference_noise", 0.0) if lm else 0.0
 print("the reference's own noise: relMSE %.3g of every number above (net ratio: both relMSEs less it)" % noise)
