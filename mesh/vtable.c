@@ -608,7 +608,6 @@ void mesh_vtable_get_stats(const mesh_vtable *vt, mesh_vtable_stats *out)
 double mesh_vtable_bytes_per_vertex(const mesh_vtable *vt)
 {
     if (!vt || vt->live == 0) return 0.0;
-    return (double)(table_bytes(vt) - 3 * (size_t)vt->s->tri_count * (sizeof *vt->class_corner + sizeof *vt->class_vertex) -
-                    sizeof *vt) /
-           (double)vt->live;
+    const size_t per_triangle = 3 * (size_t)vt->s->tri_count * (sizeof *vt->class_corner + sizeof *vt->class_vertex);
+    return (double)(table_bytes(vt) - per_triangle - sizeof *vt) / (double)vt->live;
 }
