@@ -227,11 +227,17 @@ static void test_box_corner(void)
     CHECK(diag == 1 && edge == 1);
 }
 
+/* The unit square's two flat triangles (0,1,2) and (0,2,3) in a table of 4 records. */
+static mesh_vtable *square_table(toy *t)
+{
+    toy_init(t, k_square, 4, k_square_tris, 2, k_up2, NULL);
+    return make_vt(&t->s, 4);
+}
+
 static void test_refcount_and_recycling(void)
 {
     toy t;
-    toy_init(&t, k_square, 4, k_square_tris, 2, k_up2, NULL);
-    mesh_vtable *vt = make_vt(&t.s, 4);
+    mesh_vtable *vt = square_table(&t);
     if (!vt) return;
     lm_error err = {{0}};
     uint32_t p = get(vt, 0, 1, 1, 2, 2);
@@ -278,16 +284,13 @@ static void test_refcount_and_recycling(void)
     mesh_geo_destroy(t.s.topology);
 }
 
-/* A million interior points of one triangle at depth 11: every key new, no two
- * conflated (ids 0..N-1 in order, found again), ten-odd rehashes, exact positions. */
 /* Scene vertices are kept by normal class, outside the hash map (vtable.c): the
  * same counting, freeing and recycling as any other point, and the hash map
  * holds none of them. */
 static void test_scene_vertex_recycling(void)
 {
     toy t;
-    toy_init(&t, k_square, 4, k_square_tris, 2, k_up2, NULL);
-    mesh_vtable *vt = make_vt(&t.s, 4);
+    mesh_vtable *vt = square_table(&t);
     if (!vt) return;
     lm_error err = {{0}};
     /* Vertex 0: corner 0 of both triangles; vertex 2: corner 2 of the first, 1 of the second. */
@@ -311,6 +314,8 @@ static void test_scene_vertex_recycling(void)
     mesh_vtable_destroy(vt);
 }
 
+/* A million interior points of one triangle at depth 11: every key new, no two
+ * conflated (ids 0..N-1 in order, found again), ten-odd rehashes, exact positions. */
 static void test_growth(void)
 {
     enum { N = 1000000, D = 11 };
