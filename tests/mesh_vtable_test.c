@@ -312,6 +312,7 @@ static void test_scene_vertex_recycling(void)
     mesh_vtable_get_stats(vt, &st);
     CHECK(st.live == 2 && st.created == 3 && st.freed == 1);
     mesh_vtable_destroy(vt);
+    mesh_geo_destroy(t.s.topology);
 }
 
 /* A million interior points of one triangle at depth 11: every key new, no two
