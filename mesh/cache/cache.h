@@ -76,7 +76,8 @@ extern "C" {
 
 enum {
     CACHE_LIGHT_LAG = 2, /* a light leaf may be this many levels coarser than the radiance leaf and still interpolate */
-    CACHE_BOUNCES_AUTO = -1, /* cache_desc.bounces: as many as change what is seen by more than the JND */
+    CACHE_BOUNCES_AUTO = -1, /* cache_desc.bounces: until the rest would change what is seen by at most a
+                                quarter of the JND */
     CACHE_BOUNCES_MAX = 32,  /* most diffuse bounces, asked or chosen */
     CACHE_BOUNCE_RAYS_DEFAULT = 64 /* rays per coarse vertex of the further bounces' transport */
 };

@@ -28,14 +28,22 @@
  * pixel sees, where it would stay at its roots), and coarse vertices on an open
  * edge start their rays inside their triangle (a floor ending under a wall).
  *
- * auto (CACHE_BOUNCES_AUTO): the smallest K whose picture is within the JND of
- * all bounces' at every seen coarse vertex: the tone-mapped colour (CIELAB ΔE,
+ * auto (CACHE_BOUNCES_AUTO): the smallest K whose picture is within a quarter
+ * of the JND (CACHE_BOUNCES_REST_SHARE) of all bounces' at every seen coarse
+ * vertex: the tone-mapped colour (CIELAB ΔE,
  * the cache's own figures: L_dd from the direct mesh) with E ≈ B_1 + … + B_K
  * against E ≈ B_1 + B_2 + … (iterated until a bounce adds under 1e-3 of the
  * sum, at most CACHE_BOUNCES_MAX). Not "the next bounce is below the JND": in a
  * sphere of albedo 0.5 at JND 1 that stops at 3 bounces, ΔE 1.6 from the whole
- * series (tests/cache_test.c). cache_bounce_stats.why says why it stopped. The
- * specular term is left out of that colour: it only masks, so the count errs high.
+ * series (tests/cache_test.c). A quarter, not the whole JND: the bounces left
+ * out darken every seen point the same way, a bias on top of the interpolation
+ * and noise that the cache's convergence weighs against the JND; with the whole
+ * JND the Veach door stopped at 14 bounces, the rest ΔE 1.65 where seen, and its
+ * picture was mean ΔE 3.66 from the full transport at 60 s against 3.43 with a
+ * quarter (20 bounces; docs/cache.md, "Bounces within a quarter of the JND").
+ * A further bounce costs one pass over the transport's hits (the door: 2 ms).
+ * cache_bounce_stats.why says why it stopped. The specular term is left out of
+ * that colour: it only masks, so the count errs high.
  *
  * Does NOT do: the transport's own noise and bias (R rays per vertex, fixed; the
  * linear interpolation of B_k over a coarse leaf), light from the back of a
@@ -589,10 +597,12 @@ lm_result cache_bounces_update(cache *c, lm_error *err)
     int K = 1;
     for (;;) {
         st->rest_de = largest_change(sl.n, sl.shown, sl.whole);
-        if (automatic && !(st->rest_de > c->desc.jnd)) {
+        const float rest_bound = CACHE_BOUNCES_REST_SHARE * c->desc.jnd;
+        if (automatic && !(st->rest_de > rest_bound)) {
             snprintf(st->why, sizeof st->why,
-                     "auto: the bounces after %d would add at most ΔE %.2f where they are seen, below the JND %.2f", K,
-                     (double)st->rest_de, (double)c->desc.jnd);
+                     "auto: the bounces after %d would add at most ΔE %.2f where they are seen, below a quarter of "
+                     "the JND (%.2f)",
+                     K, (double)st->rest_de, (double)rest_bound);
             break;
         }
         if (!automatic && K >= c->desc.bounces) {

@@ -267,6 +267,10 @@ enum {
                                          coarse vertices than this over bounce_rays get fewer a vertex */
 };
 
+/* auto's bounces: until the rest would change no seen point by more than this
+ * share of the JND (cache_bounces.c). */
+#define CACHE_BOUNCES_REST_SHARE 0.25f
+
 typedef struct cache_bounce_state {
     uint32_t nv;               /* coarse vertices: the leaf corners of c->indirect1 */
     uint32_t *vid;             /* nv: their vertex ids */

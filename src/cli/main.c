@@ -15,8 +15,8 @@
     "                      costs are kept in ~/.cache/lumesh, and a run where GL cannot win\n" \
     "                      measures nothing; LUMESH_CACHE_DIR= switches that off)\n"           \
     "  --gl NAME           GL platform of the gl sampler: egl (default) or osmesa\n"       \
-    "  --bounces K|auto    diffuse bounces shown, 1..32, or auto (default): as many as change\n" \
-    "                      the picture by more than the JND where it is seen\n"                \
+    "  --bounces K|auto    diffuse bounces shown, 1..32, or auto (default): until the rest would\n" \
+    "                      change the picture by at most a quarter of the JND where it is seen\n" \
     "  --exposure E        stops of the picture's exposure (default: the scene's); the cache\n"   \
     "                      refines for the colours shown at it\n"
 
