@@ -38,10 +38,78 @@ static void progress(const ref_renderer *r, double fraction, int final)
     fflush(stderr);
 }
 
+/* A previous reference to pool this run's samples with (--add): read and checked
+ * before any sampling, so that an hour's run cannot end in a mismatch. */
+typedef struct prior_ref {
+    img_image img;
+    int ch[7]; /* R, G, B, stderr.R/G/B, samples */
+    char seeds[IMG_ATTRIBUTE_CAP];
+} prior_ref;
+
+static const char *const k_ref_channels[7] = {"R", "G", "B", "stderr.R", "stderr.G", "stderr.B", "samples"};
+
+/* The attributes a reference made with rd carries (and a pooled one must share). */
+static void ref_attributes(const ref_desc *rd, char bounces[16], const char *out[6])
+{
+    snprintf(bounces, 16, "%d", rd->bounces == REF_BOUNCES_NONE ? 0 : rd->bounces == 0 ? 1 : rd->bounces);
+    out[0] = rd->transport == REF_TRANSPORT_FULL ? "full" : "model";
+    out[1] = rd->transport == REF_TRANSPORT_FULL ? "all" : bounces;
+    /* lumesh:glossy: what glossy materials reflect (the model transport's
+     * ref_desc.glossy; the full transport reflects everything). A file
+     * without it was made before the model reflected the room. */
+    out[2] = rd->transport == REF_TRANSPORT_MODEL && rd->glossy == REF_GLOSSY_DIRECT ? "direct" : "indirect";
+}
+
+static lm_result read_prior(const char *path, const ref_desc *rd, int w, int h, prior_ref *pr, lm_error *err)
+{
+    lm_result res = img_read(path, &pr->img, err);
+    if (res != LM_OK) return res;
+    const img_image *im = &pr->img;
+    if (im->width != w || im->height != h)
+        return lm_fail(err, LM_ERR_BAD_INPUT, "%s is %dx%d, this reference %dx%d: --add pools only the same size",
+                       path, im->width, im->height, w, h);
+    for (int k = 0; k < 7; ++k) {
+        pr->ch[k] = -1;
+        for (int c = 0; c < im->channels; ++c)
+            if (strcmp(im->channel_names[c], k_ref_channels[k]) == 0) pr->ch[k] = c;
+        if (pr->ch[k] < 0)
+            return lm_fail(err, LM_ERR_BAD_INPUT, "%s has no channel %s: not made by `lumesh reference`", path,
+                           k_ref_channels[k]);
+    }
+    char bounces[16];
+    const char *want[6];
+    ref_attributes(rd, bounces, want);
+    static const char *const names[3] = {"lumesh:transport", "lumesh:bounces", "lumesh:glossy"};
+    for (int k = 0; k < 3; ++k) {
+        const char *have = img_attribute(im, names[k]);
+        if (!have || strcmp(have, want[k]) != 0)
+            return lm_fail(err, LM_ERR_BAD_INPUT, "%s was made with %s %s, this reference with %s: --add pools only "
+                           "references of the same transport", path, names[k], have ? have : "(none)", want[k]);
+    }
+    const char *seeds = img_attribute(im, "lumesh:seeds");
+    snprintf(pr->seeds, sizeof pr->seeds, "%s", seeds ? seeds : "");
+    char mine[16];
+    snprintf(mine, sizeof mine, "%u", rd->seed);
+    for (const char *at = pr->seeds; *at;) { /* a seed already in: the same samples again, nothing new */
+        size_t len = strcspn(at, ",");
+        if (len == strlen(mine) && strncmp(at, mine, len) == 0)
+            return lm_fail(err, LM_ERR_BAD_INPUT, "%s already holds the samples of seed %s: give another --seed", path,
+                           mine);
+        at += len + (at[len] == ',');
+    }
+    return LM_OK;
+}
+
 /* The transport goes into the file's header (lumesh:transport, lumesh:bounces):
  * `converge` takes the same transport for its path tracer and the same bounce
- * count for the previewer from it. */
-static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const char *path, lm_error *err)
+ * count for the previewer from it; lumesh:seeds lists the seeds whose samples it
+ * holds (--add). With prior, the two are pooled pixel by pixel: means weighted by
+ * their samples, standard errors combined as those of independent means,
+ * se² = (n_a²·se_a² + n_b²·se_b²) / (n_a + n_b)². *rel_stderr gets the file's
+ * mean relative standard error, with SE(Y) taken as the channels' weighted sum
+ * (their noise fully correlated, so never understated). */
+static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const prior_ref *prior, const char *path,
+                              double *rel_stderr, lm_error *err)
 {
     int w, h;
     ref_get_size(r, &w, &h);
@@ -53,27 +121,40 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const c
         res = lm_fail(err, LM_ERR_NO_MEMORY, "%s: out of memory assembling the image", path);
     } else {
         ref_get_image(r, rgb, se, spp);
+        double rel = 0.0;
         for (size_t i = 0; i < n; ++i) {
+            double na = spp[i], nb = 0.0;
+            const float *q = prior ? prior->img.pixels + i * (size_t)prior->img.channels : NULL;
+            if (q && isfinite(q[prior->ch[6]]) && q[prior->ch[6]] > 0.0f) nb = q[prior->ch[6]];
+            const double sum = na + nb > 0.0 ? na + nb : 1.0;
+            double y = 0.0, se_y = 0.0;
             for (int k = 0; k < 3; ++k) {
-                px[7 * i + (size_t)k] = rgb[3 * i + (size_t)k];
-                px[7 * i + 3 + (size_t)k] = se[3 * i + (size_t)k];
+                double m = rgb[3 * i + (size_t)k], e = se[3 * i + (size_t)k];
+                if (nb > 0.0) {
+                    const double mb = q[prior->ch[k]], eb = q[prior->ch[3 + k]];
+                    m = (na * m + nb * mb) / sum;
+                    e = sqrt(na * na * e * e + nb * nb * eb * eb) / sum;
+                }
+                px[7 * i + (size_t)k] = (float)m;
+                px[7 * i + 3 + (size_t)k] = (float)e;
+                static const double lum[3] = {0.2126, 0.7152, 0.0722};
+                y += lum[k] * m;
+                se_y += lum[k] * e;
             }
-            px[7 * i + 6] = spp[i];
+            px[7 * i + 6] = (float)(na + nb);
+            if (isfinite(se_y)) rel += se_y / sqrt(y * y + 0.01);
         }
-        static const char *const names[7] = {"R", "G", "B", "stderr.R", "stderr.G", "stderr.B", "samples"};
-        char bounces[16];
-        snprintf(bounces, sizeof bounces, "%d",
-                 rd->bounces == REF_BOUNCES_NONE ? 0 : rd->bounces == 0 ? 1 : rd->bounces);
-        /* lumesh:glossy: what glossy materials reflect (the model transport's
-         * ref_desc.glossy; the full transport reflects everything). A file
-         * without it was made before the model reflected the room. */
-        const char *attrs[] = {"lumesh:transport", rd->transport == REF_TRANSPORT_FULL ? "full" : "model",
-                               "lumesh:bounces", rd->transport == REF_TRANSPORT_FULL ? "all" : bounces,
-                               "lumesh:glossy",
-                               rd->transport == REF_TRANSPORT_MODEL && rd->glossy == REF_GLOSSY_DIRECT ? "direct" : "indirect",
-                               NULL};
+        *rel_stderr = n ? rel / (double)n : 0.0;
+        char bounces[16], seeds[IMG_ATTRIBUTE_CAP];
+        const char *a[6];
+        ref_attributes(rd, bounces, a);
+        int len = snprintf(seeds, sizeof seeds, "%s%s%u", prior && prior->seeds[0] ? prior->seeds : "",
+                           prior && prior->seeds[0] ? "," : "", rd->seed);
+        if (len < 0 || (size_t)len >= sizeof seeds) snprintf(seeds, sizeof seeds, "many"); /* no longer checked */
+        const char *attrs[] = {"lumesh:transport", a[0], "lumesh:bounces", a[1], "lumesh:glossy", a[2],
+                               "lumesh:seeds", seeds, NULL};
         img_write_desc d = {.path = path, .width = w, .height = h, .channels = 7, .pixels = px,
-                            .channel_names = names, .attributes = attrs};
+                            .channel_names = k_ref_channels, .attributes = attrs};
         res = img_write(&d, err);
     }
     free(rgb);
@@ -85,7 +166,7 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const c
 
 int cmd_reference(const app_command *cmd, int argc, char **argv)
 {
-    const char *out = NULL, *transport = "model", *camera = NULL, *glossy = "indirect";
+    const char *out = NULL, *transport = "model", *camera = NULL, *glossy = "indirect", *add = NULL;
     double seconds = 0;
     long spp = 0, bounces = 1, seed = 0, threads = 0, width = 0, height = 0;
     app_opt opts[] = {
@@ -100,9 +181,10 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
         {"--width", NULL, APP_OPT_INT, &width, 1, 32768},
         {"--height", NULL, APP_OPT_INT, &height, 1, 32768},
         {"--glossy", NULL, APP_OPT_STRING, &glossy},
+        {"--add", NULL, APP_OPT_STRING, &add},
     };
     const char *pos[1];
-    int npos, rc = app_parse_options(cmd, argc, argv, opts, 11, pos, 1, &npos);
+    int npos, rc = app_parse_options(cmd, argc, argv, opts, 12, pos, 1, &npos);
     if (rc < 0) return APP_EXIT_OK;
     if (rc) return rc;
     if (!out) return app_usage_error(cmd, "an output image is required (-o OUT.exr)");
@@ -146,6 +228,18 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
         scene_destroy(s);
         return app_report(res, &err);
     }
+    prior_ref prior = {0};
+    if (add) {
+        int w, h;
+        ref_get_size(r, &w, &h);
+        res = read_prior(add, &rd, w, h, &prior, &err);
+        if (res != LM_OK) {
+            img_free(&prior.img);
+            ref_destroy(r);
+            scene_destroy(s);
+            return app_report(res, &err);
+        }
+    }
 
     struct sigaction sa, old;
     memset(&sa, 0, sizeof sa);
@@ -167,7 +261,8 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
         }
         if (done) break;
     }
-    res = write_result(r, &rd, out, &err);
+    double pooled_rel = 0.0;
+    res = write_result(r, &rd, add ? &prior : NULL, out, &pooled_rel, &err);
     sigaction(SIGINT, &old, NULL);
     ref_stats st;
     ref_get_stats(r, &st);
@@ -179,10 +274,14 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
                out, w, h, transport, st.min_samples, st.max_samples > st.min_samples ? "+" : "", st.seconds,
                st.seconds > 0 ? st.rays / st.seconds * 1e-6 : 0.0, 100.0 * st.mean_rel_stderr,
                interrupted ? " (interrupted)" : "");
+        if (add)
+            printf("pooled with %s (seeds %s): mean relative standard error at most %.3f%%\n", add,
+                   prior.seeds[0] ? prior.seeds : "not recorded", 100.0 * pooled_rel);
         if (st.bad_samples)
             fprintf(stderr, "lumesh reference: %llu non-finite samples were dropped\n",
                     (unsigned long long)st.bad_samples);
     }
+    img_free(&prior.img);
     ref_destroy(r);
     scene_destroy(s);
     return res == LM_OK ? APP_EXIT_OK : app_report(res, &err);
