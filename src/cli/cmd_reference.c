@@ -86,8 +86,10 @@ static lm_result read_prior(const char *path, const ref_desc *rd, int w, int h, 
             return lm_fail(err, LM_ERR_BAD_INPUT, "%s was made with %s %s, this reference with %s: --add pools only "
                            "references of the same transport", path, names[k], have ? have : "(none)", want[k]);
     }
+    /* A file from before the list (or one whose list overflowed) holds seeds
+     * nobody can check: "unrecorded" stays in the list for good. */
     const char *seeds = img_attribute(im, "lumesh:seeds");
-    snprintf(pr->seeds, sizeof pr->seeds, "%s", seeds ? seeds : "");
+    snprintf(pr->seeds, sizeof pr->seeds, "%s", seeds ? seeds : "unrecorded");
     char mine[16];
     snprintf(mine, sizeof mine, "%u", rd->seed);
     for (const char *at = pr->seeds; *at;) { /* a seed already in: the same samples again, nothing new */
@@ -148,9 +150,8 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const p
         char bounces[16], seeds[IMG_ATTRIBUTE_CAP];
         const char *a[6];
         ref_attributes(rd, bounces, a);
-        int len = snprintf(seeds, sizeof seeds, "%s%s%u", prior && prior->seeds[0] ? prior->seeds : "",
-                           prior && prior->seeds[0] ? "," : "", rd->seed);
-        if (len < 0 || (size_t)len >= sizeof seeds) snprintf(seeds, sizeof seeds, "many"); /* no longer checked */
+        int len = snprintf(seeds, sizeof seeds, "%s%s%u", prior ? prior->seeds : "", prior ? "," : "", rd->seed);
+        if (len < 0 || (size_t)len >= sizeof seeds) snprintf(seeds, sizeof seeds, "unrecorded"); /* too many to list */
         const char *attrs[] = {"lumesh:transport", a[0], "lumesh:bounces", a[1], "lumesh:glossy", a[2],
                                "lumesh:seeds", seeds, NULL};
         img_write_desc d = {.path = path, .width = w, .height = h, .channels = 7, .pixels = px,
@@ -275,8 +276,8 @@ int cmd_reference(const app_command *cmd, int argc, char **argv)
                st.seconds > 0 ? st.rays / st.seconds * 1e-6 : 0.0, 100.0 * st.mean_rel_stderr,
                interrupted ? " (interrupted)" : "");
         if (add)
-            printf("pooled with %s (seeds %s): mean relative standard error at most %.3f%%\n", add,
-                   prior.seeds[0] ? prior.seeds : "not recorded", 100.0 * pooled_rel);
+            printf("pooled with %s (seeds %s): mean relative standard error at most %.3f%%\n", add, prior.seeds,
+                   100.0 * pooled_rel);
         if (st.bad_samples)
             fprintf(stderr, "lumesh reference: %llu non-finite samples were dropped\n",
                     (unsigned long long)st.bad_samples);
