@@ -595,9 +595,9 @@ lm_result cache_bounces_update(cache *c, lm_error *err)
     seen_colours(c, &sl, b->whole, sl.whole);
     seen_colours(c, &sl, b->shown, sl.shown);
     int K = 1;
+    const float rest_bound = CACHE_BOUNCES_REST_SHARE * c->desc.jnd;
     for (;;) {
         st->rest_de = largest_change(sl.n, sl.shown, sl.whole);
-        const float rest_bound = CACHE_BOUNCES_REST_SHARE * c->desc.jnd;
         if (automatic && !(st->rest_de > rest_bound)) {
             snprintf(st->why, sizeof st->why,
                      "auto: the bounces after %d would add at most ΔE %.2f where they are seen, below a quarter of "

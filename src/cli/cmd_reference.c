@@ -10,6 +10,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "sampling/ref_shading.h"
 #include "sampling/reference.h"
 #include "src/cli/cli.h"
 #include "src/image/image.h"
@@ -124,12 +125,12 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const p
     } else {
         ref_get_image(r, rgb, se, spp);
         double rel = 0.0;
+        size_t counted = 0;
         for (size_t i = 0; i < n; ++i) {
             double na = spp[i], nb = 0.0;
             const float *q = prior ? prior->img.pixels + i * (size_t)prior->img.channels : NULL;
             if (q && isfinite(q[prior->ch[6]]) && q[prior->ch[6]] > 0.0f) nb = q[prior->ch[6]];
             const double sum = na + nb > 0.0 ? na + nb : 1.0;
-            double y = 0.0, se_y = 0.0;
             for (int k = 0; k < 3; ++k) {
                 double m = rgb[3 * i + (size_t)k], e = se[3 * i + (size_t)k];
                 if (nb > 0.0) {
@@ -139,14 +140,16 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const p
                 }
                 px[7 * i + (size_t)k] = (float)m;
                 px[7 * i + 3 + (size_t)k] = (float)e;
-                static const double lum[3] = {0.2126, 0.7152, 0.0722};
-                y += lum[k] * m;
-                se_y += lum[k] * e;
             }
             px[7 * i + 6] = (float)(na + nb);
-            if (isfinite(se_y)) rel += se_y / sqrt(y * y + 0.01);
+            /* ref_get_stats' measure, with SE(Y) the luminance of the channels' errors */
+            const double y = ref_luminance(px + 7 * i), se_y = ref_luminance(px + 7 * i + 3);
+            if (isfinite(se_y)) {
+                rel += se_y / sqrt(y * y + 0.01);
+                counted++;
+            }
         }
-        *rel_stderr = n ? rel / (double)n : 0.0;
+        *rel_stderr = counted ? rel / (double)counted : INFINITY;
         char bounces[16], seeds[IMG_ATTRIBUTE_CAP];
         const char *a[6];
         ref_attributes(rd, bounces, a);
