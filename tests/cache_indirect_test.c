@@ -212,6 +212,84 @@ static int refine_all(cache *c, const uint32_t *pixels, int tests_only)
     return 0;
 }
 
+/* ---- differences hidden in white ------------------------------------------------- */
+
+static scene *floor_box(const char *name, uint32_t **pixels);
+
+/* cache_below_white: a midpoint's fresh value and its edge's interpolation, both
+ * past the display's white (tonemap.h clips), show no difference at the midpoint,
+ * but a leaf with a corner below white carries the difference into its middle
+ * (the slot's wall by the slit: a leaf 9% too dark inside passed its tests). The
+ * pair moves down until the larger is at white, the difference kept; unchanged
+ * where the leaf is white all over, or where nothing clips. The white level
+ * follows the other meshes' terms (a direct background lowers it) and the
+ * exposure. On the box's white floor (kd 0.7): E_i's white is π / 0.7 at exposure 0. */
+static void test_below_white(void)
+{
+    uint32_t *pixels;
+    scene *s = floor_box("white", &pixels);
+    if (!s) return;
+    lm_error err;
+    samp_sampler *sp = NULL;
+    cache *c = NULL;
+    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 16}, &sp, &err) ==
+          LM_OK);
+    if (sp) CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
+    uint32_t t = 0;
+    while (t < s->tri_count && !pixels[t]) ++t;
+    CHECK(t < s->tri_count);
+    if (!c || t == s->tri_count) return;
+    const float kd = s->materials[s->tris[t].material].kd[0];
+    for (int lit = 0; lit < 2; ++lit)
+        for (int stops = -1; stops <= 1; stops += 2) {
+            CHECK(cache_set_exposure(c, (float)stops, &err) == LM_OK);
+            float bg[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}};
+            const float ldd = lit ? 0.1f : 0.0f;
+            for (int ch = 0; ch < 3; ++ch) bg[CACHE_KIND_DIRECT][ch] = ldd;
+            const float white = (float)M_PI * (exp2f(-(float)stops) / kd - ldd); /* E_i the display shows as white */
+            struct {
+                float x, y, darkest, want_x, want_y;
+            } cases[] = {
+                {1.2f, 1.05f, 0.5f, 1.0f, 0.85f},  /* both white, the leaf reaches below: moved */
+                {1.05f, 1.2f, 0.5f, 0.85f, 1.0f},  /* either order */
+                {1.2f, 0.9f, 0.5f, 1.0f, 0.7f},    /* one white */
+                {1.2f, 1.05f, 1.01f, 1.2f, 1.05f}, /* the leaf white all over: not seen anywhere */
+                {0.6f, 0.5f, 0.3f, 0.6f, 0.5f},    /* nothing clips */
+            };
+            for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+                float x[3], y[3], darkest[3], lx[3], ly[3];
+                for (int ch = 0; ch < 3; ++ch) {
+                    x[ch] = cases[i].x * white;
+                    y[ch] = cases[i].y * white;
+                    darkest[ch] = cases[i].darkest * white;
+                }
+                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, x, lx);
+                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, y, ly);
+                const float before = tm_delta_e(lx, ly);
+                cache_below_white(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, darkest, x, y);
+                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, x, lx);
+                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, y, ly);
+                const float after = tm_delta_e(lx, ly);
+                for (int ch = 0; ch < 3; ++ch)
+                    CHECK_MSG(fabsf(x[ch] - cases[i].want_x * white) <= 1e-4f * white &&
+                                  fabsf(y[ch] - cases[i].want_y * white) <= 1e-4f * white,
+                              "case %zu (exposure %+d, direct %g): %.4g, %.4g of white, want %.4g, %.4g", i, stops,
+                              (double)ldd, x[ch] / white, y[ch] / white, cases[i].want_x, cases[i].want_y);
+                if (i < 2) {
+                    CHECK_MSG(before < 0.01f && after > 3.0f, "case %zu: dE %.2f at the midpoint, %.2f below white", i,
+                              before, after);
+                    if (lit == 0 && stops == -1 && i == 0)
+                        printf("below white: 1.2 and 1.05 of white, dE %.2f as they are, %.2f moved below white\n",
+                               before, after);
+                }
+            }
+        }
+    cache_destroy(c);
+    samp_destroy(sp);
+    free(pixels);
+    scene_destroy(s);
+}
+
 /* ---- the slot -------------------------------------------------------------- */
 
 static void test_slot(void)
@@ -1117,6 +1195,7 @@ static void test_edge_background(void)
 
 int main(void)
 {
+    test_below_white();
     test_edge_background();
     test_wall_on_floor();
     test_drift_is_a_bound();

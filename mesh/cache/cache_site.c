@@ -230,6 +230,30 @@ void cache_seen_lab_over(const cache *c, cache_kind kind, uint32_t tri, const fl
     cache_seen_lab(c, tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab);
 }
 
+void cache_below_white(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
+                       const float darkest[3], float x[3], float y[3])
+{
+    const scene_material *m = &c->s->materials[c->s->tris[tri].material];
+    int front = m->le[0] > 0.0f || m->le[1] > 0.0f || m->le[2] > 0.0f ? cache_sees_front(c, tri) : 1;
+    float term[CACHE_KINDS][3], at0[3], at1[3];
+    memcpy(term, background, sizeof term);
+    /* The seen radiance is affine in this mesh's term: its value at 0 and its slope. */
+    memset(term[kind], 0, sizeof term[kind]);
+    cache_seen_radiance(m, front, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], at0);
+    for (int ch = 0; ch < 3; ++ch) term[kind][ch] = 1.0f;
+    cache_seen_radiance(m, front, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], at1);
+    const float white = exp2f(-c->tm.exposure); /* tonemap.h: the display clips 2^exposure · radiance at 1 */
+    for (int ch = 0; ch < 3; ++ch) {
+        const float slope = at1[ch] - at0[ch];
+        if (!(slope > 0.0f)) continue;
+        const float clip = (white - at0[ch]) / slope; /* this mesh's value that the display shows as white */
+        const float hi = fmaxf(x[ch], y[ch]);
+        if (hi <= clip || darkest[ch] >= clip) continue; /* not clipped, or the whole leaf is */
+        x[ch] -= hi - clip;
+        y[ch] -= hi - clip;
+    }
+}
+
 float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, const mesh_qnode *n)
 {
     float lab[3][3];
