@@ -32,10 +32,12 @@ typedef struct est_walk {
     cache_mesh_estimate *out;
 } est_walk;
 
-/* The noise a leaf's interpolated E_i carries, as ΔE at its centroid. */
+/* The noise a leaf's interpolated E_i carries, as ΔE at its centroid; judged
+ * below the display's white where the centroid is past it and the leaf is not
+ * (cache_below_white: inside, the corners' noise shows where nothing clips). */
 static float leaf_noise(const est_walk *w, const mesh_qnode *n)
 {
-    float e[3] = {0, 0, 0}, s2[3] = {0, 0, 0};
+    float e[3] = {0, 0, 0}, s2[3] = {0, 0, 0}, darkest[3] = {INFINITY, INFINITY, INFINITY};
     double cw1 = 0.0, cw2 = 0.0;
     for (int k = 0; k < 3; ++k) {
         float v[3], sg[3];
@@ -48,6 +50,7 @@ static float leaf_noise(const est_walk *w, const mesh_qnode *n)
         for (int ch = 0; ch < 3; ++ch) {
             e[ch] += v[ch] / 3.0f;
             s2[ch] += sg[ch] * sg[ch] / 3.0f;
+            darkest[ch] = fminf(darkest[ch], v[ch]);
         }
     }
     if (!(s2[0] > 0.0f || s2[1] > 0.0f || s2[2] > 0.0f)) return 0.0f;
@@ -58,9 +61,20 @@ static float leaf_noise(const est_walk *w, const mesh_qnode *n)
         up[ch] = e[ch] + d;
         down[ch] = fmaxf(e[ch] - d, 0.0f);
     }
-    cache_seen_lab_with(w->c, w->kind, n->tri, cw1, cw2, e, lab0);
-    cache_seen_lab_with(w->c, w->kind, n->tri, cw1, cw2, up, lab1);
-    cache_seen_lab_with(w->c, w->kind, n->tri, cw1, cw2, down, lab2);
+    float bg[CACHE_KINDS][3], top[3], mid[3];
+    cache_other_terms_at(w->c, w->kind, n->tri, cw1, cw2, bg);
+    memcpy(top, up, sizeof top);
+    memcpy(mid, e, sizeof mid);
+    cache_below_white(w->c, w->kind, n->tri, (const float(*)[3])bg, darkest, top, mid);
+    for (int ch = 0; ch < 3; ++ch) { /* the three moved together */
+        const float shift = up[ch] - top[ch];
+        e[ch] -= shift;
+        up[ch] -= shift;
+        down[ch] = fmaxf(down[ch] - shift, 0.0f);
+    }
+    cache_seen_lab_over(w->c, w->kind, n->tri, (const float(*)[3])bg, e, lab0);
+    cache_seen_lab_over(w->c, w->kind, n->tri, (const float(*)[3])bg, up, lab1);
+    cache_seen_lab_over(w->c, w->kind, n->tri, (const float(*)[3])bg, down, lab2);
     return 0.5f * (tm_delta_e(lab0, lab1) + tm_delta_e(lab0, lab2));
 }
 

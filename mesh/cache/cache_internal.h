@@ -472,6 +472,10 @@ void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const floa
  * there and the other meshes' are interpolated. */
 void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2, const float value[3],
                          float lab[3]);
+/* The other kinds' terms at (w1, w2) of tri, interpolated (term[kind] is 0): the
+ * background cache_seen_lab_with puts a value of `kind` over. */
+void cache_other_terms_at(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2,
+                          float term[CACHE_KINDS][3]);
 /* What an edge test judges a mesh's midpoint against: the other meshes' terms at
  * their darkest (per channel) over the midpoint (w1[0], w2[0]) and the edge's two
  * ends (w1[1..2], w2[1..2]) of scene triangle tri. Their interpolation at the

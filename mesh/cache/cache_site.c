@@ -180,6 +180,13 @@ static void other_terms(const cache *c, cache_kind kind, uint32_t tri, double w1
     }
 }
 
+void cache_other_terms_at(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2,
+                          float term[CACHE_KINDS][3])
+{
+    memset(term, 0, CACHE_KINDS * sizeof term[0]);
+    other_terms(c, kind, tri, w1, w2, MESH_VTABLE_NONE, term);
+}
+
 void cache_seen_lab_with(const cache *c, cache_kind kind, uint32_t tri, double w1, double w2, const float value[3],
                          float lab[3])
 {
