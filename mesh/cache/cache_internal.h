@@ -494,17 +494,25 @@ void cache_edge_background(const cache *c, cache_kind kind, uint32_t tri, const 
 /* cache_seen_lab when mesh `kind` has `value` and the others have background's terms. */
 void cache_seen_lab_over(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
                          const float value[3], float lab[3]);
-/* Two values x, y of mesh `kind` (a midpoint's fresh value and its edge's
- * interpolation) moved down together, per channel, until the larger is where the
- * display turns white (tonemap.h clips), when the leaf reaches below that (its
- * darkest corner, darkest[]): their difference is then judged where the leaf's
- * picture shows it. Where both clip the difference is not seen at the midpoint,
- * but the leaf's interpolation carries it inside, down to where nothing clips: on
- * the slot's wall by the slit a leaf with a white corner passed its edge tests
- * while its middle was 9% too dark (ΔE 3.7; docs/cache.md, "Differences hidden
- * in white"). Unchanged where nothing clips, or where the leaf is white all over. */
-void cache_below_white(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
-                       const float darkest[3], float x[3], float y[3]);
+/* The value of mesh `kind` that the display shows as white (tonemap.h clips
+ * 2^exposure · radiance at 1), per channel, over background's other terms;
+ * INFINITY in a channel the value does not brighten (kd or ks 0 there). */
+void cache_white_level(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
+                       float white[3]);
+/* An edge test's ΔE at a midpoint: its fresh value against the edge's
+ * interpolation (the ends end0, end1; the leaf's third corner opposite), over
+ * background's terms. Where both are past white the difference is not seen at
+ * the midpoint, but the leaf's interpolation carries it inside, toward a darker
+ * corner, down to where nothing clips: on the slot's wall by the slit a leaf
+ * with a white corner passed its edge tests while its middle was 9% too dark
+ * (ΔE 3.7; docs/cache.md, "Differences hidden in white"). So the difference is
+ * also judged on the way to the leaf's darkest corner, as the leaf's quadratic
+ * carries the midpoint's error there (4·l_a·l_b), and the largest ΔE counts.
+ * Unchanged where nothing clips, or where the leaf is white all over. at and
+ * lab_at: the interpolation's value and Lab where that ΔE was found. */
+float cache_midpoint_seen_de(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
+                             const float fresh[3], const float interp[3], const float end0[3], const float end1[3],
+                             const float opposite[3], float at[3], float lab_at[3]);
 /* The largest ΔE between what the viewer sees at a node's corners (mesh m of `kind`). */
 float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, const mesh_qnode *n);
 

@@ -326,12 +326,6 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
          * what their noise explains (E[d²] = true² + σ²). */
         float sum_de = 0.0f, sum_de2 = 0.0f, sum_dn2 = 0.0f;
         int tested_mid = 0;
-        float darkest[3] = {INFINITY, INFINITY, INFINITY}; /* the leaf's corners' least values */
-        for (int k = 0; k < 3; ++k) {
-            float v[3];
-            mesh_qmesh_get_value(m, corner[k], v);
-            for (int ch = 0; ch < 3; ++ch) darkest[ch] = fminf(darkest[ch], v[ch]);
-        }
         int combined = leaves[i].mirror != MESH_QMESH_NONE;
         int unseen = cache_unseen_leaf(pixels, kind, n);
         float seen_change = 0.0f; /* unseen: what its split changes on screen */
@@ -341,7 +335,7 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
         }
         for (int k = 0; k < 3 && !found && !unseen; ++k) {
             float a[3], b[3], fresh[3], interp[3], lf[3], li[3], background[CACHE_KINDS][3];
-            float fresh_seen[3], interp_seen[3]; /* as judged: cache_below_white */
+            float interp_seen[3], de_seen = 0.0f; /* where judged: cache_midpoint_seen_de */
             mesh_qmesh_get_value(m, corner[k], a);
             mesh_qmesh_get_value(m, corner[(k + 1) % 3], b);
             mesh_qmesh_get_value(m, leaves[i].mid[k], fresh);
@@ -360,18 +354,18 @@ static lm_result refine_round(cache *c, refine_kind kind, const uint32_t *pixels
                 for (int ch = 0; ch < 3; ++ch) ei[ch] = 0.5f * (ea[ch] + eb[ch]);
                 cache_seen_lab(c, tri, fresh, ef, NULL, lf); /* L_ds left out, as before */
                 cache_seen_lab(c, tri, interp, ei, NULL, li);
+                de_seen = tm_delta_e(lf, li);
             } else {
                 const int e = (k + 1) % 3;
                 const double pw1[3] = {leaves[i].mw1[k], leaves[i].cw1[k], leaves[i].cw1[e]};
                 const double pw2[3] = {leaves[i].mw2[k], leaves[i].cw2[k], leaves[i].cw2[e]};
                 cache_edge_background(c, kind, tri, pw1, pw2, background);
-                memcpy(fresh_seen, fresh, sizeof fresh_seen);
-                memcpy(interp_seen, interp, sizeof interp_seen);
-                cache_below_white(c, kind, tri, (const float(*)[3])background, darkest, fresh_seen, interp_seen);
-                cache_seen_lab_over(c, kind, tri, background, fresh_seen, lf);
-                cache_seen_lab_over(c, kind, tri, background, interp_seen, li);
+                float opposite[3];
+                mesh_qmesh_get_value(m, corner[(k + 2) % 3], opposite);
+                de_seen = cache_midpoint_seen_de(c, kind, tri, (const float(*)[3])background, fresh, interp, a, b,
+                                                 opposite, interp_seen, li);
             }
-            float de = tm_delta_e(lf, li) * cache_pixel_share(px);
+            float de = de_seen * cache_pixel_share(px);
             found = de > c->desc.jnd;
             tested_mid++;
             sum_de += de;

@@ -237,8 +237,8 @@ void cache_seen_lab_over(const cache *c, cache_kind kind, uint32_t tri, const fl
     cache_seen_lab(c, tri, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], lab);
 }
 
-void cache_below_white(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
-                       const float darkest[3], float x[3], float y[3])
+void cache_white_level(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
+                       float white[3])
 {
     const scene_material *m = &c->s->materials[c->s->tris[tri].material];
     int front = m->le[0] > 0.0f || m->le[1] > 0.0f || m->le[2] > 0.0f ? cache_sees_front(c, tri) : 1;
@@ -249,16 +249,57 @@ void cache_below_white(const cache *c, cache_kind kind, uint32_t tri, const floa
     cache_seen_radiance(m, front, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], at0);
     for (int ch = 0; ch < 3; ++ch) term[kind][ch] = 1.0f;
     cache_seen_radiance(m, front, term[CACHE_KIND_DIRECT], term[CACHE_KIND_INDIRECT], term[CACHE_KIND_SPECULAR], at1);
-    const float white = exp2f(-c->tm.exposure); /* tonemap.h: the display clips 2^exposure · radiance at 1 */
+    const float display_white = exp2f(-c->tm.exposure); /* tonemap.h: 2^exposure · radiance clips at 1 */
     for (int ch = 0; ch < 3; ++ch) {
         const float slope = at1[ch] - at0[ch];
-        if (!(slope > 0.0f)) continue;
-        const float clip = (white - at0[ch]) / slope; /* this mesh's value that the display shows as white */
-        const float hi = fmaxf(x[ch], y[ch]);
-        if (hi <= clip || darkest[ch] >= clip) continue; /* not clipped, or the whole leaf is */
-        x[ch] -= hi - clip;
-        y[ch] -= hi - clip;
+        white[ch] = slope > 0.0f ? (display_white - at0[ch]) / slope : INFINITY;
     }
+}
+
+/* Points on the way from the midpoint to the darkest corner where the leaf's
+ * picture is judged when the midpoint is past white (s = 1/4, 2/4, 3/4). */
+enum { WHITE_STEPS = 4 };
+
+float cache_midpoint_seen_de(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
+                             const float fresh[3], const float interp[3], const float end0[3], const float end1[3],
+                             const float opposite[3], float at[3], float lab_at[3])
+{
+    float lf[3];
+    cache_seen_lab_over(c, kind, tri, background, fresh, lf);
+    cache_seen_lab_over(c, kind, tri, background, interp, lab_at);
+    memcpy(at, interp, 3 * sizeof *at);
+    float best = tm_delta_e(lf, lab_at), white[3];
+    cache_white_level(c, kind, tri, background, white);
+    int past = 0;
+    for (int ch = 0; ch < 3; ++ch) past |= fmaxf(fresh[ch], interp[ch]) > white[ch];
+    if (!past) return best;
+    const float *corner[3] = {end0, end1, opposite};
+    int dk = 0;
+    for (int k = 1; k < 3; ++k)
+        if (corner[k][0] + corner[k][1] + corner[k][2] < corner[dk][0] + corner[dk][1] + corner[dk][2]) dk = k;
+    int below = 0;
+    for (int ch = 0; ch < 3; ++ch) below |= corner[dk][ch] < white[ch];
+    if (!below) return best; /* white all over: not seen anywhere */
+    for (int q = 1; q < WHITE_STEPS; ++q) {
+        const float t = (float)q / WHITE_STEPS;
+        /* The midpoint's error as the leaf's quadratic carries it: 4·l_a·l_b,
+         * 1 − t² toward an end of the edge, (1 − t)² toward the opposite corner. */
+        const float share = dk == 2 ? (1.0f - t) * (1.0f - t) : 1.0f - t * t;
+        float vi[3], vt[3], li[3], lt[3];
+        for (int ch = 0; ch < 3; ++ch) {
+            vi[ch] = (1.0f - t) * interp[ch] + t * corner[dk][ch];
+            vt[ch] = fmaxf(vi[ch] + share * (fresh[ch] - interp[ch]), 0.0f);
+        }
+        cache_seen_lab_over(c, kind, tri, background, vt, lt);
+        cache_seen_lab_over(c, kind, tri, background, vi, li);
+        const float de = tm_delta_e(lt, li);
+        if (de > best) {
+            best = de;
+            memcpy(at, vi, sizeof vi);
+            memcpy(lab_at, li, sizeof li);
+        }
+    }
+    return best;
 }
 
 float cache_leaf_contrast(const cache *c, const mesh_qmesh *m, cache_kind kind, const mesh_qnode *n)
