@@ -257,7 +257,7 @@ void cache_white_level(const cache *c, cache_kind kind, uint32_t tri, const floa
 }
 
 /* Points on the way from the midpoint to the darkest corner where the leaf's
- * picture is judged when the midpoint is past white (s = 1/4, 2/4, 3/4). */
+ * picture is judged when the midpoint is past white (t = 1/4, 2/4, 3/4). */
 enum { WHITE_STEPS = 4 };
 
 float cache_midpoint_seen_de(const cache *c, cache_kind kind, uint32_t tri, const float background[CACHE_KINDS][3],
