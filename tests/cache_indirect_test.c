@@ -23,6 +23,9 @@
  *     docs/cache.md, "Gathers toward the source" and "A quarter of the rays
  *     cosine-weighted"). Measured when the edge tests have settled, before the
  *     finer gathers (which cost 6× the samples here and do not help);
+ *   - at JND 1 (a viewer who asks for ΔE 1), 150 rounds more bring every
+ *     receiver within 5% (measured 4.3%; 9.7% before differences past white
+ *     were judged inside the leaf: cache_midpoint_seen_de);
  *   - gathers toward the source (samp_point.toward_source, MIS with points
  *     picked by power) at the receivers: unbiased (32 gathers' mean within 4
  *     standard errors of the 65,536-ray value) and, through the slit, less noisy
@@ -472,6 +475,33 @@ static void test_slot(void)
     CHECK(n >= 8);
     CHECK_MSG(coarse_worst > 0.05, "the coarse source is already within 5%% (%.2f%%): the test shows nothing",
               100.0 * coarse_worst);
+    /* A viewer who asks for ΔE 1 (at this exposure 2-5% of the receivers'
+     * luminance; ΔE 2 allows 4-9%): SLOT_JND1_ROUNDS more rounds at JND 1 bring
+     * every receiver within 5% of the brute-force gather (measured 4.3%; 3.1%
+     * after 250 rounds). Before differences past white were judged inside the
+     * leaf (cache_midpoint_seen_de) the receiver on the wall by the slit stayed
+     * 9.9% off for 3,300 rounds: its leaf has a corner past white, and its
+     * midpoints' differences were all past white too (docs/cache.md,
+     * "Differences hidden in white"). The cache does not say converged at JND 1
+     * here: the source's refinement keeps moving values (the same section). */
+    enum { SLOT_JND1_ROUNDS = 150 };
+    CHECK(cache_set_jnd(c, 1.0f, &err) == LM_OK);
+    for (int i = 0; i < SLOT_JND1_ROUNDS; ++i) {
+        cache_refine_result res;
+        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 256}, &res, &err) == LM_OK);
+        if (res.converged || res.stuck) break;
+    }
+    double jnd1_worst = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        float e[3];
+        CHECK(cache_eval_indirect(c, tris[i], w[i][0], w[i][1], e, &err) == LM_OK);
+        const double rel = fabs(e[0] - want[3 * i]) / want[3 * i];
+        jnd1_worst = fmax(jnd1_worst, rel);
+        CHECK_MSG(rel <= 0.05, "JND 1, receiver %u at (%.2f %.2f %.2f): cache %.5g, brute force %.5g (%.1f%%)", i,
+                  pts[i].p[0], pts[i].p[1], pts[i].p[2], e[0], want[3 * i], 100.0 * rel);
+    }
+    printf("slot: %d rounds more at JND 1: the cache's E_i worst %.1f%% off the brute-force gather\n", SLOT_JND1_ROUNDS,
+           100.0 * jnd1_worst);
     samp_coarse_mesh_free(&exact);
     cache_destroy(c);
     samp_destroy(sp);
