@@ -220,90 +220,6 @@ static int refine_all(cache *c, const uint32_t *pixels, int tests_only)
     return 0;
 }
 
-/* ---- differences hidden in white ------------------------------------------------- */
-
-static scene *floor_box(const char *name, uint32_t **pixels);
-
-/* cache_midpoint_seen_de: a midpoint's fresh value and its edge's
- * interpolation, both past the display's white (tonemap.h clips), show no
- * difference at the midpoint, but a leaf with a corner below white carries the
- * difference inside (the slot's wall by the slit: a leaf 9% too dark inside
- * passed its tests). On the box's white floor (kd 0.7; E_i's white is π / 0.7 at
- * exposure 0, less a direct background, over 2^exposure: cache_white_level):
- * the edge's ends 1.3 and 0.8 of white, the third corner 1.3, the midpoint 1.2
- * against 1.05 interpolated: ΔE 0 at the midpoint, above the JND toward the
- * darker end. The same leaf white all over: 0. Nothing past white: the plain
- * ΔE, bit for bit. */
-static void test_below_white(void)
-{
-    uint32_t *pixels;
-    scene *s = floor_box("white", &pixels);
-    if (!s) return;
-    lm_error err;
-    samp_sampler *sp = NULL;
-    cache *c = NULL;
-    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 16}, &sp, &err) ==
-          LM_OK);
-    if (sp) CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
-    uint32_t t = 0;
-    while (t < s->tri_count && !pixels[t]) ++t;
-    CHECK(t < s->tri_count);
-    if (!c || t == s->tri_count) return;
-    const float kd = s->materials[s->tris[t].material].kd[0];
-    for (int lit = 0; lit < 2; ++lit)
-        for (int stops = -1; stops <= 1; stops += 2) {
-            CHECK(cache_set_exposure(c, (float)stops, &err) == LM_OK);
-            float bg[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, wl[3];
-            const float ldd = lit ? 0.1f : 0.0f;
-            for (int ch = 0; ch < 3; ++ch) bg[CACHE_KIND_DIRECT][ch] = ldd;
-            const float white = (float)M_PI * (exp2f(-(float)stops) / kd - ldd); /* E_i the display shows as white */
-            cache_white_level(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, wl);
-            for (int ch = 0; ch < 3; ++ch)
-                CHECK_MSG(fabsf(wl[ch] - white) <= 1e-4f * white, "white level %g, want %g (exposure %+d, direct %g)",
-                          wl[ch], white, stops, (double)ldd);
-            struct {
-                float fresh, interp, end0, opposite; /* the other end: 2·interp − end0 */
-                int seen; /* 1: above the JND only below white; 0: not seen; -1: nothing clips */
-            } cases[] = {
-                {1.2f, 1.05f, 1.3f, 1.3f, 1},  /* both white, the edge's other end below (0.8) */
-                {1.2f, 1.05f, 1.3f, 0.5f, 1},  /* the opposite corner darker still */
-                {1.5f, 1.35f, 1.3f, 1.02f, 0}, /* white all over */
-                {0.6f, 0.5f, 0.6f, 0.3f, -1},  /* nothing clips */
-            };
-            for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
-                float f[3], in[3], e0[3], e1[3], op[3], at[3], lab_at[3], lf[3], li[3];
-                for (int ch = 0; ch < 3; ++ch) {
-                    f[ch] = cases[i].fresh * white;
-                    in[ch] = cases[i].interp * white;
-                    e0[ch] = cases[i].end0 * white;
-                    e1[ch] = (2.0f * cases[i].interp - cases[i].end0) * white;
-                    op[ch] = cases[i].opposite * white;
-                }
-                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, f, lf);
-                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, in, li);
-                const float plain = tm_delta_e(lf, li);
-                const float judged = cache_midpoint_seen_de(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, f, in, e0,
-                                                            e1, op, at, lab_at);
-                if (cases[i].seen == 1)
-                    CHECK_MSG(plain < 0.01f && judged > c->desc.jnd,
-                              "case %zu (exposure %+d, direct %g): dE %.2f at the midpoint, %.2f judged", i, stops,
-                              (double)ldd, plain, judged);
-                else if (cases[i].seen == 0)
-                    CHECK_MSG(judged == 0.0f, "case %zu: white all over, judged %.3g", i, judged);
-                else
-                    CHECK_MSG(judged == plain && at[0] == in[0], "case %zu: nothing clips, %.4g judged against %.4g",
-                              i, judged, plain);
-                if (i == 0 && lit == 0 && stops == -1)
-                    printf("below white: the midpoint 1.2 against 1.05 of white, dE %.2f there, %.2f judged inside "
-                           "the leaf (at %.3f of white)\n", plain, judged, at[0] / white);
-            }
-        }
-    cache_destroy(c);
-    samp_destroy(sp);
-    free(pixels);
-    scene_destroy(s);
-}
-
 /* ---- the slot -------------------------------------------------------------- */
 
 static void test_slot(void)
@@ -1147,6 +1063,117 @@ static void test_wall_on_floor(void)
 
 /* ---- two meshes masking each other ------------------------------------------------- */
 
+/* The floor box (floor_box) with an Embree sampler of `rays` a gather, a cache
+ * (cache_init'ed if init) and the first seen triangle t: the set-up of the tests
+ * that judge values by hand on the floor. Returns 0 (and frees what it made)
+ * when a part could not be made. */
+typedef struct floor_rig {
+    scene *s;
+    uint32_t *pixels;
+    samp_sampler *sp;
+    cache *c;
+    uint32_t t;
+} floor_rig;
+
+static void floor_rig_free(floor_rig *r)
+{
+    cache_destroy(r->c);
+    samp_destroy(r->sp);
+    free(r->pixels);
+    scene_destroy(r->s);
+}
+
+static int floor_rig_make(const char *name, uint32_t rays, int init, floor_rig *r)
+{
+    memset(r, 0, sizeof *r);
+    r->s = floor_box(name, &r->pixels);
+    if (!r->s) return 0;
+    lm_error err;
+    CHECK(samp_create(&(samp_desc){.scene = r->s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = rays}, &r->sp,
+                      &err) == LM_OK);
+    if (r->sp) CHECK(cache_create(&(cache_desc){.scene = r->s, .sampler = r->sp}, &r->c, &err) == LM_OK);
+    if (r->c && init) CHECK(cache_init(r->c, &err) == LM_OK);
+    while (r->t < r->s->tri_count && !r->pixels[r->t]) ++r->t;
+    CHECK(r->t < r->s->tri_count);
+    if (!r->c || r->t == r->s->tri_count) {
+        floor_rig_free(r);
+        return 0;
+    }
+    return 1;
+}
+
+/* ---- differences hidden in white ------------------------------------------------- */
+
+/* cache_midpoint_seen_de: a midpoint's fresh value and its edge's
+ * interpolation, both past the display's white (tonemap.h clips), show no
+ * difference at the midpoint, but a leaf with a corner below white carries the
+ * difference inside (the slot's wall by the slit: a leaf 9% too dark inside
+ * passed its tests). On the box's white floor (kd 0.7; E_i's white is π / 0.7 at
+ * exposure 0, less a direct background, over 2^exposure: cache_white_level):
+ * the edge's ends 1.3 and 0.8 of white, the third corner 1.3, the midpoint 1.2
+ * against 1.05 interpolated: ΔE 0 at the midpoint, above the JND toward the
+ * darker end. The same leaf white all over: 0. Nothing past white: the plain
+ * ΔE, bit for bit. */
+static void test_below_white(void)
+{
+    floor_rig rig;
+    if (!floor_rig_make("white", 16, 0, &rig)) return;
+    const scene *s = rig.s;
+    cache *c = rig.c;
+    const uint32_t t = rig.t;
+    lm_error err;
+    const float kd = s->materials[s->tris[t].material].kd[0];
+    for (int lit = 0; lit < 2; ++lit)
+        for (int stops = -1; stops <= 1; stops += 2) {
+            CHECK(cache_set_exposure(c, (float)stops, &err) == LM_OK);
+            float bg[CACHE_KINDS][3] = {{0, 0, 0}, {0, 0, 0}, {0, 0, 0}}, wl[3];
+            const float ldd = lit ? 0.1f : 0.0f;
+            for (int ch = 0; ch < 3; ++ch) bg[CACHE_KIND_DIRECT][ch] = ldd;
+            const float white = (float)M_PI * (exp2f(-(float)stops) / kd - ldd); /* E_i the display shows as white */
+            cache_white_level(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, wl);
+            for (int ch = 0; ch < 3; ++ch)
+                CHECK_MSG(fabsf(wl[ch] - white) <= 1e-4f * white, "white level %g, want %g (exposure %+d, direct %g)",
+                          wl[ch], white, stops, (double)ldd);
+            struct {
+                float fresh, interp, end0, opposite; /* the other end: 2·interp − end0 */
+                int seen; /* 1: above the JND only below white; 0: not seen; -1: nothing clips */
+            } cases[] = {
+                {1.2f, 1.05f, 1.3f, 1.3f, 1},  /* both white, the edge's other end below (0.8) */
+                {1.2f, 1.05f, 1.3f, 0.5f, 1},  /* the opposite corner darker still */
+                {1.5f, 1.35f, 1.3f, 1.02f, 0}, /* white all over */
+                {0.6f, 0.5f, 0.6f, 0.3f, -1},  /* nothing clips */
+            };
+            for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
+                float f[3], in[3], e0[3], e1[3], op[3], at[3], lab_at[3], lf[3], li[3];
+                for (int ch = 0; ch < 3; ++ch) {
+                    f[ch] = cases[i].fresh * white;
+                    in[ch] = cases[i].interp * white;
+                    e0[ch] = cases[i].end0 * white;
+                    e1[ch] = (2.0f * cases[i].interp - cases[i].end0) * white;
+                    op[ch] = cases[i].opposite * white;
+                }
+                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, f, lf);
+                cache_seen_lab_over(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, in, li);
+                const float plain = tm_delta_e(lf, li);
+                const float judged = cache_midpoint_seen_de(c, CACHE_KIND_INDIRECT, t, (const float(*)[3])bg, f, in, e0,
+                                                            e1, op, at, lab_at);
+                if (cases[i].seen == 1)
+                    CHECK_MSG(plain < 0.01f && judged > c->desc.jnd,
+                              "case %zu (exposure %+d, direct %g): dE %.2f at the midpoint, %.2f judged", i, stops,
+                              (double)ldd, plain, judged);
+                else if (cases[i].seen == 0)
+                    CHECK_MSG(judged == 0.0f, "case %zu: white all over, judged %.3g", i, judged);
+                else
+                    CHECK_MSG(judged == plain && at[0] == in[0], "case %zu: nothing clips, %.4g judged against %.4g",
+                              i, judged, plain);
+                if (i == 0 && lit == 0 && stops == -1)
+                    printf("below white: the midpoint 1.2 against 1.05 of white, dE %.2f there, %.2f judged inside "
+                           "the leaf (at %.3f of white)\n", plain, judged, at[0] / white);
+            }
+        }
+    floor_rig_free(&rig);
+}
+
 /* What an edge test judges a midpoint against (cache_edge_background; docs/cache.md,
  * "The door's strip: two meshes masking each other"). On the Veach door a strip of
  * light crossed the floor's leaves in the direct and the indirect mesh alike; each
@@ -1162,20 +1189,12 @@ static void test_wall_on_floor(void)
  * after cache_init, holding the first values), it masks nothing: background 0. */
 static void test_edge_background(void)
 {
-    uint32_t *pixels;
-    scene *s = floor_box("mask", &pixels);
-    if (!s) return;
+    floor_rig rig;
+    if (!floor_rig_make("mask", 64, 1, &rig)) return;
+    const uint32_t *pixels = rig.pixels;
+    cache *c = rig.c;
+    const uint32_t t = rig.t;
     lm_error err;
-    samp_sampler *sp = NULL;
-    cache *c = NULL;
-    CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE, .indirect_rays = 64}, &sp, &err) ==
-          LM_OK);
-    if (sp) CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &c, &err) == LM_OK);
-    if (c) CHECK(cache_init(c, &err) == LM_OK);
-    uint32_t t = 0;
-    while (t < s->tri_count && !pixels[t]) ++t;
-    CHECK(t < s->tri_count);
-    if (!c || t == s->tri_count) return;
     const float fresh[3] = {0, 0, 0}, interp[3] = {7, 7, 7};
     const float bright[3] = {100, 100, 100}, dark[3] = {0, 0, 0}, even[3] = {0.5f, 0.5f, 0.5f};
     for (int settled = 0; settled < 2; ++settled) {
@@ -1228,10 +1247,7 @@ static void test_edge_background(void)
             }
         }
     }
-    cache_destroy(c);
-    samp_destroy(sp);
-    free(pixels);
-    scene_destroy(s);
+    floor_rig_free(&rig);
 }
 
 int main(void)

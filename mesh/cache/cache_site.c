@@ -144,12 +144,18 @@ int cache_sees_front(const cache *c, uint32_t tri)
     return d > 0.0;
 }
 
+/* cache_seen_radiance's `front` for tri as the viewer sees it: only an
+ * emitter's side matters; the others skip the plane test. */
+static int seen_front(const cache *c, uint32_t tri, const scene_material *m)
+{
+    return m->le[0] > 0.0f || m->le[1] > 0.0f || m->le[2] > 0.0f ? cache_sees_front(c, tri) : 1;
+}
+
 void cache_seen_lab(const cache *c, uint32_t tri, const float ldd[3], const float ei[3], const float lds[3],
                     float lab[3])
 {
     const scene_material *m = &c->s->materials[c->s->tris[tri].material];
-    /* Only an emitter's side matters; the others skip the plane test. */
-    int front = m->le[0] > 0.0f || m->le[1] > 0.0f || m->le[2] > 0.0f ? cache_sees_front(c, tri) : 1;
+    const int front = seen_front(c, tri, m);
     float rgb[3];
     cache_seen_radiance(m, front, ldd, ei, lds, rgb);
     tm_linear_to_lab(&c->tm, rgb, lab); /* the display's Lab, without the sRGB round trip */
@@ -241,7 +247,7 @@ void cache_white_level(const cache *c, cache_kind kind, uint32_t tri, const floa
                        float white[3])
 {
     const scene_material *m = &c->s->materials[c->s->tris[tri].material];
-    int front = m->le[0] > 0.0f || m->le[1] > 0.0f || m->le[2] > 0.0f ? cache_sees_front(c, tri) : 1;
+    const int front = seen_front(c, tri, m);
     float term[CACHE_KINDS][3], at0[3], at1[3];
     memcpy(term, background, sizeof term);
     /* The seen radiance is affine in this mesh's term: its value at 0 and its slope. */

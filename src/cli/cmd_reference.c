@@ -50,7 +50,7 @@ typedef struct prior_ref {
 static const char *const k_ref_channels[7] = {"R", "G", "B", "stderr.R", "stderr.G", "stderr.B", "samples"};
 
 /* The attributes a reference made with rd carries (and a pooled one must share). */
-static void ref_attributes(const ref_desc *rd, char bounces[16], const char *out[6])
+static void ref_attributes(const ref_desc *rd, char bounces[16], const char *out[3])
 {
     snprintf(bounces, 16, "%d", rd->bounces == REF_BOUNCES_NONE ? 0 : rd->bounces == 0 ? 1 : rd->bounces);
     out[0] = rd->transport == REF_TRANSPORT_FULL ? "full" : "model";
@@ -78,7 +78,7 @@ static lm_result read_prior(const char *path, const ref_desc *rd, int w, int h, 
                            k_ref_channels[k]);
     }
     char bounces[16];
-    const char *want[6];
+    const char *want[3];
     ref_attributes(rd, bounces, want);
     static const char *const names[3] = {"lumesh:transport", "lumesh:bounces", "lumesh:glossy"};
     for (int k = 0; k < 3; ++k) {
@@ -151,7 +151,7 @@ static lm_result write_result(const ref_renderer *r, const ref_desc *rd, const p
         }
         *rel_stderr = counted ? rel / (double)counted : INFINITY;
         char bounces[16], seeds[IMG_ATTRIBUTE_CAP];
-        const char *a[6];
+        const char *a[3];
         ref_attributes(rd, bounces, a);
         int len = snprintf(seeds, sizeof seeds, "%s%s%u", prior ? prior->seeds : "", prior ? "," : "", rd->seed);
         if (len < 0 || (size_t)len >= sizeof seeds) snprintf(seeds, sizeof seeds, "unrecorded"); /* too many to list */
