@@ -392,21 +392,29 @@ static void test_slot(void)
     CHECK_MSG(coarse_worst > 0.05, "the coarse source is already within 5%% (%.2f%%): the test shows nothing",
               100.0 * coarse_worst);
     /* A viewer who asks for ΔE 1 (at this exposure 2-5% of the receivers'
-     * luminance; ΔE 2 allows 4-9%): SLOT_JND1_ROUNDS more rounds at JND 1 bring
-     * every receiver within 5% of the brute-force gather (measured 4.3%; 3.1%
-     * after 250 rounds). Before differences past white were judged inside the
-     * leaf (cache_midpoint_seen_de) the receiver on the wall by the slit stayed
-     * 9.9% off for 3,300 rounds: its leaf has a corner past white, and its
-     * midpoints' differences were all past white too (docs/cache.md,
-     * "Differences hidden in white"). The cache does not say converged at JND 1
-     * here: the source's refinement keeps moving values (the same section). */
-    enum { SLOT_JND1_ROUNDS = 150 };
+     * luminance; ΔE 2 allows 4-9%): refined at JND 1 until nothing is left to do,
+     * every receiver is within 5% of the brute-force gather (measured 3.1%).
+     * Before differences past white were judged inside the leaf
+     * (cache_midpoint_seen_de) the receiver on the wall by the slit stayed 9.9%
+     * off for 3,300 rounds: its leaf has a corner past white, and its midpoints'
+     * differences were all past white too (docs/cache.md, "Differences hidden in
+     * white"). Nothing is left to do after about 70 rounds more than the 150
+     * that measured 3.1-4.3%: before the rebuilds' flags were probed
+     * (cache_drift.c, probe_flagged), the far room's refinement flagged half the
+     * near room's values at every rebuild through the wall, and 4,000 rounds
+     * (150 s) did not finish (docs/cache.md, "Drift seen through the value's own
+     * rays"). It ends stuck, not converged: by the wall beside the slit, which its
+     * points see edge-on, 8% of the pixels keep a noise that no ray count
+     * reaches (values of E 0-0.2 at 64 times the plain rays). */
+    enum { SLOT_JND1_ROUNDS = 1000 };
     CHECK(cache_set_jnd(c, 1.0f, &err) == LM_OK);
-    for (int i = 0; i < SLOT_JND1_ROUNDS; ++i) {
-        cache_refine_result res;
-        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 256}, &res, &err) == LM_OK);
-        if (res.converged || res.stuck) break;
+    cache_refine_result done = {0};
+    int rounds = 0;
+    while (rounds < SLOT_JND1_ROUNDS && !done.converged && !done.stuck) {
+        CHECK(cache_refine(c, &(cache_refine_desc){.pixels = pixels, .budget = 256}, &done, &err) == LM_OK);
+        rounds++;
     }
+    CHECK_MSG(done.converged || done.stuck, "JND 1: still refining after %d rounds (%u left)", rounds, done.remaining);
     double jnd1_worst = 0.0;
     for (uint32_t i = 0; i < n; ++i) {
         float e[3];
@@ -416,8 +424,13 @@ static void test_slot(void)
         CHECK_MSG(rel <= 0.05, "JND 1, receiver %u at (%.2f %.2f %.2f): cache %.5g, brute force %.5g (%.1f%%)", i,
                   pts[i].p[0], pts[i].p[1], pts[i].p[2], e[0], want[3 * i], 100.0 * rel);
     }
-    printf("slot: %d rounds more at JND 1: the cache's E_i worst %.1f%% off the brute-force gather\n", SLOT_JND1_ROUNDS,
-           100.0 * jnd1_worst);
+    cache_get_stats(c, &st);
+    printf("slot: at JND 1 %s after %d rounds more (%.1f%% of the pixels estimated above it): the cache's E_i worst "
+           "%.1f%% off the brute-force gather; %llu values flagged by a rebuild probed, %llu of them not gathered "
+           "again, %llu gathered again\n",
+           done.converged ? "converged" : done.stuck ? "stuck" : "still refining", rounds, 100.0 * done.estimate.above_jnd, 100.0 * jnd1_worst,
+           (unsigned long long)st.drift_probed, (unsigned long long)st.drift_cleared,
+           (unsigned long long)st.regathered);
     samp_coarse_mesh_free(&exact);
     cache_destroy(c);
     samp_destroy(sp);

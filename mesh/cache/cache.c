@@ -484,6 +484,9 @@ void cache_get_stats(cache *c, cache_stats *out)
     out->falsified = c->vis.falsified_total;
     out->revised = c->vis.revised;
     out->regathered = c->src.regathered;
+    out->drift_probed = c->src.probed;
+    out->drift_cleared = c->src.probe_cleared;
+    out->drift_probe_rays = c->src.probe_rays;
     out->toward_gathers = c->src.toward_gathers;
     out->glossy_gathers = c->gls.samples;
     out->glossy_refreshed = c->gls.refreshed;

@@ -390,6 +390,10 @@ typedef struct cache_stats {
     uint64_t revised;           /* radiance values recomputed inside those (cache_refine) */
     uint64_t regathered;        /* indirect values gathered again: the source had moved them (counted in
                                    indirect.samples too) */
+    uint64_t drift_probed;      /* values a rebuild's occlusion-blind bound flagged that were probed first
+                                   (cosine rays through both sources: the change they saw) */
+    uint64_t drift_cleared;     /* of them, unmoved past the JND: not gathered again */
+    uint64_t drift_probe_rays;  /* the probes' rays */
     uint64_t toward_gathers;    /* indirect values gathered with half their rays toward the source (their
                                    pilot saw the light come through a gap: samp_point.toward_source,
                                    guided by the pilot: samp_guide; counted in indirect.samples too) */

@@ -403,6 +403,13 @@ int cache_vertex_on_open_edge(const cache *c, uint32_t vid)
     return 0;
 }
 
+samp_point cache_gather_point(const cache *c, uint32_t vid)
+{
+    samp_point p = cache_vertex_point(c, vid);
+    if (cache_vertex_on_open_edge(c, vid)) samp_point_pull_inside(c->sp, &p);
+    return p;
+}
+
 static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_t *min_level, float *E, lm_error *err)
 {
     if (n == 0) return LM_OK;
@@ -410,10 +417,7 @@ static lm_result gather(cache *c, const uint32_t *vids, uint32_t n, const uint8_
     if (r != LM_OK) return r;
     samp_point *pts = malloc(n * sizeof *pts);
     if (!pts) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory sampling indirect light");
-    for (uint32_t i = 0; i < n; ++i) {
-        pts[i] = cache_vertex_point(c, vids[i]);
-        if (cache_vertex_on_open_edge(c, vids[i])) samp_point_pull_inside(c->sp, &pts[i]);
-    }
+    for (uint32_t i = 0; i < n; ++i) pts[i] = cache_gather_point(c, vids[i]);
     r = c->desc.single_mesh ? samp_indirect(c->sp, &c->src.rmesh, pts, n, E, err)
                             : gather_displayed(c, vids, pts, n, min_level, E, err);
     if (c->desc.single_mesh) /* gather_displayed counts its own */

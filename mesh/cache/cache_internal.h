@@ -177,6 +177,9 @@ typedef struct cache_source_state {
     uint32_t *outdated_list;
     size_t outdated_n, outdated_cap;
     uint64_t regathered;       /* indirect values gathered again because they were outdated */
+    uint64_t probed;           /* flagged values probed for the change they saw (cache_drift.c) */
+    uint64_t probe_cleared;    /* of them, found unmoved past the JND: not gathered again */
+    uint64_t probe_rays;       /* the probes' rays */
     uint64_t toward_gathers;   /* indirect values gathered toward the source (samp_point.toward_source) */
     int64_t built_at;          /* direct mesh changes (net splits + revised values) when last built */
     uint32_t built_nodes;      /* direct mesh nodes when last built */
@@ -678,6 +681,9 @@ lm_result cache_sample_indirect_like(cache *c, const uint32_t *vids, const uint3
  * boundary)? Gathers there start where the triangle's inside can be seen from
  * (samp_point_pull_inside; docs/cache.md, cause 4). */
 int cache_vertex_on_open_edge(const cache *c, uint32_t vid);
+/* Where vertex vid's gathers look from: its receiver, pulled inside its
+ * triangle on an open edge (cache_vertex_on_open_edge). */
+samp_point cache_gather_point(const cache *c, uint32_t vid);
 /* The level vertex vid's displayed value was last gathered at (0: the plain
  * count, or none; GATHER_SCALE times the rays a level). */
 int cache_gather_level(const cache *c, uint32_t vid);

@@ -163,9 +163,7 @@ static lm_result add_triangle(reach *x, uint32_t t, uint32_t *stamp, uint32_t ro
         uint32_t vid = nd->v[k];
         if (vid >= limit || stamp[vid] == round) continue;
         stamp[vid] = round;
-        samp_point p = cache_vertex_point(c, vid);
-        if (cache_vertex_on_open_edge(c, vid)) samp_point_pull_inside(c->sp, &p);
-        r = add_point(x, p, err);
+        r = add_point(x, cache_gather_point(c, vid), err);
     }
     double want = c->s->tri_areas[t] / reach_unit(c);
     uint32_t extra = want >= REACH_POINTS_MAX ? REACH_POINTS_MAX : (uint32_t)want;
@@ -255,9 +253,7 @@ lm_result cache_reach_from_gathers(cache *c, uint32_t **out, uint32_t *nout, lm_
     for (uint32_t vid = 0; r == LM_OK && vid < limit; ++vid) {
         if (c->reach_traced[vid] || mesh_qmesh_get_value(c->indirect, vid, NULL) != 1) continue;
         c->reach_traced[vid] = 1;
-        samp_point p = cache_vertex_point(c, vid);
-        if (cache_vertex_on_open_edge(c, vid)) samp_point_pull_inside(c->sp, &p);
-        r = add_point(&x, p, err);
+        r = add_point(&x, cache_gather_point(c, vid), err);
     }
     if (r == LM_OK) r = flush(&x, err);
     if (r == LM_OK) r = close_reach(&x, 0, err);

@@ -147,6 +147,13 @@ cJSON *app_stats_json(const app_stats_desc *d)
     cJSON_AddNumberToObject(j, "snapshot", (double)snap->generation);
     cJSON_AddNumberToObject(j, "undone_splits", (double)st->undone);
     cJSON_AddNumberToObject(j, "toward_source_gathers", (double)st->toward_gathers);
+    cJSON *dr = cJSON_AddObjectToObject(j, "drift");
+    if (dr) { /* indirect values a rebuilt source may have moved (docs/stats.md) */
+        cJSON_AddNumberToObject(dr, "regathered", (double)st->regathered);
+        cJSON_AddNumberToObject(dr, "probed", (double)st->drift_probed);
+        cJSON_AddNumberToObject(dr, "cleared", (double)st->drift_cleared);
+        cJSON_AddNumberToObject(dr, "probe_rays", (double)st->drift_probe_rays);
+    }
     cJSON_AddNumberToObject(j, "glossy_gathers", (double)st->glossy_gathers);
     cJSON_AddNumberToObject(j, "glossy_refreshed", (double)st->glossy_refreshed);
     cJSON_AddNumberToObject(j, "glossy_rays", (double)st->glossy_rays);
