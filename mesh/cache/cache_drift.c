@@ -1,9 +1,10 @@
 /* cache_drift.c — which indirect values a rebuild of the radiance source may
  * have moved (cache_source.c rebuilds it and gathers the flagged values again):
- * the drift bound of every displayed value, and the flags. Split from
- * cache_source.c (it had grown past 1,100 lines); writes cache_source_state's
- * drift, outdated and outdated_list only. Worker thread, like the rest of the
- * cache. */
+ * the drift bound of every displayed value, the probes that check a flag
+ * through the value's own rays (probe_flagged: traces rays, Embree), and the
+ * flags. Split from cache_source.c (it had grown past 1,100 lines); writes
+ * cache_source_state's drift, outdated, outdated_list and probe counts only.
+ * Worker thread, like the rest of the cache. */
 #include "mesh/cache/cache_internal.h"
 
 #include <math.h>
@@ -378,9 +379,9 @@ lm_result cache_refresh_stale(cache *c, const uint32_t *pixels, lm_error *err)
     return r;
 }
 
-/* One value's bound (cache_mark_outdated, over threads): its drift grows by
- * Σ d·weight (+ π·small), and flag says whether E ± drift can be told from E
- * through the tone map. Reads the cache; writes only drift[vid] and flag[j]. */
+/* The values' bounds (cache_mark_outdated, over threads: bound_one,
+ * glossy_bound_one): made by the worker thread, read by lm_parallel_for's
+ * threads, each of which writes only its own candidates' flag and bound. */
 typedef struct bound_job {
     cache *c;
     const drift_tree *tree;
@@ -474,6 +475,9 @@ enum { PROBE_RAYS = 1024, PROBE_MIN_RAYS = 256, PROBE_BATCH = 256, PROBE_MAX_COS
 #define PROBE_SHARE 0.25
 #define PROBE_Z 3.0f
 
+/* The probes' reading of their hits (probe_one over threads): made by the
+ * worker thread, read by lm_parallel_for's threads, each of which writes only
+ * its own points' est. */
 typedef struct probe_job {
     const samp_radiance_mesh *old, *cur;
     const samp_radiance_index *ix_old, *ix_new;
