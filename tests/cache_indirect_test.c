@@ -398,14 +398,14 @@ static void test_slot(void)
      * (cache_midpoint_seen_de) the receiver on the wall by the slit stayed 9.9%
      * off for 3,300 rounds: its leaf has a corner past white, and its midpoints'
      * differences were all past white too (docs/cache.md, "Differences hidden in
-     * white"). Nothing is left to do after about 70 rounds more than the 150
-     * that measured 3.1-4.3%: before the rebuilds' flags were probed
-     * (cache_drift.c, probe_flagged), the far room's refinement flagged half the
-     * near room's values at every rebuild through the wall, and 4,000 rounds
-     * (150 s) did not finish (docs/cache.md, "Drift seen through the value's own
-     * rays"). It ends stuck, not converged: by the wall beside the slit, which its
-     * points see edge-on, 8% of the pixels keep a noise that no ray count
-     * reaches (values of E 0-0.2 at 64 times the plain rays). */
+     * white"). Nothing is left to do after 158 rounds at JND 1: before the
+     * rebuilds' flags were probed (cache_drift.c, probe_flagged), the far room's
+     * refinement flagged half the near room's values at every rebuild through
+     * the wall, and 4,000 rounds (150 s) did not finish (docs/cache.md, "Drift
+     * seen through the value's own rays"). It ends stuck, not converged: by the
+     * wall beside the slit, which its points see edge-on, 8-9% of the pixels
+     * keep a noise that no ray count reaches (values of E 0-0.2 at 64 times the
+     * plain rays). */
     enum { SLOT_JND1_ROUNDS = 1000 };
     CHECK(cache_set_jnd(c, 1.0f, &err) == LM_OK);
     cache_refine_result done = {0};
@@ -428,7 +428,8 @@ static void test_slot(void)
     printf("slot: at JND 1 %s after %d rounds more (%.1f%% of the pixels estimated above it): the cache's E_i worst "
            "%.1f%% off the brute-force gather; %llu values flagged by a rebuild probed, %llu of them not gathered "
            "again, %llu gathered again\n",
-           done.converged ? "converged" : done.stuck ? "stuck" : "still refining", rounds, 100.0 * done.estimate.above_jnd, 100.0 * jnd1_worst,
+           done.converged ? "converged" : done.stuck ? "stuck" : "still refining", rounds,
+           100.0 * done.estimate.above_jnd, 100.0 * jnd1_worst,
            (unsigned long long)st.drift_probed, (unsigned long long)st.drift_cleared,
            (unsigned long long)st.regathered);
     samp_coarse_mesh_free(&exact);
