@@ -306,10 +306,7 @@ lm_result cache_bounces_init(cache *c, lm_error *err)
     }
     if (r == LM_OK) {
         memset(b->seen, 1, nv ? nv : 1);
-        for (uint32_t i = 0; i < nv; ++i) {
-            pts[i] = cache_vertex_point(c, b->vid[i]);
-            if (cache_vertex_on_open_edge(c, b->vid[i])) samp_point_pull_inside(c->sp, &pts[i]);
-        }
+        for (uint32_t i = 0; i < nv; ++i) pts[i] = cache_gather_point(c, b->vid[i]);
         r = samp_surface_hits_trace(c->sp, pts, nv,
                                     &(samp_surface_hits){.rays = R, .count = count, .tri = tri, .bary = bary,
                                                          .keep = sends_light, .keep_user = c},

@@ -526,6 +526,9 @@ static lm_result probe_flagged(cache *c, const samp_radiance_mesh *old, const sa
 {
     const uint32_t plain = samp_indirect_rays(c->sp);
     if (!plain) return LM_OK; /* no ray count to save (GL) */
+    uint32_t worth = 0; /* most rebuilds flag nothing worth a probe: nothing allocated then */
+    for (uint32_t j = 0; j < nc && !worth; ++j) worth = flag[j] && probe_rays_for(cache_gather_cost(c, cand[j]), plain);
+    if (!worth) return LM_OK;
     uint32_t *which = malloc(PROBE_BATCH * sizeof *which), *count = malloc(PROBE_BATCH * sizeof *count);
     uint32_t *tri = malloc((size_t)PROBE_BATCH * PROBE_RAYS * sizeof *tri);
     float *bary = malloc(2 * (size_t)PROBE_BATCH * PROBE_RAYS * sizeof *bary), *est = malloc(3 * PROBE_BATCH * sizeof *est);
