@@ -337,7 +337,11 @@ static lm_result alloc_block(mesh_qmesh *m, uint32_t *first, lm_error *err)
         return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: node id space exhausted");
     if (m->node_hw + 4 > m->node_alloc) { /* a uint32_t capacity */
         size_t na = lm_grow_capacity(m->node_alloc, (size_t)m->node_hw + 4, 16, UINT32_MAX - 4);
-        if (!na || !lm_realloc_array(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
+        /* Not zeroed: a node past node_hw is never read, and a block is written
+         * whole when it is taken (mesh_qmesh_split). A million roots' first split
+         * zeroed 37 MB a mesh, the first touch of pages it would not use for
+         * a long time (docs/cache.md, "The first image's fresh memory"). */
+        if (!na || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
             return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
         m->node_alloc = (uint32_t)na;
     }
@@ -345,7 +349,7 @@ static lm_result alloc_block(mesh_qmesh *m, uint32_t *first, lm_error *err)
     const uint32_t blocks = (m->node_hw + 4 - m->root_count) / 4;
     if (blocks > m->free_alloc) {
         size_t fa = lm_grow_capacity(m->free_alloc, blocks, 64, UINT32_MAX);
-        if (!lm_realloc_array(&m->free_blocks, m->free_alloc, fa, sizeof *m->free_blocks))
+        if (!lm_realloc_array_raw(&m->free_blocks, m->free_alloc, fa, sizeof *m->free_blocks)) /* a stack */
             return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for the free list");
         m->free_alloc = (uint32_t)fa;
     }

@@ -141,6 +141,19 @@ typedef struct cache_glossy_state {
 } cache_glossy_state;
 
 /* Indirect light (written by cache_source.c). */
+/* A triangle of the source: cut node `leaf` of the direct mesh, or, where the
+ * further bounces' coarse mesh is finer than the cut, one of its subdivisions:
+ * `levels` midpoint splits, child k (emit_source's order) of split j in bits
+ * 2j..2j+1 of `path`. 8 bytes, not a mesh_qmesh_tri's 68: a million-triangle
+ * scene's source wrote 68 MB of fresh memory before its first image
+ * (docs/cache.md, "The first image's fresh memory"). */
+typedef struct cache_source_piece {
+    uint32_t leaf;
+    uint16_t path;
+    uint8_t levels;
+    uint8_t pad;
+} cache_source_piece;
+
 typedef struct cache_source_state {
     /* The radiance source of indirect samples: kd·L_dd over a cut of the direct
      * mesh, rebuilt when the direct mesh has changed enough. */
@@ -184,7 +197,7 @@ typedef struct cache_source_state {
     int64_t built_at;          /* direct mesh changes (net splits + revised values) when last built */
     uint32_t built_nodes;      /* direct mesh nodes when last built */
     int settle;                /* rebuild on any change (cache_settle_source) */
-    mesh_qmesh_tri *leaf_buf;  /* the cut's triangles */
+    struct cache_source_piece *leaf_buf; /* the cut's triangles: source triangle i is leaf_buf[i] */
     size_t leaf_cap;
     /* Choosing the cut (per direct node): error bound, opened flag, heap. */
     float *cut_err;

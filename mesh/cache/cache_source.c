@@ -206,38 +206,56 @@ static lm_result choose_cut(cache *c, lm_error *err)
     return LM_OK;
 }
 
-/* Appends a triangle of the source (corners b, vertex ids v: MESH_VTABLE_NONE
- * where it is not a vertex of the direct mesh) lying in cut node `leaf`, split
- * `levels` more times: where the further bounces' coarse mesh is finer than the
- * cut, the source follows it, so that E_m keeps its shape in the source (a wall
- * lit only indirectly has no direct light to open the cut; its E_m over the
- * root's corners alone lost a sixth of the door's wall light: docs/cache.md,
- * "Bounces"). Midpoints keep the corners' orientation: (c0, m01, m20),
- * (m01, c1, m12), (m20, m12, c2), (m01, m12, m20). */
-static lm_result emit_source(cache *c, uint32_t tri, uint32_t leaf, const mesh_bary b[3], const uint32_t v[3], int levels,
-                             size_t *count, lm_error *err)
+/* Appends the source triangles of cut node `leaf`, split `levels` more times:
+ * where the further bounces' coarse mesh is finer than the cut, the source
+ * follows it, so that E_m keeps its shape in the source (a wall lit only
+ * indirectly has no direct light to open the cut; its E_m over the root's
+ * corners alone lost a sixth of the door's wall light: docs/cache.md,
+ * "Bounces"). Only the node and the path are kept; piece_corners makes the
+ * corners again. */
+static lm_result emit_source(cache *c, uint32_t leaf, uint32_t path, int levels, int depth, size_t *count,
+                             lm_error *err)
 {
-    mesh_bary m[3];
-    for (int k = 0; levels > 0 && k < 3; ++k)
-        if (mesh_bary_midpoint(b[k], b[(k + 1) % 3], &m[k]) != LM_OK) levels = 0; /* m[0] = m01, m[1] = m12, m[2] = m20 */
-    if (levels > 0) {
-        const uint32_t N = MESH_VTABLE_NONE;
-        const mesh_bary cb[4][3] = {{b[0], m[0], m[2]}, {m[0], b[1], m[1]}, {m[2], m[1], b[2]}, {m[0], m[1], m[2]}};
-        const uint32_t cv[4][3] = {{v[0], N, N}, {N, v[1], N}, {N, N, v[2]}, {N, N, N}};
+    if (depth < levels) {
         lm_result r = LM_OK;
-        for (int k = 0; r == LM_OK && k < 4; ++k) r = emit_source(c, tri, leaf, cb[k], cv[k], levels - 1, count, err);
+        for (uint32_t k = 0; r == LM_OK && k < 4; ++k)
+            r = emit_source(c, leaf, path | k << (2 * depth), levels, depth + 1, count, err);
         return r;
     }
     if (*count == c->src.leaf_cap && !LM_GROW_RAW(c->src.leaf_buf, c->src.leaf_cap, *count + 1))
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the indirect source");
-    mesh_qmesh_tri *t = &c->src.leaf_buf[(*count)++];
-    t->tri = tri;
-    t->leaf = leaf;
-    for (int k = 0; k < 3; ++k) {
-        t->v[k] = v[k];
-        t->bary[k] = b[k];
-    }
+    c->src.leaf_buf[(*count)++] = (cache_source_piece){.leaf = leaf, .path = (uint16_t)path, .levels = (uint8_t)levels};
     return LM_OK;
+}
+
+/* Splits of a cut node a source triangle may take: a piece's path has 2 bits a split. */
+#define PIECE_LEVELS_MAX 8
+_Static_assert(CACHE_BOUNCE_DEPTH <= PIECE_LEVELS_MAX, "a source piece's path holds 8 splits");
+
+/* The corners of source piece p (scene triangle, dyadic corners, vertex ids of
+ * the direct mesh: MESH_VTABLE_NONE where a corner is not one). Midpoints keep
+ * the corners' orientation: (c0, m01, m20), (m01, c1, m12), (m20, m12, c2),
+ * (m01, m12, m20). */
+static uint32_t piece_corners(const cache *c, const cache_source_piece *p, mesh_bary b[3], uint32_t v[3])
+{
+    const mesh_qnode *n = mesh_qmesh_node(c->direct, p->leaf);
+    for (int k = 0; k < 3; ++k) {
+        b[k] = mesh_qmesh_node_corner(n, k);
+        v[k] = n->v[k];
+    }
+    for (int j = 0; j < p->levels; ++j) {
+        const uint32_t child = (uint32_t)p->path >> (2 * j) & 3u, N = MESH_VTABLE_NONE;
+        mesh_bary m[3]; /* m[0] = m01, m[1] = m12, m[2] = m20 */
+        for (int k = 0; k < 3; ++k)
+            if (mesh_bary_midpoint(b[k], b[(k + 1) % 3], &m[k]) != LM_OK) return n->tri; /* not emitted so */
+        const mesh_bary cb[4][3] = {{b[0], m[0], m[2]}, {m[0], b[1], m[1]}, {m[2], m[1], b[2]}, {m[0], m[1], m[2]}};
+        const uint32_t keep = child < 3 ? v[child] : N;
+        for (int k = 0; k < 3; ++k) {
+            b[k] = cb[child][k];
+            v[k] = (uint32_t)k == child ? keep : N;
+        }
+    }
+    return n->tri;
 }
 
 /* Appends the cut's triangles under `node` to c->src.leaf_buf. */
@@ -252,10 +270,12 @@ static lm_result collect_source(cache *c, uint32_t node, size_t *count, lm_error
         }
         return LM_OK;
     }
-    mesh_bary b[3];
-    for (int k = 0; k < 3; ++k) b[k] = mesh_qmesh_node_corner(n, k);
     int finer = c->indirect1 ? cache_bounces_depth(c, n->tri) - (int)n->depth : 0;
-    return emit_source(c, n->tri, node, b, n->v, finer > 0 ? finer : 0, count, err);
+    if (finer > 0) { /* as deep as the midpoints go (mesh_bary_midpoint: MESH_DEPTH_MAX) */
+        const int room = MESH_DEPTH_MAX - (int)n->depth;
+        finer = finer < room ? finer : room;
+    }
+    return emit_source(c, node, 0, finer > 0 ? finer : 0, 0, count, err);
 }
 
 /* Room for a source of n triangles in (first, bary, rad) (the layout of
@@ -314,21 +334,22 @@ static void fill_source_chunk(void *user, uint32_t chunk)
     const size_t begin = (size_t)chunk * SOURCE_FILL_CHUNK;
     const size_t end = begin + SOURCE_FILL_CHUNK < job->count ? begin + SOURCE_FILL_CHUNK : job->count;
     for (size_t i = begin; i < end; ++i) {
-        const mesh_qmesh_tri *lt = &c->src.leaf_buf[i];
-        const float *kd = s->materials[s->tris[lt->tri].material].kd;
+        mesh_bary bary[3];
+        uint32_t v[3];
+        const uint32_t tri = piece_corners(c, &c->src.leaf_buf[i], bary, v);
+        const float *kd = s->materials[s->tris[tri].material].kd;
         for (int k = 0; k < 3; ++k) {
-            double scale = ldexp(1.0, -(int)lt->bary[k].depth), w1 = lt->bary[k].w[1] * scale,
-                   w2 = lt->bary[k].w[2] * scale;
+            double scale = ldexp(1.0, -(int)bary[k].depth), w1 = bary[k].w[1] * scale, w2 = bary[k].w[2] * scale;
             c->src.rm_bary[6 * i + 2 * (size_t)k] = (float)w1;
             c->src.rm_bary[6 * i + 2 * (size_t)k + 1] = (float)w2;
             float L[3] = {0, 0, 0}, Ei[3] = {0, 0, 0};
             lm_error ignore;
-            if (lt->v[k] != MESH_VTABLE_NONE)
-                mesh_qmesh_get_value(c->direct, lt->v[k], L);
-            else if (mesh_qmesh_interpolate(c->direct, lt->tri, w1, w2, L, &ignore) != LM_OK)
+            if (v[k] != MESH_VTABLE_NONE)
+                mesh_qmesh_get_value(c->direct, v[k], L);
+            else if (mesh_qmesh_interpolate(c->direct, tri, w1, w2, L, &ignore) != LM_OK)
                 L[0] = L[1] = L[2] = 0.0f; /* a point inside a cut leaf: the direct mesh there */
-            if (with_em && mesh_qmesh_root(c->indirect1, lt->tri) != MESH_QMESH_NONE &&
-                mesh_qmesh_interpolate(c->indirect1, lt->tri, w1, w2, Ei, &ignore) != LM_OK)
+            if (with_em && mesh_qmesh_root(c->indirect1, tri) != MESH_QMESH_NONE &&
+                mesh_qmesh_interpolate(c->indirect1, tri, w1, w2, Ei, &ignore) != LM_OK)
                 Ei[0] = Ei[1] = Ei[2] = 0;
             for (int ch = 0; ch < 3; ++ch)
                 c->src.rm_rad[9 * i + 3 * (size_t)k + (size_t)ch] = kd[ch] * (L[ch] + (float)(Ei[ch] / M_PI));
@@ -351,23 +372,38 @@ static lm_result build_source(cache *c, int track, lm_error *err)
         if (root != MESH_QMESH_NONE && cache_tri_active(c, t)) r = collect_source(c, root, &count, err);
     }
     if (r != LM_OK) return r;
-    /* The source built last becomes the previous one, which the new one is
-     * compared with (cache_mark_outdated): its arrays and its index move there,
-     * and the new source is written over the arrays of the one before (they were
-     * copied, 0.1 s for a million-triangle scene's). */
-    samp_radiance_index_free(&c->src.rp_index);
-    c->src.rp_index = c->src.rm_index;
-    memset(&c->src.rm_index, 0, sizeof c->src.rm_index);
-    swap_source_arrays(&c->src);
-    c->src.rp_count = c->src.rmesh.tri_count;
-    c->src.rp_valid = c->src.rp_first != NULL && c->src.rmesh.first != NULL;
+    /* The single-mesh ablation keeps what it gathered. Before the first image
+     * (cache_desc.coarse_gathers set) nothing is flagged: every value is gathered
+     * again right after it. */
+    const int compare = track && !c->desc.single_mesh && c->initialised && !c->desc.coarse_gathers;
+    if (compare) {
+        /* The source built last becomes the previous one, which the new one is
+         * compared with (cache_mark_outdated): its arrays and its index move
+         * there, and the new source is written over the arrays of the one before
+         * (they were copied, 0.1 s for a million-triangle scene's). */
+        samp_radiance_index_free(&c->src.rp_index);
+        c->src.rp_index = c->src.rm_index;
+        memset(&c->src.rm_index, 0, sizeof c->src.rm_index);
+        swap_source_arrays(&c->src);
+        c->src.rp_count = c->src.rmesh.tri_count;
+        c->src.rp_valid = c->src.rp_first != NULL && c->src.rmesh.first != NULL;
+    } else {
+        /* Nothing compares with the source it replaces: written over it. The
+         * rebuild in the first image's rounds made a second source of 64 bytes a
+         * scene triangle in memory touched for the first time (a million-
+         * triangle scene's: 0.1 s of page faults; docs/cache.md, "The first
+         * image's fresh memory"); the first rebuild compared makes it, after the
+         * first image. A previous source kept from before waits unused: the next
+         * comparing rebuild replaces it with this one. */
+        samp_radiance_index_free(&c->src.rm_index);
+    }
     c->src.rmesh = (samp_radiance_mesh){0};
     r = grow_source(s, &c->src.rm_first, &c->src.rm_bary, &c->src.rm_rad, &c->src.rm_cap, count, err);
     if (r != LM_OK) return r;
     /* Counting sort by scene triangle (the cut is collected in scene order already,
      * so this keeps the order: leaf_buf[i] is source triangle i). */
     memset(c->src.rm_first, 0, ((size_t)s->tri_count + 1) * sizeof *c->src.rm_first);
-    for (size_t i = 0; i < count; ++i) c->src.rm_first[c->src.leaf_buf[i].tri + 1]++;
+    for (size_t i = 0; i < count; ++i) c->src.rm_first[mesh_qmesh_node(c->direct, c->src.leaf_buf[i].leaf)->tri + 1]++;
     for (uint32_t t = 0; t < s->tri_count; ++t) c->src.rm_first[t + 1] += c->src.rm_first[t];
     const uint32_t chunks = (uint32_t)((count + SOURCE_FILL_CHUNK - 1) / SOURCE_FILL_CHUNK);
     lm_parallel_for(lm_thread_count(0), chunks, fill_source_chunk, &(fill_source_job){c, count});
@@ -379,10 +415,7 @@ static lm_result build_source(cache *c, int track, lm_error *err)
     c->src.rmesh.index = &c->src.rm_index;
     c->src.built_at = cache_direct_changes(c);
     c->src.built_nodes = mesh_qmesh_node_count(c->direct);
-    /* The single-mesh ablation keeps what it gathered. Before the first image
-     * (cache_desc.coarse_gathers set) nothing is flagged: every value is gathered
-     * again right after it. */
-    if (track && !c->desc.single_mesh && c->initialised && c->src.rp_valid && !c->desc.coarse_gathers)
+    if (compare && c->src.rp_valid)
         r = cache_mark_outdated(c, err); /* and the glossy parts it may have moved visibly */
     else
         cache_glossy_outdate(c); /* untracked: every glossy part is taken again (cache_glossy.c) */
