@@ -175,18 +175,11 @@ static int same_mesh(const cache_snapshot_mesh *a, const cache_snapshot_mesh *b)
                                    (!a->lobes || memcmp(a->lobes, b->lobes, (size_t)a->vertex_count * sizeof *a->lobes) == 0)));
 }
 
-/* Copies snapshot mesh m to the term's buffers (grown when needed) and its CPU
- * copy (not with desc.one_snapshot). */
-static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m, lm_error *err)
+/* Makes room for the CPU copy of a mesh of n triangles and nv vertices (lobes:
+ * with its lobes). */
+static lm_result copy_room(term_state *ts, uint32_t n, uint32_t nv, int lobes, lm_error *err)
 {
-    const GladGLContext *gl = f->gl;
-    uint32_t n = m ? m->triangle_count : 0, nv = m && n ? m->vertex_count : 0;
-    ts->src = m ? m->vertices : NULL;
-    ts->copy = (cache_snapshot_mesh){0};
-    ts->hash_valid = 0;
-    if (!n) return LM_OK;
-    const int keep = !f->desc.one_snapshot;
-    if (keep && n > ts->copy_cap) {
+    if (n > ts->copy_cap) {
         uint32_t *x = realloc(ts->copy_i, 3 * (size_t)n * sizeof *x);
         if (x) ts->copy_i = x;
         uint64_t *h = realloc(ts->hash, (size_t)n * sizeof *h);
@@ -194,18 +187,59 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
         if (!x || !h) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u triangles", n);
         ts->copy_cap = n;
     }
-    if (keep && nv > ts->copy_vcap) {
+    if (nv > ts->copy_vcap) {
         cache_snapshot_vertex *v = realloc(ts->copy_v, (size_t)nv * sizeof *v);
         if (!v) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u vertices", nv);
         ts->copy_v = v;
         ts->copy_vcap = nv;
     }
-    if (keep && m->lobes && nv > ts->copy_lcap) {
+    if (lobes && nv > ts->copy_lcap) {
         cache_lobe *l = realloc(ts->copy_lobes, (size_t)nv * sizeof *l);
         if (!l) return lm_fail(err, LM_ERR_NO_MEMORY, "renderer: out of memory for %u vertices", nv);
         ts->copy_lobes = l;
         ts->copy_lcap = nv;
     }
+    return LM_OK;
+}
+
+/* The CPU copy of what the term's buffers hold, read back from them the first
+ * time it is compared with a new snapshot (update_snapshot, changed_rect). Made
+ * at the upload, it was a copy of every snapshot drawn, the first included: on
+ * a million-triangle scene 75 MB written for the first time, 0.15 s of the
+ * first image's draw (docs/cache.md, "The first image's fresh memory"). A
+ * renderer dropped after one draw (converge's preview) never makes it. */
+static lm_result copy_from_buffers(rend_frame *f, term_state *ts, lm_error *err)
+{
+    if (!ts->copy_owed) return LM_OK;
+    const uint32_t n = ts->copy.triangle_count, nv = ts->copy.vertex_count;
+    const int lobes = ts->lobes;
+    lm_result r = copy_room(ts, n, nv, lobes, err);
+    if (r != LM_OK) {
+        rend_frame_invalidate(f);
+        return r;
+    }
+    const GladGLContext *gl = f->gl;
+    gl->GetNamedBufferSubData(ts->vbo, 0, (GLsizeiptr)((size_t)nv * sizeof *ts->copy_v), ts->copy_v);
+    gl->GetNamedBufferSubData(ts->ibo, 0, (GLsizeiptr)(3 * (size_t)n * sizeof *ts->copy_i), ts->copy_i);
+    if (lobes) gl->GetNamedBufferSubData(ts->lobe_vbo, 0, (GLsizeiptr)((size_t)nv * sizeof *ts->copy_lobes), ts->copy_lobes);
+    ts->copy = (cache_snapshot_mesh){.vertices = ts->copy_v, .index = ts->copy_i,
+                                     .lobes = lobes ? ts->copy_lobes : NULL, .triangle_count = n,
+                                     .vertex_count = nv};
+    ts->copy_owed = 0;
+    return LM_OK;
+}
+
+/* Copies snapshot mesh m to the term's buffers (grown when needed); its CPU
+ * copy (not with desc.one_snapshot) is owed (copy_from_buffers). */
+static void upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m)
+{
+    const GladGLContext *gl = f->gl;
+    uint32_t n = m ? m->triangle_count : 0, nv = m && n ? m->vertex_count : 0;
+    ts->src = m ? m->vertices : NULL;
+    ts->copy = (cache_snapshot_mesh){0};
+    ts->copy_owed = 0;
+    ts->hash_valid = 0;
+    if (!n) return;
     ts->lobes = m->lobes != NULL;
     if (m->lobes) {
         /* Binding 1: normal and exponent, the lights' part and their visible
@@ -235,17 +269,8 @@ static lm_result upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot
     if (ensure_buffer(gl, &ts->ibo, &ts->ibo_cap, ibytes)) gl->VertexArrayElementBuffer(ts->vao, ts->ibo);
     gl->NamedBufferSubData(ts->vbo, 0, (GLsizeiptr)vbytes, m->vertices);
     gl->NamedBufferSubData(ts->ibo, 0, (GLsizeiptr)ibytes, m->index);
-    if (!keep) { /* the counts only: what is drawn */
-        ts->copy = (cache_snapshot_mesh){.triangle_count = n, .vertex_count = nv};
-        return LM_OK;
-    }
-    memcpy(ts->copy_v, m->vertices, vbytes);
-    memcpy(ts->copy_i, m->index, ibytes);
-    if (m->lobes) memcpy(ts->copy_lobes, m->lobes, (size_t)nv * sizeof *m->lobes);
-    ts->copy = (cache_snapshot_mesh){.vertices = ts->copy_v, .index = ts->copy_i,
-                                     .lobes = m->lobes ? ts->copy_lobes : NULL, .triangle_count = n,
-                                     .vertex_count = nv};
-    return LM_OK;
+    ts->copy = (cache_snapshot_mesh){.triangle_count = n, .vertex_count = nv}; /* the counts: what is drawn */
+    ts->copy_owed = !f->desc.one_snapshot;
 }
 
 /* glFinish, then the seconds since *t0 (and *t0 moves on): per-pass wall time. */
@@ -287,8 +312,13 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
          * per worker: rend_frame.h), else the same bytes. */
         int same = f->snap_valid && generation == f->snap_generation && (m ? m->vertices : NULL) == ts->src &&
                    n == ts->copy.triangle_count;
-        if (!same && n == ts->copy.triangle_count && !f->desc.one_snapshot)
-            same = n == 0 || same_mesh(&ts->copy, m);
+        if (!same && n == ts->copy.triangle_count && !f->desc.one_snapshot && n) {
+            lm_result r = copy_from_buffers(f, ts, err);
+            if (r != LM_OK) return r;
+            same = same_mesh(&ts->copy, m);
+        } else if (!same && n == 0 && ts->copy.triangle_count == 0 && !f->desc.one_snapshot) {
+            same = 1;
+        }
         if (same) {
             ts->src = m ? m->vertices : NULL;
             dirty[t] = reusable && !(relit && ts->lobes) ? (rect){0, 0, 0, 0} : full;
@@ -298,9 +328,12 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
         lm_result r = LM_OK;
         int hashed = 0;
         /* New radiance changes every highlight, not only the changed triangles'. */
-        if (reusable && n && !f->desc.one_snapshot && !m->lobes == !ts->lobes && !(relit && m->lobes))
-            r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
-        if (r == LM_OK) r = upload_mesh(f, ts, m, err);
+        if (reusable && n && !f->desc.one_snapshot && !m->lobes == !ts->lobes && !(relit && m->lobes)) {
+            r = copy_from_buffers(f, ts, err);
+            if (r == LM_OK) r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
+        }
+        if (r == LM_OK) upload_mesh(f, ts, m);
+        if (r == LM_OK && hashed) r = copy_room(ts, n, 0, 0, err); /* room for n hashes */
         if (r == LM_OK && hashed) { /* the new triangles' hashes serve the next comparison */
             memcpy(ts->hash, f->new_hash, (size_t)n * sizeof *ts->hash);
             ts->hash_valid = 1;

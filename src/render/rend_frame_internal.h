@@ -38,6 +38,8 @@ typedef struct term_state {
     uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
     uint32_t copy_cap, copy_vcap;  /* allocated: triangles in copy_i and hash; vertices in copy_v */
     int hash_valid;
+    int copy_owed;                 /* copy's arrays not made yet: vbo, ibo (and lobe_vbo) hold them
+                                      (read back by copy_from_buffers when first compared) */
     const cache_snapshot_vertex *src; /* the snapshot array it came from */
     /* The specular term's lobes (cache_snapshot_mesh.lobes), for its highlights
      * per pixel: binding 1 of vao; their CPU copy, as copy_v's. */
