@@ -53,11 +53,11 @@ struct mesh_qmesh {
     uint32_t *inner_use;
     uint32_t root_count;
 
-    /* Per vtable id, [vcap]: */
+    /* Per vtable id, [vcap] (zeroed where no id has been; allocated: [valloc]): */
     uint32_t *use;
     float *values;          /* channels per id */
     uint8_t *sampled;
-    uint32_t vcap;
+    uint32_t vcap, valloc;
 
     uint32_t nodes_live, leaves, used, sampled_count;
     uint32_t hist[MESH_QMESH_DEPTHS];
@@ -79,16 +79,33 @@ mesh_bary mesh_qmesh_node_corner(const mesh_qnode *n, int c)
     return b;
 }
 
+/* Ids made valid (zeroed) at a time past vcap: the vertex table hands ids out
+ * in order, so the arrays are touched about as far as ids are used. */
+#define VCAP_STEP 4096u
+
 static lm_result ensure_vcap(mesh_qmesh *m, uint32_t need, lm_error *err)
 {
     if (need <= m->vcap) return LM_OK;
-    /* Three arrays share one uint32_t capacity (values: `channels` floats per id). */
-    size_t ncap = lm_grow_capacity(m->vcap, need, 256, UINT32_MAX);
-    if (!lm_realloc_array(&m->use, m->vcap, ncap, sizeof *m->use) ||
-        !lm_realloc_array(&m->values, m->vcap, ncap, m->channels * sizeof *m->values) ||
-        !lm_realloc_array(&m->sampled, m->vcap, ncap, sizeof *m->sampled))
-        return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu vertex values", ncap);
-    m->vcap = (uint32_t)ncap;
+    if (need > m->valloc) {
+        /* Three arrays share one uint32_t capacity (values: `channels` floats
+         * per id), grown without zeroing: the doubling's new half was zeroed
+         * at once, on a million-triangle scene several MB a mesh that no id
+         * reached (docs/cache.md, "The first image's fresh memory"). */
+        size_t ncap = lm_grow_capacity(m->valloc, need, 256, UINT32_MAX);
+        if (!lm_realloc_array_raw(&m->use, m->valloc, ncap, sizeof *m->use) ||
+            !lm_realloc_array_raw(&m->values, m->valloc, ncap, m->channels * sizeof *m->values) ||
+            !lm_realloc_array_raw(&m->sampled, m->valloc, ncap, sizeof *m->sampled))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu vertex values", ncap);
+        m->valloc = (uint32_t)ncap;
+    }
+    /* Zeroed from vcap up to need, rounded up by VCAP_STEP within the room. */
+    const uint64_t step_up = ((uint64_t)need + VCAP_STEP - 1) / VCAP_STEP * VCAP_STEP;
+    const uint32_t upto = step_up < m->valloc ? (uint32_t)step_up : m->valloc;
+    const size_t from = m->vcap, count = (size_t)upto - from;
+    memset(m->use + from, 0, count * sizeof *m->use);
+    memset(m->values + from * m->channels, 0, count * m->channels * sizeof *m->values);
+    memset(m->sampled + from, 0, count * sizeof *m->sampled);
+    m->vcap = upto;
     return LM_OK;
 }
 
@@ -719,7 +736,7 @@ void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out)
     out->bytes_nodes = (size_t)m->node_alloc * sizeof *m->nodes +
                        (size_t)m->free_alloc * sizeof *m->free_blocks +
                        (size_t)m->s->tri_count * (sizeof *m->root_of_tri + sizeof *m->inner_use) + sizeof *m;
-    out->bytes_values = (size_t)m->vcap * (sizeof *m->use + m->channels * sizeof *m->values + 1);
+    out->bytes_values = (size_t)m->valloc * (sizeof *m->use + m->channels * sizeof *m->values + 1);
     const double bpv = mesh_vtable_bytes_per_vertex(m->vt);
     double share = 0.0;
     for (uint32_t id = 0; id < m->vcap; ++id) {

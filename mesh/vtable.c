@@ -336,10 +336,13 @@ static lm_result grow_slots(mesh_vtable *vt, uint32_t nslots, lm_error *err)
 
 static lm_result grow_records(mesh_vtable *vt, uint32_t ncap, lm_error *err)
 {
-    /* Three arrays share one capacity. */
-    if (!lm_realloc_array(&vt->v, vt->cap, ncap, sizeof *vt->v) ||
-        !lm_realloc_array(&vt->keys, vt->cap, ncap, sizeof *vt->keys) ||
-        !lm_realloc_array(&vt->freed, vt->cap, ncap, sizeof *vt->freed))
+    /* Three arrays share one capacity. Not zeroed: a record is written whole
+     * when its id is handed out (below id_limit, or off the freed stack), and
+     * none past id_limit is read; zeroed, each doubling touched its whole new
+     * half at once (docs/cache.md, "The first image's fresh memory"). */
+    if (!lm_realloc_array_raw(&vt->v, vt->cap, ncap, sizeof *vt->v) ||
+        !lm_realloc_array_raw(&vt->keys, vt->cap, ncap, sizeof *vt->keys) ||
+        !lm_realloc_array_raw(&vt->freed, vt->cap, ncap, sizeof *vt->freed))
         return lm_fail(err, LM_ERR_NO_MEMORY, "vertex table: out of memory (%u vertices)", ncap);
     vt->cap = ncap;
     return LM_OK;
