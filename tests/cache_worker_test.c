@@ -162,6 +162,16 @@ static cache_worker *auto_worker(const scene *s, const uint32_t *pixels)
     return w;
 }
 
+/* Points a snapshot's samplers have served: the running one's and those it
+ * replaced (cache_snapshot.retired), the quick start's apart. */
+static uint64_t served_points(const cache_snapshot *snap)
+{
+    uint64_t n = snap->sampler.direct_samples + snap->sampler.indirect_samples;
+    for (uint32_t i = 0; i < snap->retired_count; ++i)
+        n += snap->retired[i].direct_samples + snap->retired[i].indirect_samples;
+    return n;
+}
+
 /* AUTO (samp.h) with a JND floor: refinement starts at once with Embree (no
  * snapshot waits for a calibration), the calibration comes after the first
  * convergence, and the snapshots say so in their sampler's choice. */
@@ -171,8 +181,8 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
                                  "calibrated then";
     cache_worker *w = auto_worker(s, pixels);
     const cache_snapshot *snap = NULL;
-    uint64_t gen = 0, refined_before = 0;
-    int wrong_before = 0, calibrated = 0, first_owed = -1;
+    uint64_t gen = 0, refined_before = 0, served = 0;
+    int wrong_before = 0, calibrated = 0, first_owed = -1, served_fell = 0;
     double t0 = lm_now_seconds();
     while (w && lm_now_seconds() - t0 < 120.0) {
         snap = wait_newer(w, gen);
@@ -184,6 +194,10 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
             wrong_before += snap->sampler.backend != SAMP_BACKEND_EMBREE || strcmp(snap->sampler.choice, before) != 0;
         }
         calibrated |= strstr(snap->sampler.choice, "calibrated in") != NULL;
+        /* Counted over the run: the start's sampler, replaced at the first
+         * convergence, and the calibration's loser keep their points. */
+        served_fell += served_points(snap) < served;
+        served = served_points(snap);
         if (snap->finished) break;
     }
     printf("auto, deferred: %llu leaves tested before converging, with Embree; then: %s\n",
@@ -194,6 +208,10 @@ static void test_auto_deferred(const scene *s, const uint32_t *pixels)
     CHECK_MSG(snap && snap->owed == 0, "the finished snapshot owes %u", snap ? snap->owed : 0u);
     CHECK(refined_before > 0 && wrong_before == 0);
     CHECK_MSG(calibrated, "no calibration after converging: %s", snap ? snap->sampler.choice : "");
+    printf("auto, deferred: %llu points served, %u samplers replaced; the count fell %d times\n",
+           (unsigned long long)served, snap ? snap->retired_count : 0u, served_fell);
+    CHECK_MSG(snap && snap->retired_count >= 1 && served_fell == 0,
+              "the samplers' points fell %d times (%u replaced)", served_fell, snap ? snap->retired_count : 0u);
     cache_worker_destroy(w);
 }
 

@@ -43,6 +43,10 @@ enum {
                                         its leaf's boundary; clear: a diagonal of the fan tiling the leaf */
 };
 
+/* Refining samplers a worker replaces at most: its start's plain count (at the
+ * first convergence) and the loser of AUTO's calibration. */
+enum { CACHE_SNAPSHOT_RETIRED = 4 };
+
 /* One corner's debug data (cache_worker_desc.publish_debug), parallel to index. */
 typedef struct cache_snapshot_corner {
     uint32_t vertex;             /* vertex-table id: corners with the same id are one vertex of the mesh */
@@ -84,6 +88,10 @@ typedef struct cache_snapshot {
                                     (estimate.measured 0) in a worker's first snapshot */
     samp_stats sampler;          /* the worker's sampler when it was made: back ends, samples, seconds */
     samp_stats quick_sampler;    /* the quick start's sampler (the coarse cache); zero without one */
+    samp_stats retired[CACHE_SNAPSHOT_RETIRED]; /* the refining samplers `sampler` replaced, each as it was
+                                                   when it was dropped (the start's plain count at the first
+                                                   convergence, the calibration's loser) */
+    uint32_t retired_count;
     double published_at;         /* lm_now_seconds() when it was committed */
     double first_rounds_seconds; /* the worker's refinement rounds before the first image (the cache's
                                     own start-up is stats.startup) */

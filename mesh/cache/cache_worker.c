@@ -183,6 +183,47 @@ static int gl_cannot_win(double gl_us, double embree_us)
     return gl_us >= 0.0 && gl_us > CHECK_SLOWER * embree_us;
 }
 
+/* Adds a sampler's stats to a list: to the entry with the same back ends, else
+ * as a new one (at most CACHE_SNAPSHOT_RETIRED: the worker replaces two). */
+static void add_served(samp_stats *list, uint32_t *count, const samp_stats *st)
+{
+    for (uint32_t i = 0; i < *count; ++i) {
+        samp_stats *r = &list[i];
+        if (r->backend != st->backend || r->gl_platform != st->gl_platform ||
+            r->indirect_backend != st->indirect_backend || r->indirect_gl_platform != st->indirect_gl_platform)
+            continue;
+        r->direct_samples += st->direct_samples, r->indirect_samples += st->indirect_samples;
+        r->glossy_samples += st->glossy_samples;
+        r->direct_seconds += st->direct_seconds, r->indirect_seconds += st->indirect_seconds;
+        return;
+    }
+    if (*count < CACHE_SNAPSHOT_RETIRED) list[(*count)++] = *st;
+}
+
+/* Keeps what a refining sampler served before it is destroyed: the snapshots
+ * report every sampler's points and seconds, not only the running one's (a
+ * long run of the Veach door's --stats said 1,136 gathers, counted since the
+ * first convergence). */
+static void retire_sampler(cache_worker *w, const samp_sampler *sp)
+{
+    samp_stats st;
+    samp_get_stats(sp, &st);
+    add_served(w->retired, &w->retired_count, &st);
+}
+
+/* The snapshot's retired samplers: those replaced, and the Embree sampler on
+ * hold while a calibrated one is on trial (calibrated_check), which served
+ * until then (counted in w->retired when it is dropped). */
+static void snap_retired(const cache_worker *w, cache_snapshot *snap)
+{
+    memcpy(snap->retired, w->retired, sizeof w->retired);
+    snap->retired_count = w->retired_count;
+    if (!w->fallback) return;
+    samp_stats st;
+    samp_get_stats(w->fallback, &st);
+    add_served(snap->retired, &snap->retired_count, &st);
+}
+
 /* At the first convergence (AUTO, refining on past it): the start's plain count
  * gives way to Embree's default, which the deferred calibration then judges as
  * before; worker_main has the values gathered with the start's count gathered
@@ -199,6 +240,7 @@ static lm_result leave_start_count(cache_worker *w, cache *c, samp_sampler **sp,
     lm_result r = samp_create(&d, &next, err);
     if (r != LM_OK) return r;
     cache_set_sampler(c, next);
+    retire_sampler(w, *sp);
     samp_destroy(*sp);
     *sp = next;
     return LM_OK;
@@ -279,9 +321,11 @@ static void calibrated_check(cache_worker *w, cache *c, samp_sampler **sp)
              1e6 * w->fallback_cost[1], slower ? "slower, back to Embree" : "kept");
     if (slower) {
         cache_set_sampler(c, w->fallback);
+        retire_sampler(w, *sp);
         samp_destroy(*sp);
         *sp = w->fallback;
     } else {
+        retire_sampler(w, w->fallback);
         samp_destroy(w->fallback);
     }
     w->fallback = NULL;
@@ -437,6 +481,7 @@ static void *worker_main(void *arg)
                 snprintf(ss->choice, sizeof ss->choice, "%s", w->calibration_note);
             }
             w->back->snap.quick_sampler = w->quick_stats;
+            snap_retired(w, &w->back->snap);
             if (r == LM_OK) cache_publish_commit(w);
             w->published_end = lm_now_seconds();
             w->publish_cost = w->published_end - t0;

@@ -101,6 +101,9 @@ struct cache_worker {
     float new_eye[3];                 /* set_view: the eye that comes with new_pixels ... */
     int new_eye_set;                  /* ... when this is non-zero */
     samp_stats quick_stats;           /* the worker's: its quick start's sampler, kept for the snapshots */
+    samp_stats retired[CACHE_SNAPSHOT_RETIRED]; /* the worker's: refining samplers it replaced (retire_sampler),
+                                                   kept for the snapshots */
+    uint32_t retired_count;
     cache_estimate estimate;          /* the worker's: the last error estimate, and when it was made */
     uint64_t first_tested;            /* the worker's: leaves tested before the first publication */
     rt_scene *rt;                     /* the worker's: the one Embree scene of its samplers (the quick

@@ -65,13 +65,25 @@ static cJSON *sampler_side(const char *backend, uint64_t points, double seconds)
     return o;
 }
 
-static cJSON *sampler_json(const samp_stats *st, const samp_stats *quick)
+/* The sampler running when the snapshot was made, and with it what the
+ * refining samplers it replaced served (cache_snapshot.retired): points and
+ * seconds of a quantity summed over those with its back end. */
+static cJSON *sampler_json(const cache_snapshot *snap)
 {
+    const samp_stats *st = &snap->sampler, *quick = &snap->quick_sampler;
     cJSON *o = cJSON_CreateObject();
     if (!o) return NULL;
-    cJSON_AddItemToObject(o, "direct", sampler_side(st->backend_name, st->direct_samples, st->direct_seconds));
-    cJSON_AddItemToObject(o, "indirect",
-                          sampler_side(st->indirect_backend_name, st->indirect_samples, st->indirect_seconds));
+    uint64_t points[2] = {st->direct_samples, st->indirect_samples};
+    double seconds[2] = {st->direct_seconds, st->indirect_seconds};
+    for (uint32_t i = 0; i < snap->retired_count && i < CACHE_SNAPSHOT_RETIRED; ++i) {
+        const samp_stats *r = &snap->retired[i];
+        if (r->backend == st->backend && r->gl_platform == st->gl_platform)
+            points[0] += r->direct_samples, seconds[0] += r->direct_seconds;
+        if (r->indirect_backend == st->indirect_backend && r->indirect_gl_platform == st->indirect_gl_platform)
+            points[1] += r->indirect_samples, seconds[1] += r->indirect_seconds;
+    }
+    cJSON_AddItemToObject(o, "direct", sampler_side(st->backend_name, points[0], seconds[0]));
+    cJSON_AddItemToObject(o, "indirect", sampler_side(st->indirect_backend_name, points[1], seconds[1]));
     if (quick->backend != SAMP_BACKEND_AUTO) { /* zeroed: no quick start */
         cJSON *q = cJSON_AddObjectToObject(o, "quick_start");
         if (q) {
@@ -81,13 +93,21 @@ static cJSON *sampler_json(const samp_stats *st, const samp_stats *quick)
                                                               quick->indirect_seconds));
         }
     }
-    /* Seconds per back end, whichever quantity they served, the quick start's included. */
+    /* Seconds per back end, whichever quantity they served, the quick start's
+     * and the replaced samplers' included. */
     cJSON *by = cJSON_AddObjectToObject(o, "seconds_by_backend");
-    const samp_backend kinds[4] = {st->backend, st->indirect_backend, quick->backend, quick->indirect_backend};
-    const char *names[4] = {st->backend_name, st->indirect_backend_name, quick->backend_name,
-                            quick->indirect_backend_name};
-    double secs[4] = {st->direct_seconds, st->indirect_seconds, quick->direct_seconds, quick->indirect_seconds};
-    for (int k = 0; by && k < 4; ++k) {
+    enum { SIDES = 2 * (2 + CACHE_SNAPSHOT_RETIRED) };
+    samp_backend kinds[SIDES] = {st->backend, st->indirect_backend, quick->backend, quick->indirect_backend};
+    const char *names[SIDES] = {st->backend_name, st->indirect_backend_name, quick->backend_name,
+                                quick->indirect_backend_name};
+    double secs[SIDES] = {st->direct_seconds, st->indirect_seconds, quick->direct_seconds, quick->indirect_seconds};
+    int sides = 4;
+    for (uint32_t i = 0; i < snap->retired_count && i < CACHE_SNAPSHOT_RETIRED; ++i) {
+        const samp_stats *r = &snap->retired[i];
+        kinds[sides] = r->backend, names[sides] = r->backend_name, secs[sides++] = r->direct_seconds;
+        kinds[sides] = r->indirect_backend, names[sides] = r->indirect_backend_name, secs[sides++] = r->indirect_seconds;
+    }
+    for (int k = 0; by && k < sides; ++k) {
         if (kinds[k] == SAMP_BACKEND_AUTO || !names[k]) continue; /* no such sampler */
         cJSON *have = cJSON_GetObjectItemCaseSensitive(by, names[k]);
         if (have)
@@ -181,7 +201,7 @@ cJSON *app_stats_json(const app_stats_desc *d)
         cJSON_AddNumberToObject(bw, "kept", (double)st->borrow.kept);
     }
     cJSON_AddNumberToObject(j, "bytes", (double)st->bytes);
-    cJSON_AddItemToObject(j, "sampler", sampler_json(&snap->sampler, &snap->quick_sampler));
+    cJSON_AddItemToObject(j, "sampler", sampler_json(snap));
     cJSON *bn = cJSON_AddObjectToObject(j, "bounces");
     if (bn) {
         const cache_bounce_stats *b = &st->bounces;
