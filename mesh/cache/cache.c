@@ -101,6 +101,7 @@ void cache_destroy(cache *c)
     mesh_qmesh_destroy(c->indirect1);
     cache_bounces_free(&c->bnc);
     mesh_vtable_destroy(c->vt);
+    cache_first_order_free(c);
     free(c->light);
     free(c->light_le);
     cache_light_state_free(&c->vis);

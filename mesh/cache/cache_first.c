@@ -70,9 +70,36 @@ static int sort_keyed(keyed_vertex *kv, uint32_t n)
     return 1;
 }
 
+/* Corners v[0..n) in Morton order, with their weights (corner_weights): made
+ * for the light's pick and kept for the gathers' (cache_first_gathers), whose
+ * corners are the same (the indirect mesh's roots are the direct mesh's:
+ * cache_create); the light's pick and the gathers' differ only in their
+ * budgets. Made twice, the order was ~0.1 s of a million-triangle scene's
+ * first image, in fresh memory (docs/cache.md, "The first image's fresh
+ * memory"). */
+typedef struct cache_first_order {
+    uint32_t n;
+    uint32_t *v;        /* n: the corners it was made for (a copy) */
+    keyed_vertex *kv;   /* n: in Morton order (index into v) */
+    double *w;          /* n: weights by index into v */
+    double total;       /* their sum */
+    double span;        /* the corners' bounding box's largest side */
+} cache_first_order;
+
+void cache_first_order_free(cache *c)
+{
+    cache_first_order *o = c->first_order;
+    if (!o) return;
+    free(o->v);
+    free(o->kv);
+    free(o->w);
+    free(o);
+    c->first_order = NULL;
+}
+
 /* The corners v[0..n) in Morton order and the chosen ones among them. */
 typedef struct first_pick {
-    keyed_vertex *kv;   /* n: the corners in Morton order (index into v) */
+    const keyed_vertex *kv; /* n: the corners in Morton order (index into v): c->first_order's */
     uint32_t *before;   /* n: per order position, how many chosen ones come before it */
     uint32_t *chosen;   /* nchosen: their vertex ids, in order */
     uint32_t *at;       /* nchosen: their order positions */
@@ -82,7 +109,6 @@ typedef struct first_pick {
 
 static void pick_free(first_pick *pk)
 {
-    free(pk->kv);
     free(pk->before);
     free(pk->chosen);
     free(pk->at);
@@ -131,53 +157,81 @@ static lm_result corner_weights(const cache *c, const mesh_qmesh *m, const uint3
     return LM_OK;
 }
 
-/* At most `budget` of the corners v[0..n) of mesh m, chosen by systematic
- * sampling of their weights along a Morton order of their positions: the
- * corners in whose stretch of the cumulative weight one of `budget` evenly
- * spaced marks falls. A corner with a budget's share of the weight or more is
- * always chosen; a bunny's thousands of tiny corners share theirs. */
-static lm_result pick_corners(const cache *c, const mesh_qmesh *m, const uint32_t *v, uint32_t n, uint32_t budget,
-                              first_pick *pk, lm_error *err)
+/* c->first_order for the corners v[0..n) of mesh m: the one kept if it was
+ * made for the same corners, else made (and kept). Kept, its weights are those
+ * of the mesh it was made for: the light's pick is made over the direct mesh
+ * and the gathers' over the indirect one, whose roots are the same (both
+ * cache_has_albedo, the indirect's copied from the direct's: cache_create). */
+static lm_result corner_order(cache *c, const mesh_qmesh *m, const uint32_t *v, uint32_t n, lm_error *err)
 {
-    memset(pk, 0, sizeof *pk);
-    pk->kv = malloc((size_t)n * sizeof *pk->kv);
-    pk->before = malloc((size_t)n * sizeof *pk->before);
-    pk->chosen = malloc((size_t)budget * sizeof *pk->chosen);
-    pk->at = malloc((size_t)budget * sizeof *pk->at);
-    double *w = malloc((size_t)n * sizeof *w);
-    lm_result r = pk->kv && pk->before && pk->chosen && pk->at && w
-                      ? corner_weights(c, m, v, n, w, err)
-                      : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
+    const cache_first_order *have = c->first_order;
+    if (have && have->n == n && memcmp(have->v, v, (size_t)n * sizeof *v) == 0) return LM_OK;
+    cache_first_order_free(c);
+    cache_first_order *o = calloc(1, sizeof *o);
+    if (o) {
+        o->n = n;
+        o->v = malloc((size_t)(n ? n : 1) * sizeof *o->v);
+        o->kv = malloc((size_t)(n ? n : 1) * sizeof *o->kv);
+        o->w = malloc((size_t)(n ? n : 1) * sizeof *o->w);
+        c->first_order = o;
+    }
+    lm_result r = o && o->v && o->kv && o->w ? corner_weights(c, m, v, n, o->w, err)
+                                             : lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
     if (r != LM_OK) {
-        free(w);
-        pick_free(pk);
+        cache_first_order_free(c);
         return r;
     }
+    memcpy(o->v, v, (size_t)n * sizeof *v);
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     double total = 0.0;
     for (uint32_t i = 0; i < n; ++i) {
         const float *p = mesh_vtable_vertex(c->vt, v[i])->position;
         for (int k = 0; k < 3; ++k) lo[k] = fminf(lo[k], p[k]), hi[k] = fmaxf(hi[k], p[k]);
-        total += w[i];
+        total += o->w[i];
     }
     if (!(total > 0.0)) { /* nothing weighs: evenly spaced corners */
-        for (uint32_t i = 0; i < n; ++i) w[i] = 1.0;
+        for (uint32_t i = 0; i < n; ++i) o->w[i] = 1.0;
         total = n;
     }
-    pk->span = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
+    o->total = total;
+    o->span = fmax(hi[0] - lo[0], fmax(hi[1] - lo[1], hi[2] - lo[2]));
     for (uint32_t i = 0; i < n; ++i)
-        pk->kv[i] = (keyed_vertex){morton_key(mesh_vtable_vertex(c->vt, v[i])->position, lo, pk->span), i};
-    if (!sort_keyed(pk->kv, n)) {
-        free(w);
+        o->kv[i] = (keyed_vertex){morton_key(mesh_vtable_vertex(c->vt, v[i])->position, lo, o->span), i};
+    if (!sort_keyed(o->kv, n)) {
+        cache_first_order_free(c);
+        return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
+    }
+    return LM_OK;
+}
+
+/* At most `budget` of the corners v[0..n) of mesh m, chosen by systematic
+ * sampling of their weights along a Morton order of their positions: the
+ * corners in whose stretch of the cumulative weight one of `budget` evenly
+ * spaced marks falls. A corner with a budget's share of the weight or more is
+ * always chosen; a bunny's thousands of tiny corners share theirs. */
+static lm_result pick_corners(cache *c, const mesh_qmesh *m, const uint32_t *v, uint32_t n, uint32_t budget,
+                              first_pick *pk, lm_error *err)
+{
+    memset(pk, 0, sizeof *pk);
+    lm_result r = corner_order(c, m, v, n, err);
+    if (r != LM_OK) return r;
+    const cache_first_order *o = c->first_order;
+    pk->kv = o->kv;
+    pk->span = o->span;
+    pk->before = malloc((size_t)n * sizeof *pk->before);
+    pk->chosen = malloc((size_t)budget * sizeof *pk->chosen);
+    pk->at = malloc((size_t)budget * sizeof *pk->at);
+    if (!pk->before || !pk->chosen || !pk->at) {
         pick_free(pk);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
     }
+    const double *w = o->w;
+    double total = o->total;
     /* Corners heavier than a mark's spacing are chosen outright, and the rest of
      * the budget spread over the rest, until none is (else a few wall corners
      * would swallow most marks and the budget go unspent). */
     uint8_t *sure = calloc(n, 1);
     if (!sure) {
-        free(w);
         pick_free(pk);
         return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory for the first image's budget");
     }
@@ -208,7 +262,6 @@ static lm_result pick_corners(const cache *c, const mesh_qmesh *m, const uint32_
         }
     }
     free(sure);
-    free(w);
     return LM_OK;
 }
 
@@ -319,6 +372,7 @@ lm_result cache_first_gathers(cache *c, const uint32_t *v, uint32_t n, float *E,
     free(order);
     free(Er);
     pick_free(&pk);
+    cache_first_order_free(c); /* the last pick of the first image */
     return r;
 }
 

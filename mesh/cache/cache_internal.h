@@ -409,6 +409,9 @@ struct cache {
                                   source rebuild bounds the drift of: cache_mark_outdated) */
     cache_startup_stats startup; /* written by cache.c, once (cache_create, the first init) */
     const uint32_t *first_pixels; /* the pixel counts cache_init_seen was given, while it runs */
+    struct cache_first_order *first_order; /* cache_first.c: the light's corners in Morton order with
+                                              their weights, kept for the gathers' pick (the same
+                                              corners) and freed by it */
     /* Which scene triangles take part (allocated by cache.c's cache_init_seen;
      * these fields up to part_tris written by cache_reach.c, which takes
      * triangles part, bounce_active_at by cache.c; read by every file): an
@@ -567,6 +570,8 @@ lm_result cache_root_values(cache *c, cache_kind kind, const uint32_t *vids, uin
  * (borrowed V elsewhere), the borrowed roots recorded; *done = 1. Else nothing
  * (*done = 0: the caller samples every corner). */
 lm_result cache_first_light(cache *c, const uint32_t *v, uint32_t n, int *done, lm_error *err);
+/* Frees c->first_order (NULL is a no-op). */
+void cache_first_order_free(cache *c);
 
 /* ---- cache_light.c: visibility, direct values, falsified light leaves --------------- */
 
