@@ -247,7 +247,8 @@ static uint32_t piece_corners(const cache *c, const cache_source_piece *p, mesh_
         const uint32_t child = (uint32_t)p->path >> (2 * j) & 3u, N = MESH_VTABLE_NONE;
         mesh_bary m[3]; /* m[0] = m01, m[1] = m12, m[2] = m20 */
         for (int k = 0; k < 3; ++k)
-            if (mesh_bary_midpoint(b[k], b[(k + 1) % 3], &m[k]) != LM_OK) return n->tri; /* not emitted so */
+            if (mesh_bary_midpoint(b[k], b[(k + 1) % 3], &m[k]) != LM_OK)
+                return n->tri; /* past MESH_DEPTH_MAX: collect_source emits no such path */
         const mesh_bary cb[4][3] = {{b[0], m[0], m[2]}, {m[0], b[1], m[1]}, {m[2], m[1], b[2]}, {m[0], m[1], m[2]}};
         const uint32_t keep = child < 3 ? v[child] : N;
         for (int k = 0; k < 3; ++k) {

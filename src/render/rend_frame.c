@@ -316,9 +316,8 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
             lm_result r = copy_from_buffers(f, ts, err);
             if (r != LM_OK) return r;
             same = same_mesh(&ts->copy, m);
-        } else if (!same && n == 0 && ts->copy.triangle_count == 0 && !f->desc.one_snapshot) {
-            same = 1;
         }
+        same |= n == 0 && ts->copy.triangle_count == 0 && !f->desc.one_snapshot;
         if (same) {
             ts->src = m ? m->vertices : NULL;
             dirty[t] = reusable && !(relit && ts->lobes) ? (rect){0, 0, 0, 0} : full;

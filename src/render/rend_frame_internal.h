@@ -32,7 +32,8 @@ typedef struct rect {
 typedef struct term_state {
     GLuint vbo, ibo, vao, fbo, tex; /* vbo: the mesh's vertices; ibo: its index */
     size_t vbo_cap, ibo_cap;       /* bytes allocated in vbo and ibo */
-    cache_snapshot_mesh copy;      /* what vbo and ibo hold (vertices, index; no tri, no corners) */
+    cache_snapshot_mesh copy;      /* what vbo and ibo hold (vertices, index; no tri, no corners): the
+                                      counts only while copy_owed */
     cache_snapshot_vertex *copy_v; /* copy's arrays, owned */
     uint32_t *copy_i;
     uint64_t *hash;                /* tri_hash of each triangle of copy, when hash_valid */
