@@ -209,6 +209,94 @@ static lm_result clone_roots(mesh_qmesh *m, const mesh_qmesh *like, lm_error *er
     return LM_OK;
 }
 
+/* A root on scene triangle t (which has none), as node node_hw: its corners'
+ * ids from like where it has a root on t (the same corners in the same order: a
+ * root is (a0 1, orient 0)), else looked up. */
+static lm_result add_root(mesh_qmesh *m, uint32_t t, const mesh_qmesh *like_mesh, lm_error *err)
+{
+    if (m->nodes_live >= m->node_cap)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: a root past the node cap of %u", m->node_cap);
+    if (m->node_hw >= m->node_alloc) { /* roots made later (mesh_qmesh_add_roots) */
+        size_t na = lm_grow_capacity(m->node_alloc, (size_t)m->node_hw + 1, 16, UINT32_MAX - 4);
+        if (!na || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
+        m->node_alloc = (uint32_t)na;
+    }
+    const uint32_t id = m->node_hw;
+    mesh_qnode *n = &m->nodes[id];
+    *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1,
+                      .a1 = 0, .depth = 0, .orient = 0, .flags = MESH_QNODE_LIVE};
+    const uint32_t like = like_mesh ? like_mesh->root_of_tri[t] : MESH_QMESH_NONE;
+    for (int c = 0; c < 3; ++c) {
+        int fresh;
+        lm_result r;
+        if (like != MESH_QMESH_NONE) {
+            n->v[c] = like_mesh->nodes[like].v[c];
+            r = ensure_vcap(m, n->v[c] + 1, err);
+            fresh = r == LM_OK && m->use[n->v[c]] == 0;
+            if (fresh) r = mesh_vtable_retain(m->vt, n->v[c], err);
+        } else if ((n->v[c] = mesh_vtable_corner_id(m->vt, t, c)) != MESH_VTABLE_NONE) {
+            /* the scene corner's vertex is there already: held once more (no key) */
+            r = ensure_vcap(m, n->v[c] + 1, err);
+            fresh = r == LM_OK && m->use[n->v[c]] == 0;
+            if (fresh) r = mesh_vtable_retain(m->vt, n->v[c], err);
+        } else {
+            r = take_vertex(m, t, mesh_qmesh_node_corner(n, c), &n->v[c], &fresh, err);
+        }
+        if (r != LM_OK) { /* the corners taken so far given back: no half-made root */
+            for (int k = 0; k < c; ++k) use_drop(m, n->v[k], 1);
+            return r;
+        }
+        use_add(m, n->v[c], 1);
+    }
+    m->root_of_tri[t] = id;
+    m->root_count++, m->node_hw++, m->nodes_live++, m->leaves++, m->hist[0]++;
+    return LM_OK;
+}
+
+lm_result mesh_qmesh_add_roots(mesh_qmesh *m, const uint32_t *tris, uint32_t n, const mesh_qmesh *like,
+                               lm_error *err)
+{
+    if (!m || (n && !tris)) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: add_roots needs a mesh and triangles");
+    const mesh_qmesh *like_mesh = like && like->vt == m->vt ? like : NULL;
+    /* The first roots of a mesh, exactly like's (never split): copied whole, as
+     * mesh_qmesh_create does (clone_roots; the indirect mesh like the direct one). */
+    if (like_mesh && m->node_hw == 0 && n && n == like_mesh->root_count && like_mesh->node_hw == n &&
+        like_mesh->nodes_live == n) {
+        int same = 1;
+        for (uint32_t i = 0; i < n && same; ++i) same = tris[i] < m->s->tri_count && like_mesh->nodes[i].tri == tris[i];
+        if (same) {
+            lm_result r = LM_OK;
+            if (n > m->node_alloc) {
+                if (!lm_realloc_array_raw(&m->nodes, m->node_alloc, n, sizeof *m->nodes))
+                    return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u nodes", n);
+                m->node_alloc = n;
+            }
+            r = clone_roots(m, like_mesh, err);
+            if (r == LM_OK) m->changes += n;
+            return r;
+        }
+    }
+    /* Room for all of them at once: a first set of a million roots grows the
+     * pool once, to its size, as mesh_qmesh_create does. */
+    if (n && (size_t)m->node_hw + n > m->node_alloc) {
+        size_t na = (size_t)m->node_hw + n;
+        if (na > UINT32_MAX - 4 || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
+        m->node_alloc = (uint32_t)na;
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        const uint32_t t = tris[i];
+        if (t >= m->s->tri_count)
+            return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: a root on triangle %u of %u", t, m->s->tri_count);
+        if (m->root_of_tri[t] != MESH_QMESH_NONE) continue;
+        lm_result r = add_root(m, t, like_mesh, err);
+        if (r != LM_OK) return r;
+        m->changes++; /* a new leaf: what a snapshot of the mesh holds changed (mesh_qmesh_version) */
+    }
+    return LM_OK;
+}
+
 lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_error *err)
 {
     if (out) *out = NULL;
@@ -243,7 +331,9 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
 
     /* Choose the roots; root_of_tri temporarily marks chosen triangles with 0. */
     uint32_t nroots = 0;
-    if (desc->root_tris) {
+    if (desc->no_roots) {
+        /* none now: mesh_qmesh_add_roots */
+    } else if (desc->root_tris) {
         for (uint32_t i = 0; i < desc->root_count; ++i) {
             uint32_t t = desc->root_tris[i];
             if (t >= s->tri_count) {
@@ -274,7 +364,8 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
         r = lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u roots", nroots);
         goto fail;
     }
-    const mesh_qmesh *like_mesh = desc->roots_like && desc->roots_like->vt == m->vt ? desc->roots_like : NULL;
+    const mesh_qmesh *like_mesh =
+        !desc->no_roots && desc->roots_like && desc->roots_like->vt == m->vt ? desc->roots_like : NULL;
     if (like_mesh && same_roots(m, like_mesh)) {
         r = clone_roots(m, like_mesh, err);
         if (r != LM_OK) goto fail;
@@ -284,26 +375,9 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
     /* Roots in triangle order, so node ids do not depend on root_tris order. */
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         if (m->root_of_tri[t] == MESH_QMESH_NONE) continue;
-        const uint32_t id = m->root_count;
-        mesh_qnode *n = &m->nodes[id];
-        *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1,
-                          .a1 = 0, .depth = 0, .orient = 0, .flags = MESH_QNODE_LIVE};
-        const uint32_t like = like_mesh ? like_mesh->root_of_tri[t] : MESH_QMESH_NONE;
-        for (int c = 0; c < 3; ++c) {
-            int fresh;
-            if (like != MESH_QMESH_NONE) { /* the same corner, in the same order: a root is (a0 1, orient 0) */
-                n->v[c] = like_mesh->nodes[like].v[c];
-                r = ensure_vcap(m, n->v[c] + 1, err);
-                fresh = r == LM_OK && m->use[n->v[c]] == 0;
-                if (fresh) r = mesh_vtable_retain(m->vt, n->v[c], err);
-            } else {
-                r = take_vertex(m, t, mesh_qmesh_node_corner(n, c), &n->v[c], &fresh, err);
-            }
-            if (r != LM_OK) goto fail; /* destroy releases what the roots so far hold */
-            use_add(m, n->v[c], 1);
-        }
-        m->root_of_tri[t] = id;
-        m->root_count++, m->node_hw++, m->nodes_live++, m->leaves++, m->hist[0]++;
+        m->root_of_tri[t] = MESH_QMESH_NONE;
+        r = add_root(m, t, like_mesh, err);
+        if (r != LM_OK) goto fail; /* destroy releases what the roots so far hold */
     }
     *out = m;
     return LM_OK;

@@ -90,6 +90,8 @@ typedef struct mesh_qmesh_desc {
                                      this one takes, the root's corner ids are taken from it (no
                                      vertex table look-up: a million-triangle scene's meshes made
                                      15 million); NULL: looked up */
+    int no_roots;                 /* non-zero: no roots now (filter and root_tris ignored); they come
+                                     as triangles need them (mesh_qmesh_add_roots) */
 } mesh_qmesh_desc;
 
 /* One output triangle of mesh_qmesh_leaf_triangles. */
@@ -116,6 +118,15 @@ typedef struct mesh_qmesh_stats {
 typedef struct mesh_qmesh mesh_qmesh;
 
 lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_error *err);
+/* Roots on scene triangles tris[0..n) that have none yet, in that order (their
+ * nodes after every node there is), each a leaf with its three corners; like
+ * (or NULL): as desc.roots_like. The roots of a mesh made with no_roots, added
+ * as triangles come to take part (the cache: what is seen and reached, issue
+ * 16): in ascending order once, they are the nodes, corner ids and use counts
+ * that mesh_qmesh_create makes over the same triangles. On failure the roots
+ * added so far stay. */
+lm_result mesh_qmesh_add_roots(mesh_qmesh *m, const uint32_t *tris, uint32_t n, const struct mesh_qmesh *like,
+                               lm_error *err);
 /* Releases the mesh's vertex references. NULL is a no-op. Worker thread only. */
 void mesh_qmesh_destroy(mesh_qmesh *m);
 

@@ -508,6 +508,12 @@ lm_result mesh_vtable_acquire(mesh_vtable *vt, uint32_t tri, mesh_bary p, uint32
     return LM_OK;
 }
 
+uint32_t mesh_vtable_corner_id(const mesh_vtable *vt, uint32_t tri, int corner)
+{
+    if (!vt || tri >= vt->s->tri_count || corner < 0 || corner > 2) return MESH_VTABLE_NONE;
+    return vt->class_vertex[vt->class_corner[3 * (size_t)tri + (size_t)corner]];
+}
+
 uint32_t mesh_vtable_find(const mesh_vtable *vt, uint32_t tri, mesh_bary p)
 {
     if (check_point(vt, tri, p, NULL) != LM_OK) return MESH_VTABLE_NONE;

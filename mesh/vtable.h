@@ -106,6 +106,11 @@ lm_result mesh_vtable_acquire(mesh_vtable *vt, uint32_t tri, mesh_bary p, uint32
 /* The id of the vertex at `p`, or MESH_VTABLE_NONE (absent or invalid address). No
  * reference is taken. Worker thread only. */
 uint32_t mesh_vtable_find(const mesh_vtable *vt, uint32_t tri, mesh_bary p);
+/* mesh_vtable_find for corner `corner` (0..2) of scene triangle tri, by its
+ * normal class: two array reads, not a key (the roots of a million-triangle
+ * scene's meshes look up three million corners). MESH_VTABLE_NONE: no vertex
+ * yet, or tri or corner out of range. */
+uint32_t mesh_vtable_corner_id(const mesh_vtable *vt, uint32_t tri, int corner);
 /* One more / one less reference to a live vertex. Release of the last reference
  * frees the vertex and recycles its id. LM_ERR_INVALID_ARG for a dead or bad id. */
 lm_result mesh_vtable_retain(mesh_vtable *vt, uint32_t id, lm_error *err);

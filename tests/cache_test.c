@@ -907,10 +907,13 @@ static void test_specular_outline(void)
     CHECK(u.c->outl.loop[1] == 4 && u.c->outl.loop[2] == 8);
     CHECK(u.c->outl.loop_sign[0] * u.c->outl.loop_sign[1] == -1);
     if (m) {
-        /* the root's corners (the vertex table outlives the specular mesh, which
-         * every cache_set_camera below replaces) */
-        const mesh_qnode *root = mesh_qmesh_node(m, mesh_qmesh_root(m, 0));
-        const uint32_t corner[3] = {root->v[0], root->v[1], root->v[2]};
+        /* the floor's first triangle's corners: their vertices, which the cache
+         * holds from its creation (its meshes take roots at cache_init; the
+         * vertex table outlives the specular mesh, which every
+         * cache_set_camera below replaces) */
+        const uint32_t corner[3] = {cache_root_corner_id(u.c, 0, 0), cache_root_corner_id(u.c, 0, 1),
+                                    cache_root_corner_id(u.c, 0, 2)};
+        CHECK(corner[0] != MESH_VTABLE_NONE && corner[1] != MESH_VTABLE_NONE && corner[2] != MESH_VTABLE_NONE);
         const float V1[1] = {1.0f};
         const double targets[6][2] = {{-0.2, -0.05}, {0.2, 0.1}, {0.0, 0.0}, {-0.3, 0.3}, {0.4, -0.1}, {-0.1, 0.4}};
         double worst = 0.0;

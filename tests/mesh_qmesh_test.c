@@ -685,6 +685,76 @@ static void test_roots_like(scene *s, mesh_vtable *vt)
     CHECK(st1.live > st0.live && st2.live == st0.live); /* every reference given back */
 }
 
+/* mesh_qmesh_add_roots on a mesh made with no_roots: in ascending order once,
+ * the mesh mesh_qmesh_create makes, node for node; in two sets, after a split,
+ * the later roots come after every node and the mesh refines like any; a
+ * triangle with a root already is left as it is; a bad triangle is refused;
+ * every reference is given back. */
+static void test_add_roots(scene *s, mesh_vtable *vt)
+{
+    lm_error err = {{0}};
+    mesh_vtable_stats st0, st1;
+    mesh_vtable_get_stats(vt, &st0);
+    mesh_qmesh *full = NULL, *lazy = NULL, *two = NULL;
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .channels = 3}, &full, &err) == LM_OK);
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .channels = 3, .no_roots = 1}, &lazy, &err) == LM_OK);
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .no_roots = 1}, &two, &err) == LM_OK);
+    if (!full || !lazy || !two) goto done;
+    mesh_qmesh_stats sl;
+    mesh_qmesh_get_stats(lazy, &sl);
+    CHECK(sl.roots == 0 && sl.nodes == 0 && sl.vertices_used == 0 && mesh_qmesh_root(lazy, 0) == MESH_QMESH_NONE);
+    uint32_t *all = malloc(s->tri_count * sizeof *all);
+    if (!all) goto done;
+    for (uint32_t t = 0; t < s->tri_count; ++t) all[t] = t;
+    const mesh_qmesh_version v0 = mesh_qmesh_get_version(lazy);
+    CHECK(mesh_qmesh_add_roots(lazy, all, s->tri_count, NULL, &err) == LM_OK);
+    CHECK(mesh_qmesh_get_version(lazy).changes > v0.changes); /* a snapshot of it must be made again */
+    int same = mesh_qmesh_node_limit(lazy) == mesh_qmesh_node_limit(full);
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        const uint32_t rf = mesh_qmesh_root(full, t), rl = mesh_qmesh_root(lazy, t);
+        same &= rf == rl && memcmp(mesh_qmesh_node(full, rf), mesh_qmesh_node(lazy, rl), sizeof(mesh_qnode)) == 0;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t id = mesh_qmesh_node(full, rf)->v[k];
+            same &= mesh_qmesh_vertex_use(lazy, id) == mesh_qmesh_vertex_use(full, id);
+        }
+    }
+    CHECK(same);
+    /* Added again: nothing changes. */
+    CHECK(mesh_qmesh_add_roots(lazy, all, s->tri_count, full, &err) == LM_OK);
+    mesh_qmesh_get_stats(lazy, &sl);
+    CHECK(sl.roots == s->tri_count && sl.nodes == s->tri_count);
+    /* In two sets, the first split between them: the second set's nodes after
+     * the children, its corners copied from full (roots_like) as looked up. */
+    const uint32_t half = s->tri_count / 2;
+    CHECK(mesh_qmesh_add_roots(two, all + half, s->tri_count - half, NULL, &err) == LM_OK);
+    CHECK(mesh_qmesh_split(two, mesh_qmesh_root(two, half), &err) == LM_OK);
+    CHECK(mesh_qmesh_add_roots(two, all, half, full, &err) == LM_OK);
+    mesh_qmesh_stats s2;
+    mesh_qmesh_get_stats(two, &s2);
+    CHECK(s2.roots == s->tri_count && s2.nodes == s->tri_count + 4 && s2.leaves == s->tri_count + 3);
+    int later = 1, corners = 1;
+    for (uint32_t t = 0; t < half; ++t) {
+        later &= mesh_qmesh_root(two, t) >= s->tri_count - half + 4;
+        for (int k = 0; k < 3; ++k)
+            corners &= mesh_qmesh_node(two, mesh_qmesh_root(two, t))->v[k] ==
+                       mesh_qmesh_node(full, mesh_qmesh_root(full, t))->v[k];
+    }
+    CHECK(later && corners);
+    CHECK(mesh_qmesh_split(two, mesh_qmesh_root(two, 0), &err) == LM_OK);
+    CHECK(mesh_qmesh_merge(two, mesh_qmesh_root(two, half), &err) == LM_OK);
+    /* Refused: a triangle past the scene's. */
+    const uint32_t far = s->tri_count;
+    CHECK(mesh_qmesh_add_roots(two, &far, 1, NULL, &err) == LM_ERR_INVALID_ARG);
+    CHECK(mesh_qmesh_add_roots(NULL, all, 1, NULL, &err) == LM_ERR_INVALID_ARG);
+    free(all);
+done:
+    mesh_qmesh_destroy(full);
+    mesh_qmesh_destroy(lazy);
+    mesh_qmesh_destroy(two);
+    mesh_vtable_get_stats(vt, &st1);
+    CHECK(st1.live == st0.live); /* every reference given back */
+}
+
 /* The version: unique serials, and every split, merge and value written counted
  * (a snapshot copy is kept while the version stays); reading changes nothing. */
 static void test_version(scene *s, mesh_vtable *vt)
@@ -730,6 +800,7 @@ int main(void)
         test_refined(s, vt);
         test_fan_small(s, vt);
         test_roots_like(s, vt);
+        test_add_roots(s, vt);
         test_limits(s, vt);
         test_version(s, vt);
     }

@@ -5,7 +5,8 @@
  * behind its back wall holding a sphere of 1,280 triangles (100 times the room's
  * triangles): no camera ray and no gather from the room reaches them. From the
  * same view, cache_init_seen samples the same points in both (within 10%, here
- * exactly), takes part the same triangles, and gives the same values; cache_init
+ * exactly), takes part the same triangles, gives the same values, and its meshes
+ * have the same roots (none on the box or the sphere); cache_init
  * (every triangle) would sample the box and the sphere too, which shows the test
  * can fail. A camera that then sees the box from outside takes part the box's
  * faces and not the sphere inside. And the first image's budget of gathers:
@@ -526,6 +527,23 @@ int main(void)
         printf("largest relative difference of the room's coarse values: %.3g\n", d);
         CHECK(d <= 1e-6);
     }
+    /* Nor roots: the meshes of the room with the box hold what the room's hold
+     * (issue 16: roots only where triangles take part). */
+    if (ca && cb) {
+        const mesh_qmesh *ma[3] = {cache_light_mesh(ca, 0), cache_direct_mesh(ca), cache_indirect_mesh(ca)};
+        const mesh_qmesh *mb[3] = {cache_light_mesh(cb, 0), cache_direct_mesh(cb), cache_indirect_mesh(cb)};
+        for (int k = 0; k < 3; ++k) {
+            mesh_qmesh_stats qa, qb;
+            mesh_qmesh_get_stats(ma[k], &qa);
+            mesh_qmesh_get_stats(mb[k], &qb);
+            CHECK_MSG(qa.roots > 0 && qb.roots == qa.roots && qb.nodes == qa.nodes && qb.vertices_used == qa.vertices_used,
+                      "mesh %d: %u roots, %u nodes, %u vertices with the box against %u, %u, %u", k, qb.roots, qb.nodes,
+                      qb.vertices_used, qa.roots, qa.nodes, qa.vertices_used);
+        }
+        mesh_qmesh_stats qd;
+        mesh_qmesh_get_stats(cache_direct_mesh(cb), &qd);
+        printf("room + box: %u roots in the direct mesh for %u triangles\n", qd.roots, boxed->tri_count);
+    }
 
     /* The camera behind the room sees the box from outside: its faces take part
      * (and what they reach, nothing of the room: it shows its back there), the
@@ -544,6 +562,12 @@ int main(void)
         uint32_t seen_tri = 12;
         while (seen_tri < 24 && !px_behind[seen_tri]) seen_tri++;
         CHECK(seen_tri < 24 && cache_eval_direct(cb, seen_tri, 1.0 / 3, 1.0 / 3, v, &err) == LM_OK);
+        /* The box's faces seen got their roots; the sphere inside has none. */
+        uint32_t sphere_roots = 0;
+        for (uint32_t t = 24; t < boxed->tri_count; ++t)
+            sphere_roots += mesh_qmesh_root(cache_direct_mesh(cb), t) != MESH_QMESH_NONE;
+        CHECK(mesh_qmesh_root(cache_direct_mesh(cb), seen_tri) != MESH_QMESH_NONE);
+        CHECK(sphere_roots == 0);
     }
     cache_destroy(ca);
     cache_destroy(cb);

@@ -118,12 +118,93 @@ void cache_destroy(cache *c)
     free(c);
 }
 
+/* ---- roots where triangles take part (issue 16) --------------------------------
+ *
+ * A mesh gets a root on a triangle when the triangle comes to take part (what a
+ * pixel sees and what gathers from it reach: cache_reach.c), not when the mesh
+ * is made: a triangle nothing sees and no gather reaches costs no node, value or
+ * use count in any mesh (docs/cache.md, "Roots where triangles take part"). The
+ * vertex table's records of every scene corner are still made with the cache
+ * (hold_corners), in the order the meshes made
+ * them when every triangle had roots from the start, so that vertex ids, each
+ * vertex's triangle and, once roots come in ascending triangle order, the
+ * meshes' nodes are what they were: a scene whose triangles all take part is
+ * bit for bit the same. */
+
+/* Scene corner k of triangle t as a root's corner (a0 1, orient 0). */
+static mesh_bary root_corner(int k)
+{
+    const mesh_qnode root = {.a0 = 1, .depth = 0, .orient = 0};
+    return mesh_qmesh_node_corner(&root, k);
+}
+
+uint32_t cache_root_corner_id(const cache *c, uint32_t t, int k)
+{
+    return mesh_vtable_corner_id(c->vt, t, k);
+}
+
+/* The vertex records of the corners of the triangles filter accepts, in
+ * ascending order, made where none is yet; the cache holds the reference each
+ * acquisition takes (given back with the vertex table, in cache_destroy). */
+static lm_result hold_corners(cache *c, mesh_qmesh_root_filter filter, void *user, lm_error *err)
+{
+    for (uint32_t t = 0; t < c->s->tri_count; ++t) {
+        if (!filter(c->s, t, user)) continue;
+        for (int k = 0; k < 3; ++k) {
+            if (cache_root_corner_id(c, t, k) != MESH_VTABLE_NONE) continue;
+            uint32_t id;
+            lm_result r = mesh_vtable_acquire(c->vt, t, root_corner(k), &id, err);
+            if (r != LM_OK) return r;
+        }
+    }
+    return LM_OK;
+}
+
+/* Roots in m on the triangles that take part and that filter accepts and that
+ * have none yet, in ascending order, their corners' ids from like where it has
+ * roots. Nothing before the cache takes its first roots (c->rooted: a mesh made
+ * at cache_create gets them with the others, add_roots_all). */
+static lm_result roots_for_active(cache *c, mesh_qmesh *m, mesh_qmesh_root_filter filter, void *user,
+                                  const mesh_qmesh *like, lm_error *err)
+{
+    if (!m || !c->rooted) return LM_OK;
+    uint32_t *list = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *list), n = 0;
+    if (!list) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory adding the cache's roots");
+    for (uint32_t t = 0; t < c->s->tri_count; ++t)
+        if (cache_tri_active(c, t) && filter(c->s, t, user)) list[n++] = t;
+    lm_result r = mesh_qmesh_add_roots(m, list, n, like, err);
+    free(list);
+    return r;
+}
+
 /* The further bounces' coarse mesh (cache_bounces.c splits it). */
 static lm_result make_bounce_mesh(cache *c, lm_error *err)
 {
-    return mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3,
-                                                .node_cap = c->desc.node_cap, .roots_like = c->direct},
-                             &c->indirect1, err);
+    lm_result r = mesh_qmesh_create(
+        &(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = c->desc.node_cap, .no_roots = 1}, &c->indirect1,
+        err);
+    return r == LM_OK ? roots_for_active(c, c->indirect1, cache_has_albedo, NULL, c->direct, err) : r;
+}
+
+/* Every mesh's roots on what takes part and has none yet, mesh by mesh in the
+ * order cache_create made the meshes, each like the one its roots were copied
+ * from when they were all made at once. */
+static lm_result add_roots_all(cache *c, lm_error *err)
+{
+    c->rooted = 1;
+    const mesh_qmesh *like = NULL;
+    lm_result r = LM_OK;
+    for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
+        if (!c->light[l]) continue;
+        light_filter f = {c->s, l};
+        r = roots_for_active(c, c->light[l], sees_light, &f, like, err);
+        if (!like) like = c->light[l];
+    }
+    if (r == LM_OK) r = roots_for_active(c, c->direct, cache_has_albedo, NULL, like, err);
+    if (r == LM_OK) r = roots_for_active(c, c->indirect, cache_has_albedo, NULL, c->direct, err);
+    if (r == LM_OK) r = roots_for_active(c, c->indirect1, cache_has_albedo, NULL, c->direct, err);
+    if (r == LM_OK) r = roots_for_active(c, c->specular, has_gloss, NULL, c->direct, err);
+    return r;
 }
 
 lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
@@ -167,35 +248,33 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l)
         memcpy(c->light_le + 3 * (size_t)l, light_radiance(c->s, l), 3 * sizeof(float));
     uint32_t cap = desc->node_cap;
-    /* Each mesh's root corners from one made before where it has the same root
-     * (mesh_qmesh_desc.roots_like): one vertex-table look-up per corner of the
-     * scene, not one per corner of every mesh. */
-    const mesh_qmesh *like = NULL;
+    /* The meshes start with no roots: each triangle gets its roots when it comes
+     * to take part (add_roots_all). A light nothing can see gets no mesh, a
+     * scene without gloss no specular mesh. */
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
         light_filter f = {c->s, l};
         uint32_t roots = 0;
         for (uint32_t t = 0; t < c->s->tri_count; ++t) roots += sees_light(c->s, t, &f) != 0;
-        if (roots == 0) continue; /* a light nothing can see gets no mesh */
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = sees_light, .root_filter_user = &f,
-                                                 .channels = 1, .node_cap = cap, .roots_like = like},
+        if (roots == 0) continue;
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 1, .node_cap = cap, .no_roots = 1},
                               &c->light[l], err);
-        if (r == LM_OK && !like) like = c->light[l];
+        if (r == LM_OK) r = hold_corners(c, sees_light, &f, err);
     }
     if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3,
-                                                 .node_cap = cap, .roots_like = like},
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1},
                               &c->direct, err);
+    if (r == LM_OK) r = hold_corners(c, cache_has_albedo, NULL, err);
     if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = cache_has_albedo, .channels = 3,
-                                                 .node_cap = cap, .roots_like = c->direct},
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1},
                               &c->indirect, err);
     if (r == LM_OK && c->desc.bounces != 1) r = make_bounce_mesh(c, err);
     uint32_t glossy = 0;
     for (uint32_t t = 0; r == LM_OK && t < c->s->tri_count; ++t) glossy += has_gloss(c->s, t, NULL) != 0;
-    if (r == LM_OK && glossy) /* model only what the scene needs: no gloss, no mesh */
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3,
-                                                 .node_cap = cap, .roots_like = c->direct},
+    if (r == LM_OK && glossy) { /* model only what the scene needs: no gloss, no mesh */
+        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1},
                               &c->specular, err);
+        if (r == LM_OK) r = hold_corners(c, has_gloss, NULL, err);
+    }
     if (r == LM_OK && glossy && !cache_build_outlines(&c->outl, c->s, c->light_count)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
     if (desc->eye_set && !(isfinite(desc->eye[0]) && isfinite(desc->eye[1]) && isfinite(desc->eye[2])))
         r = lm_fail(err, LM_ERR_INVALID_ARG, "cache_create: the eye must be a finite point");
@@ -267,9 +346,9 @@ lm_result cache_set_camera(cache *c, const float eye[3], lm_error *err)
     uint32_t cap = c->desc.node_cap;
     mesh_qmesh_destroy(c->specular);
     c->specular = NULL;
-    lm_result r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .root_filter = has_gloss, .channels = 3,
-                                                        .node_cap = cap, .roots_like = c->direct},
-                                     &c->specular, err);
+    lm_result r = mesh_qmesh_create(
+        &(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1}, &c->specular, err);
+    if (r == LM_OK) r = roots_for_active(c, c->specular, has_gloss, NULL, c->direct, err);
     /* Every glossy part was gathered for the old eye (its vertex ids live on in the
      * vertex table): stale, before the new roots get theirs. */
     if (r == LM_OK) cache_glossy_outdate(c);
@@ -385,6 +464,7 @@ lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err)
     } else {
         c->active_count = c->s->tri_count;
     }
+    if (r == LM_OK) r = add_roots_all(c, err); /* what takes part gets its roots */
     c->startup.reach_seconds = lm_now_seconds() - t0;
     c->first_pixels = pixels; /* the first image's gathers follow them (gather_roots) */
     if (r == LM_OK) r = sample_coarse(c, NULL, 0, err);
@@ -411,7 +491,8 @@ static lm_result take_newly_needed(cache *c, const uint32_t *pixels, lm_error *e
         r = cache_reach_from_gathers(c, &tris, &n, err);
     }
     if (r == LM_OK && n) {
-        r = sample_coarse(c, tris, n, err);
+        r = add_roots_all(c, err);
+        if (r == LM_OK) r = sample_coarse(c, tris, n, err);
         cache_sched_requeue(&c->sched, CACHE_KINDS);
     }
     free(tris);

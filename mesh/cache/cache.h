@@ -147,18 +147,21 @@ typedef struct cache cache;
 lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err);
 void cache_destroy(cache *c); /* NULL is a no-op */
 
-/* Samples every root corner of every mesh: the coarse cache (a constant ambient
- * stands in for indirect until the coarse direct mesh exists; it exists after this). */
+/* Roots on every triangle and samples at every root corner of every mesh: the
+ * coarse cache (a constant ambient stands in for indirect until the coarse direct
+ * mesh exists; it exists after this). */
 lm_result cache_init(cache *c, lm_error *err);
 
 /* The coarse cache over what is needed only (issue 16, docs/cache.md "Start-up
  * bounded by what is seen"): the triangles with pixels (rend_id counts, per scene
  * triangle), and those that gathers from them reach, found by tracing
- * CACHE_REACH_RAYS cosine-weighted rays from the root corners of each newly
- * taken triangle until no new one is met (the reach of reach too: further
- * bounces travel it). The others keep unsampled roots and send no light until
- * cache_refine's pixels see one (a camera move), which takes it and what it
- * reaches the same way. pixels NULL: cache_init. Units: none. */
+ * CACHE_REACH_RAYS cosine-weighted rays from the corners of each newly taken
+ * triangle until no new one is met (the reach of reach too: further bounces
+ * travel it). Only those get roots in the meshes (cache_create makes them empty;
+ * the vertex table has every scene corner from creation on). The others have
+ * no root and send no light until cache_refine's pixels see one (a camera
+ * move), which takes it and what it reaches the same way, roots included.
+ * pixels NULL: cache_init. Units: none. */
 enum { CACHE_REACH_RAYS = 16 };
 lm_result cache_init_seen(cache *c, const uint32_t *pixels, lm_error *err);
 
@@ -361,8 +364,9 @@ typedef struct cache_bounce_stats {
 /* Where the time before the first image went (cache_create and the first
  * cache_init_seen / cache_init; wall seconds on the calling thread). */
 typedef struct cache_startup_stats {
-    double create_seconds;  /* cache_create: the vertex table and every mesh's roots */
-    double reach_seconds;   /* finding what takes part (seen triangles and what they reach) */
+    double create_seconds;  /* cache_create: the vertex table (every scene corner) and the empty meshes */
+    double reach_seconds;   /* finding what takes part (seen triangles and what they reach), and
+                               their roots in every mesh */
     double light_seconds;   /* light samples at the light meshes' root corners */
     double values_seconds;  /* direct and specular root values from the light meshes */
     double source_seconds;  /* further bounces' transport and the indirect source */

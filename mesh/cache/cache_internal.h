@@ -417,10 +417,12 @@ struct cache {
      * triangles part, bounce_active_at by cache.c; read by every file): an
      * active triangle's roots are sampled in every mesh, scheduled, and send
      * light in the indirect source and the bounces' transport; an inactive one
-     * keeps unsampled roots and sends nothing, until a pixel sees it or a gather
-     * from an active triangle reaches it. NULL: every triangle (cache_init). */
+     * has no root in any mesh and sends nothing, until a pixel sees it or a
+     * gather from an active triangle reaches it (cache.c, add_roots). NULL:
+     * every triangle (cache_init). */
     uint8_t *active;
     uint32_t active_count;
+    int rooted;                /* the meshes have the roots of what takes part (cache_init_seen on) */
     uint64_t reach_rays;       /* rays traced to find what gathers reach (cache_stats.reach_rays) */
     uint8_t *reach_traced;     /* per vertex id: its reach was traced (cache_reach_from_gathers) */
     size_t reach_traced_cap;
@@ -446,6 +448,9 @@ struct cache {
 
 /* Does scene triangle t take part (struct cache.active)? */
 static inline int cache_tri_active(const cache *c, uint32_t t) { return !c->active || c->active[t]; }
+/* The vertex id of scene corner k of triangle t (every scene corner has one from
+ * cache_create on: cache.c, hold_corners). */
+uint32_t cache_root_corner_id(const cache *c, uint32_t t, int k);
 /* The client asked the refine call in flight to return (cache_refine_desc.stop). */
 static inline int cache_stopping(const cache *c) { return c->stop && atomic_load(c->stop) != 0; }
 

@@ -273,7 +273,7 @@ static void leaf_priority_one(void *user, uint32_t leaf)
     const mesh_qnode *n = mesh_qmesh_node(job->m, leaf);
     job->p[leaf] = -1.0f;
     if (!n || n->child != MESH_QMESH_NONE) return;
-    if (!cache_tri_active(job->c, n->tri)) return; /* unsampled roots: nothing to test yet */
+    if (!cache_tri_active(job->c, n->tri)) return; /* not taking part: nothing to test yet */
     if (job->seen_only && job->pixels && !job->pixels[n->tri]) return; /* the next call schedules it */
     /* 0: unseen, and nothing gathers from it. */
     job->p[leaf] = cache_leaf_priority(job->c, job->m, job->kind, leaf, n, job->pixels);

@@ -154,13 +154,13 @@ static double reach_unit(cache *c)
 static lm_result add_triangle(reach *x, uint32_t t, uint32_t *stamp, uint32_t round, lm_error *err)
 {
     cache *c = x->c;
-    uint32_t root = mesh_qmesh_root(c->direct, t);
-    if (root == MESH_QMESH_NONE) return LM_OK; /* no albedo: it gathers nothing */
+    if (!cache_has_albedo(c->s, t, NULL)) return LM_OK; /* it gathers nothing */
     const uint32_t limit = mesh_vtable_id_limit(c->vt);
-    const mesh_qnode *nd = mesh_qmesh_node(c->direct, root);
     lm_result r = LM_OK;
     for (int k = 0; r == LM_OK && k < 3; ++k) {
-        uint32_t vid = nd->v[k];
+        /* Its roots come after the reach (cache.c, add_roots_all): the scene
+         * corner's vertex, which the cache holds from its creation. */
+        uint32_t vid = cache_root_corner_id(c, t, k);
         if (vid >= limit || stamp[vid] == round) continue;
         stamp[vid] = round;
         r = add_point(x, cache_gather_point(c, vid), err);
