@@ -1,7 +1,8 @@
 /* qmesh.c — a cache mesh as a forest of triangle quadtrees (qmesh.h; paper §4.1–4.3).
  *
  * Nodes live in one index-based pool: roots first (one per chosen scene triangle),
- * then blocks of four children, recycled through a free list of blocks. A node
+ * then blocks of four children, recycled through a free list of blocks; roots
+ * added later (mesh_qmesh_add_roots) come after whatever nodes there are. A node
  * stores its corner-0 address (two weights over 2^depth) and an orientation rather
  * than three addresses: in the midpoint-subdivision lattice every node is one of six
  * shapes, corner1 = corner0 + D1[o], corner2 = corner0 + D2[o]. Children 0..2 keep

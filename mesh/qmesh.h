@@ -25,6 +25,7 @@
  *         mesh_qmesh_merge(m, root, &err);
  *     }
  *     mesh_qmesh_destroy(m);                               // before the vtable
+ *     // or roots only where needed: {.no_roots = 1}, then mesh_qmesh_add_roots(m, tris, n, NULL, &err)
  *
  * Does NOT do: deciding where to split (criteria, priorities: the scheduler),
  * sampling, publishing to the display thread, T-vertex repair across crease or
