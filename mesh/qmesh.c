@@ -231,13 +231,10 @@ static lm_result add_root(mesh_qmesh *m, uint32_t t, const mesh_qmesh *like_mesh
     for (int c = 0; c < 3; ++c) {
         int fresh;
         lm_result r;
-        if (like != MESH_QMESH_NONE) {
-            n->v[c] = like_mesh->nodes[like].v[c];
-            r = ensure_vcap(m, n->v[c] + 1, err);
-            fresh = r == LM_OK && m->use[n->v[c]] == 0;
-            if (fresh) r = mesh_vtable_retain(m->vt, n->v[c], err);
-        } else if ((n->v[c] = mesh_vtable_corner_id(m->vt, t, c)) != MESH_VTABLE_NONE) {
-            /* the scene corner's vertex is there already: held once more (no key) */
+        /* The corner's vertex, if it is there already: like's, or the scene
+         * corner's by its normal class (no key); held once more. */
+        n->v[c] = like != MESH_QMESH_NONE ? like_mesh->nodes[like].v[c] : mesh_vtable_corner_id(m->vt, t, c);
+        if (n->v[c] != MESH_VTABLE_NONE) {
             r = ensure_vcap(m, n->v[c] + 1, err);
             fresh = r == LM_OK && m->use[n->v[c]] == 0;
             if (fresh) r = mesh_vtable_retain(m->vt, n->v[c], err);
@@ -260,24 +257,6 @@ lm_result mesh_qmesh_add_roots(mesh_qmesh *m, const uint32_t *tris, uint32_t n, 
 {
     if (!m || (n && !tris)) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: add_roots needs a mesh and triangles");
     const mesh_qmesh *like_mesh = like && like->vt == m->vt ? like : NULL;
-    /* The first roots of a mesh, exactly like's (never split): copied whole, as
-     * mesh_qmesh_create does (clone_roots; the indirect mesh like the direct one). */
-    if (like_mesh && m->node_hw == 0 && n && n == like_mesh->root_count && like_mesh->node_hw == n &&
-        like_mesh->nodes_live == n) {
-        int same = 1;
-        for (uint32_t i = 0; i < n && same; ++i) same = tris[i] < m->s->tri_count && like_mesh->nodes[i].tri == tris[i];
-        if (same) {
-            lm_result r = LM_OK;
-            if (n > m->node_alloc) {
-                if (!lm_realloc_array_raw(&m->nodes, m->node_alloc, n, sizeof *m->nodes))
-                    return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %u nodes", n);
-                m->node_alloc = n;
-            }
-            r = clone_roots(m, like_mesh, err);
-            if (r == LM_OK) m->changes += n;
-            return r;
-        }
-    }
     /* Room for all of them at once: a first set of a million roots grows the
      * pool once, to its size, as mesh_qmesh_create does. */
     if (n && (size_t)m->node_hw + n > m->node_alloc) {
@@ -285,6 +264,18 @@ lm_result mesh_qmesh_add_roots(mesh_qmesh *m, const uint32_t *tris, uint32_t n, 
         if (na > UINT32_MAX - 4 || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
             return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
         m->node_alloc = (uint32_t)na;
+    }
+    /* The first roots of a mesh, exactly like's (never split): copied whole, as
+     * mesh_qmesh_create does (clone_roots; the indirect mesh like the direct one). */
+    if (like_mesh && m->node_hw == 0 && n && n == like_mesh->root_count && like_mesh->node_hw == n &&
+        like_mesh->nodes_live == n) {
+        int same = 1;
+        for (uint32_t i = 0; i < n && same; ++i) same = tris[i] < m->s->tri_count && like_mesh->nodes[i].tri == tris[i];
+        if (same) {
+            lm_result r = clone_roots(m, like_mesh, err);
+            if (r == LM_OK) m->changes += n;
+            return r;
+        }
     }
     for (uint32_t i = 0; i < n; ++i) {
         const uint32_t t = tris[i];

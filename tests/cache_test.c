@@ -911,8 +911,9 @@ static void test_specular_outline(void)
          * holds from its creation (its meshes take roots at cache_init; the
          * vertex table outlives the specular mesh, which every
          * cache_set_camera below replaces) */
-        const uint32_t corner[3] = {cache_root_corner_id(u.c, 0, 0), cache_root_corner_id(u.c, 0, 1),
-                                    cache_root_corner_id(u.c, 0, 2)};
+        const uint32_t corner[3] = {mesh_vtable_corner_id(cache_vtable(u.c), 0, 0),
+                                    mesh_vtable_corner_id(cache_vtable(u.c), 0, 1),
+                                    mesh_vtable_corner_id(cache_vtable(u.c), 0, 2)};
         CHECK(corner[0] != MESH_VTABLE_NONE && corner[1] != MESH_VTABLE_NONE && corner[2] != MESH_VTABLE_NONE);
         const float V1[1] = {1.0f};
         const double targets[6][2] = {{-0.2, -0.05}, {0.2, 0.1}, {0.0, 0.0}, {-0.3, 0.3}, {0.4, -0.1}, {-0.1, 0.4}};

@@ -138,20 +138,18 @@ static mesh_bary root_corner(int k)
     return mesh_qmesh_node_corner(&root, k);
 }
 
-uint32_t cache_root_corner_id(const cache *c, uint32_t t, int k)
-{
-    return mesh_vtable_corner_id(c->vt, t, k);
-}
-
 /* The vertex records of the corners of the triangles filter accepts, in
  * ascending order, made where none is yet; the cache holds the reference each
- * acquisition takes (given back with the vertex table, in cache_destroy). */
-static lm_result hold_corners(cache *c, mesh_qmesh_root_filter filter, void *user, lm_error *err)
+ * acquisition takes (given back with the vertex table, in cache_destroy).
+ * *accepted: how many triangles filter accepts (0: the mesh is not made). */
+static lm_result hold_corners(cache *c, mesh_qmesh_root_filter filter, void *user, uint32_t *accepted, lm_error *err)
 {
+    *accepted = 0;
     for (uint32_t t = 0; t < c->s->tri_count; ++t) {
         if (!filter(c->s, t, user)) continue;
+        ++*accepted;
         for (int k = 0; k < 3; ++k) {
-            if (cache_root_corner_id(c, t, k) != MESH_VTABLE_NONE) continue;
+            if (mesh_vtable_corner_id(c->vt, t, k) != MESH_VTABLE_NONE) continue;
             uint32_t id;
             lm_result r = mesh_vtable_acquire(c->vt, t, root_corner(k), &id, err);
             if (r != LM_OK) return r;
@@ -170,8 +168,8 @@ static lm_result roots_for_active(cache *c, mesh_qmesh *m, mesh_qmesh_root_filte
     if (!m || !c->rooted) return LM_OK;
     uint32_t *list = malloc((c->s->tri_count ? c->s->tri_count : 1) * sizeof *list), n = 0;
     if (!list) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory adding the cache's roots");
-    for (uint32_t t = 0; t < c->s->tri_count; ++t)
-        if (cache_tri_active(c, t) && filter(c->s, t, user)) list[n++] = t;
+    for (uint32_t t = 0; t < c->s->tri_count; ++t) /* the filter last: sees_light loops over the light */
+        if (cache_tri_active(c, t) && mesh_qmesh_root(m, t) == MESH_QMESH_NONE && filter(c->s, t, user)) list[n++] = t;
     lm_result r = mesh_qmesh_add_roots(m, list, n, like, err);
     free(list);
     return r;
@@ -251,30 +249,22 @@ lm_result cache_create(const cache_desc *desc, cache **out, lm_error *err)
     /* The meshes start with no roots: each triangle gets its roots when it comes
      * to take part (add_roots_all). A light nothing can see gets no mesh, a
      * scene without gloss no specular mesh. */
+    const mesh_qmesh_desc empty = {.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1};
+    uint32_t accepted = 0;
     for (uint32_t l = 0; r == LM_OK && l < c->light_count; ++l) {
         light_filter f = {c->s, l};
-        uint32_t roots = 0;
-        for (uint32_t t = 0; t < c->s->tri_count; ++t) roots += sees_light(c->s, t, &f) != 0;
-        if (roots == 0) continue;
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 1, .node_cap = cap, .no_roots = 1},
-                              &c->light[l], err);
-        if (r == LM_OK) r = hold_corners(c, sees_light, &f, err);
+        r = hold_corners(c, sees_light, &f, &accepted, err);
+        if (r == LM_OK && accepted)
+            r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 1, .node_cap = cap, .no_roots = 1},
+                                  &c->light[l], err);
     }
-    if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1},
-                              &c->direct, err);
-    if (r == LM_OK) r = hold_corners(c, cache_has_albedo, NULL, err);
-    if (r == LM_OK)
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1},
-                              &c->indirect, err);
+    if (r == LM_OK) r = hold_corners(c, cache_has_albedo, NULL, &accepted, err);
+    if (r == LM_OK) r = mesh_qmesh_create(&empty, &c->direct, err);
+    if (r == LM_OK) r = mesh_qmesh_create(&empty, &c->indirect, err);
     if (r == LM_OK && c->desc.bounces != 1) r = make_bounce_mesh(c, err);
     uint32_t glossy = 0;
-    for (uint32_t t = 0; r == LM_OK && t < c->s->tri_count; ++t) glossy += has_gloss(c->s, t, NULL) != 0;
-    if (r == LM_OK && glossy) { /* model only what the scene needs: no gloss, no mesh */
-        r = mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = c->vt, .channels = 3, .node_cap = cap, .no_roots = 1},
-                              &c->specular, err);
-        if (r == LM_OK) r = hold_corners(c, has_gloss, NULL, err);
-    }
+    if (r == LM_OK) r = hold_corners(c, has_gloss, NULL, &glossy, err);
+    if (r == LM_OK && glossy) r = mesh_qmesh_create(&empty, &c->specular, err); /* no gloss, no mesh */
     if (r == LM_OK && glossy && !cache_build_outlines(&c->outl, c->s, c->light_count)) r = lm_fail(err, LM_ERR_NO_MEMORY, "out of memory creating the cache");
     if (desc->eye_set && !(isfinite(desc->eye[0]) && isfinite(desc->eye[1]) && isfinite(desc->eye[2])))
         r = lm_fail(err, LM_ERR_INVALID_ARG, "cache_create: the eye must be a finite point");

@@ -448,9 +448,6 @@ struct cache {
 
 /* Does scene triangle t take part (struct cache.active)? */
 static inline int cache_tri_active(const cache *c, uint32_t t) { return !c->active || c->active[t]; }
-/* The vertex id of scene corner k of triangle t (every scene corner has one from
- * cache_create on: cache.c, hold_corners). */
-uint32_t cache_root_corner_id(const cache *c, uint32_t t, int k);
 /* The client asked the refine call in flight to return (cache_refine_desc.stop). */
 static inline int cache_stopping(const cache *c) { return c->stop && atomic_load(c->stop) != 0; }
 

@@ -159,8 +159,8 @@ static lm_result add_triangle(reach *x, uint32_t t, uint32_t *stamp, uint32_t ro
     lm_result r = LM_OK;
     for (int k = 0; r == LM_OK && k < 3; ++k) {
         /* Its roots come after the reach (cache.c, add_roots_all): the scene
-         * corner's vertex, which the cache holds from its creation. */
-        uint32_t vid = cache_root_corner_id(c, t, k);
+         * corner's vertex, which the cache holds from its creation (hold_corners). */
+        uint32_t vid = mesh_vtable_corner_id(c->vt, t, k);
         if (vid >= limit || stamp[vid] == round) continue;
         stamp[vid] = round;
         r = add_point(x, cache_gather_point(c, vid), err);
