@@ -93,8 +93,9 @@ static int run_refining(bench *b, rend_frame *f, bench_case c, double budget, lm
 {
     samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f}; /* as lumesh render */
     cache_worker *wk = NULL;
-    if (cache_worker_create(&(cache_worker_desc){.scene = b->s, .sampler = sd, .pixels = b->pixels}, &wk, err) !=
-        LM_OK)
+    /* whole_roots: as the render session's worker (rend_frame draws them from the scene) */
+    const cache_worker_desc wd = {.scene = b->s, .sampler = sd, .pixels = b->pixels, .whole_roots = 1};
+    if (cache_worker_create(&wd, &wk, err) != LM_OK)
         return 0;
     rend_frame_invalidate(f);
     b->n = 0;
@@ -186,8 +187,8 @@ int main(int argc, char **argv)
     med_p90(b->v[0], frames, &med, &p90);
     b->pixels = ids.pixels;
     samp_desc sd = {.direct_target_error = 0.02f, .indirect_target_error = 0.02f}; /* as lumesh render */
-    if (cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = ids.pixels}, &wk, &err) !=
-        LM_OK)
+    if (cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = sd, .pixels = ids.pixels, .whole_roots = 1},
+                            &wk, &err) != LM_OK)
         goto done;
     const cache_snapshot *snap = NULL;
     double t0 = lm_now_seconds();

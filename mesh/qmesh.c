@@ -747,7 +747,21 @@ static void fill(emitter *e, const pt p[3])
 lm_result mesh_qmesh_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_node, size_t max_tris,
                                          mesh_qmesh_tri **buf, size_t *cap, size_t *count, lm_error *err)
 {
+    return mesh_qmesh_split_leaf_triangles_from(m, next_node, max_tris, NULL, NULL, buf, cap, count, err);
+}
+
+const float *mesh_qmesh_values(const mesh_qmesh *m, uint32_t *count)
+{
+    *count = m ? m->vcap : 0;
+    return m ? m->values : NULL;
+}
+
+lm_result mesh_qmesh_split_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_node, size_t max_tris,
+                                               uint32_t *whole, uint32_t *whole_count, mesh_qmesh_tri **buf,
+                                               size_t *cap, size_t *count, lm_error *err)
+{
     if (count) *count = 0;
+    if (whole && !whole_count) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: whole roots without a count");
     if (!m || !next_node || !buf || !cap || !count)
         return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: NULL argument to leaf_triangles");
     if (!*buf) *cap = 0;
@@ -756,6 +770,11 @@ lm_result mesh_qmesh_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_nod
     for (; i < m->node_hw && e.r == LM_OK && e.count < max_tris; ++i) {
         const mesh_qnode *n = &m->nodes[i];
         if (!(n->flags & MESH_QNODE_LIVE) || n->child != MESH_QMESH_NONE) continue;
+        if (whole && n->depth == 0 && m->inner_use[n->tri] == 0) { /* a whole root: drawn from the scene */
+            whole[n->tri >> 5] |= 1u << (n->tri & 31u);
+            ++*whole_count;
+            continue;
+        }
         e.tri = n->tri, e.leaf = i;
         pt p[3];
         for (int k = 0; k < 3; ++k) p[k].id = n->v[k], p[k].b = mesh_qmesh_node_corner(n, k);

@@ -187,6 +187,20 @@ lm_result mesh_qmesh_leaf_triangles(const mesh_qmesh *m, mesh_qmesh_tri **buf, s
  * mesh_qmesh_leaf_triangles' output, in its order. */
 lm_result mesh_qmesh_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_node, size_t max_tris,
                                          mesh_qmesh_tri **buf, size_t *cap, size_t *count, lm_error *err);
+/* The same, but a whole root (a root that is a leaf with no vertex on its edges:
+ * its one triangle is the scene triangle with its three corner vertices) is not
+ * emitted: bit t % 32 of whole[t / 32] is set for it instead, and *whole_count
+ * counts it (the caller zeroes both first). For a client that draws such
+ * triangles from the scene and the values by vertex id (mesh_qmesh_values):
+ * most of a big scene's leaves at its first image (docs/cache.md, "Whole roots
+ * by vertex id"). */
+lm_result mesh_qmesh_split_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_node, size_t max_tris,
+                                               uint32_t *whole, uint32_t *whole_count, mesh_qmesh_tri **buf,
+                                               size_t *cap, size_t *count, lm_error *err);
+/* The values by vertex-table id, channels per id for ids below *count (what
+ * mesh_qmesh_get_value writes; 0 where the mesh uses no such vertex). Valid
+ * until the mesh changes. */
+const float *mesh_qmesh_values(const mesh_qmesh *m, uint32_t *count);
 
 /* Walks every vertex (for bytes_vtable_share): statistics, not for hot paths. */
 void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out);

@@ -11,6 +11,14 @@ layout(binding = 0) uniform usampler2D u_code;     // rend_material.frag, SS× t
 layout(binding = 1) uniform sampler2D u_direct;    // SS = 1: L_dd; SS > 1: kd·L_dd, resolved
 layout(binding = 2) uniform sampler2D u_indirect;  // SS = 1: E_i;  SS > 1: kd·E_i/π, resolved
 layout(binding = 3) uniform sampler2D u_specular;  // SS = 1: L_ds; SS > 1: ks·L_ds, resolved
+// The material code of a sample's code s (rend_material.frag: 2·(triangle + 1),
+// bit 0 the front side; 0 no surface): 2·(material + 1) and the same bit, the
+// material read from the triangle's first corner in the scene's buffer.
+layout(binding = 4) uniform usamplerBuffer u_scene; // 3 corners a triangle: position bits, code
+uint code_of(uint s)
+{
+    return s == 0u ? 0u : texelFetch(u_scene, 3 * int((s >> 1) - 1u)).w | (s & 1u);
+}
 struct material {
     vec4 kd, ks, le; // .rgb; le: W·m⁻²·sr⁻¹
 };
@@ -29,7 +37,7 @@ void main()
     ivec2 o = ivec2(gl_FragCoord.xy);
     vec3 c = vec3(0.0);
 #if SS == 1
-    uint code = texelFetch(u_code, o, 0).r;
+    uint code = code_of(texelFetch(u_code, o, 0).r);
     if (code != 0u) {
         material m = u_materials[(code >> 1) - 1u];
         if ((u_terms & 8u) != 0u) c = emitted(code);
@@ -40,11 +48,11 @@ void main()
 #else
     if ((u_terms & 8u) != 0u) {
         ivec2 p = o * SS;
-        c = emitted(texelFetch(u_code, p, 0).r);
+        c = emitted(code_of(texelFetch(u_code, p, 0).r));
         vec3 d = vec3(0.0);
         for (int j = 0; j < SS; ++j)
             for (int i = 0; i < SS; ++i)
-                if (i + j > 0) d += emitted(texelFetch(u_code, p + ivec2(i, j), 0).r) - c;
+                if (i + j > 0) d += emitted(code_of(texelFetch(u_code, p + ivec2(i, j), 0).r)) - c;
         c += d * (1.0 / float(SS * SS));
     }
     if ((u_terms & 1u) != 0u) c += texelFetch(u_direct, o, 0).rgb;

@@ -13,6 +13,14 @@
 // value (the same bits as SS = 1 gives for it). Compiled for SS > 1 only.
 layout(binding = 0) uniform usampler2D u_code;  // rend_material.frag; 0: no surface
 layout(binding = 1) uniform sampler2D u_value;  // the term's radiance image (rend_value.frag)
+// The material code of a sample's code s (rend_material.frag: 2·(triangle + 1),
+// bit 0 the front side; 0 no surface): 2·(material + 1) and the same bit, the
+// material read from the triangle's first corner in the scene's buffer.
+layout(binding = 2) uniform usamplerBuffer u_scene; // 3 corners a triangle: position bits, code
+uint code_of(uint s)
+{
+    return s == 0u ? 0u : texelFetch(u_scene, 3 * int((s >> 1) - 1u)).w | (s & 1u);
+}
 struct material {
     vec4 kd, ks, le; // .rgb
 };
@@ -35,7 +43,7 @@ void main()
     uint codes[SS * SS];
     bool one = true; // one material over the pixel (most pixels): coef once, times the mean of L
     for (int k = 0; k < SS * SS; ++k) {
-        codes[k] = texelFetch(u_code, p + ivec2(k % SS, k / SS), 0).r;
+        codes[k] = code_of(texelFetch(u_code, p + ivec2(k % SS, k / SS), 0).r);
         one = one && codes[k] == codes[0];
     }
     vec3 c0, d = vec3(0.0);

@@ -550,6 +550,78 @@ static void test_fan_small(scene *s, mesh_vtable *vt)
     mesh_qmesh_destroy(m);
 }
 
+/* Whole roots apart (mesh_qmesh_split_leaf_triangles_from, for the renderer's
+ * pass over them): every root but a split one and its neighbours (a midpoint on
+ * their edge) is whole; the listed triangles are the full listing without the
+ * whole roots' own, in order; a whole root's one triangle is the scene triangle
+ * with the scene corners' vertices (mesh_vtable_corner_id: what the snapshot
+ * publishes), and mesh_qmesh_values holds each id's value. */
+static void test_whole_roots(scene *s, mesh_vtable *vt)
+{
+    mesh_qmesh *m = make_mesh(vt, NULL, 0, NULL, 3, 0);
+    if (!m) return;
+    lm_error err = {{0}};
+    const uint32_t t0 = 0;
+    CHECK(mesh_qmesh_split(m, mesh_qmesh_root(m, t0), &err) == LM_OK);
+    for (uint32_t t = 0; t < s->tri_count; t += 3) { /* values on some vertices */
+        const mesh_qnode *n = mesh_qmesh_node(m, mesh_qmesh_root(m, t));
+        if (n) CHECK(mesh_qmesh_set_value(m, n->v[0], (float[]){(float)t, 1.0f, 2.0f}, &err) == LM_OK);
+    }
+    mesh_qmesh_tri *all = NULL, *part = NULL;
+    size_t cap = 0, pcap = 0, n = 0;
+    CHECK(mesh_qmesh_leaf_triangles(m, &all, &cap, &n, &err) == LM_OK);
+    const size_t words = ((size_t)s->tri_count + 31) / 32;
+    uint32_t *whole = calloc(words, sizeof *whole), whole_count = 0;
+    if (!whole) goto done;
+    size_t total = 0, at = 0;
+    int in_order = 1, one_triangle = 1, corners = 1;
+    for (uint32_t next = 0; next != UINT32_MAX;) {
+        size_t got = 0;
+        CHECK(mesh_qmesh_split_leaf_triangles_from(m, &next, 7, whole, &whole_count, &part, &pcap, &got, &err) ==
+              LM_OK);
+        for (size_t i = 0; i < got; ++i) {
+            while (at < n && (whole[all[at].tri / 32] >> (all[at].tri % 32) & 1u)) ++at; /* a whole root's */
+            in_order &= at < n && memcmp(&part[i], &all[at], sizeof *part) == 0;
+            ++at;
+        }
+        total += got;
+        if (!got && next != UINT32_MAX) break;
+    }
+    uint32_t expect_whole = 0;
+    for (uint32_t t = 0; t < s->tri_count; ++t) {
+        const int bit = whole[t / 32] >> (t % 32) & 1u;
+        size_t on_t = 0, first = 0;
+        for (size_t i = 0; i < n; ++i)
+            if (all[i].tri == t && !on_t++) first = i;
+        if (!bit) continue;
+        ++expect_whole;
+        one_triangle &= on_t == 1;
+        for (int k = 0; k < 3 && on_t; ++k) corners &= all[first].v[k] == mesh_vtable_corner_id(vt, t, k);
+    }
+    CHECK_MSG(whole_count == expect_whole && whole_count > 0 && whole_count < s->tri_count - 1,
+              "%u whole roots counted, %u bits set, of %u triangles", whole_count, expect_whole, s->tri_count);
+    CHECK_MSG(!(whole[t0 / 32] >> (t0 % 32) & 1u), "the split root is listed as whole");
+    CHECK_MSG(in_order && total + whole_count == n,
+              "%zu listed and %u whole of %zu triangles, in order: %d", total, whole_count, n, in_order);
+    CHECK_MSG(one_triangle && corners, "a whole root's triangle is not the scene triangle with its corner ids");
+    uint32_t ids = 0;
+    const float *values = mesh_qmesh_values(m, &ids);
+    int same_values = values != NULL && ids > 0;
+    for (uint32_t id = 0; id < ids && same_values; ++id) {
+        float v[3];
+        if (mesh_qmesh_get_value(m, id, v) < 0) v[0] = v[1] = v[2] = 0.0f;
+        same_values &= memcmp(v, values + 3 * (size_t)id, sizeof v) == 0;
+    }
+    CHECK_MSG(same_values, "mesh_qmesh_values differs from mesh_qmesh_get_value");
+    CHECK(mesh_qmesh_split_leaf_triangles_from(m, &(uint32_t){0}, 1, whole, NULL, &part, &pcap, &n, &err) ==
+          LM_ERR_INVALID_ARG);
+done:
+    free(whole);
+    free(all);
+    free(part);
+    mesh_qmesh_destroy(m);
+}
+
 static void test_limits(scene *s, mesh_vtable *vt)
 {
     lm_error err = {{0}};
@@ -801,6 +873,7 @@ int main(void)
         test_fan_small(s, vt);
         test_roots_like(s, vt);
         test_add_roots(s, vt);
+        test_whole_roots(s, vt);
         test_limits(s, vt);
         test_version(s, vt);
     }

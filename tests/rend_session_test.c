@@ -120,7 +120,7 @@ static uint64_t hand_wired(const GladGLContext *gl, const scene *s, int pixels_l
     lm_result r = LM_OK;
     if (pixels_later) {
         r = cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = k_sampler, .pixels_later = 1,
-                                                     .max_tested = MAX_TESTED,
+                                                     .max_tested = MAX_TESTED, .whole_roots = 1,
                                                      .cache = {.bounces = CACHE_BOUNCES_AUTO, .sample_pixels = 1.0f / (SS * SS)}},
                                 &wk, &err);
         while (r == LM_OK && !cache_worker_acquire(wk)) sleep_s(0.001);
@@ -130,7 +130,7 @@ static uint64_t hand_wired(const GladGLContext *gl, const scene *s, int pixels_l
     if (r == LM_OK && pixels_later) r = cache_worker_set_pixels(wk, ids.pixels, &err);
     if (r == LM_OK && !pixels_later)
         r = cache_worker_create(&(cache_worker_desc){.scene = s, .sampler = k_sampler, .pixels = ids.pixels,
-                                                     .max_tested = MAX_TESTED,
+                                                     .max_tested = MAX_TESTED, .whole_roots = 1,
                                                      .cache = {.bounces = CACHE_BOUNCES_AUTO, .sample_pixels = 1.0f / (SS * SS)}},
                                 &wk, &err);
     const cache_snapshot *snap = r == LM_OK ? test_wait_finished(wk, 120) : NULL;

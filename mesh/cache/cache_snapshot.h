@@ -6,7 +6,10 @@
  * specular meshes, indexed: each vertex of a mesh once, with its position and
  * value, and per triangle its three vertices and its scene triangle (for the
  * material) — what the radiance passes draw — and the
- * cache statistics when it was made. With publish_debug it also holds each light's
+ * cache statistics when it was made. With cache_worker_desc.whole_roots the
+ * direct and indirect meshes' whole roots (a scene triangle with its own
+ * corners) come instead as a bit mask and values by vertex id, which the
+ * renderer draws from the scene. With publish_debug it also holds each light's
  * visibility mesh and, for every mesh, per-corner vertex ids and flags (sampled
  * vertex, leaf-boundary edge): what the debug overlays draw (rend_debug.h). Off,
  * nothing of that is made or copied.
@@ -65,7 +68,23 @@ typedef struct cache_snapshot_mesh {
     const cache_lobe *lobes;     /* the specular mesh: per vertex, parallel to vertices, what its
                                     highlights per pixel need (cache_get_lobe); else NULL */
     uint32_t triangle_count, vertex_count;
+    /* Whole roots (cache_worker_desc.whole_roots; NULL and 0 without): the leaves
+     * that are a scene triangle with its own three corners, not in the arrays
+     * above. Scene triangle t is one where bit t % 32 of whole[t / 32] is set; its
+     * corner k has the value values[3·id] with id = cache_snapshot.corner_ids[3·t + k].
+     * A million-triangle scene's first image: 2 million such leaves, 6 MB of
+     * values a mesh instead of 29 MB of triangles (docs/cache.md, "Whole roots
+     * by vertex id"). */
+    const uint32_t *whole;       /* (scene triangles + 31) / 32 words */
+    const float *values;         /* RGB per vertex-table id below value_count, as `vertices` hold them */
+    uint32_t whole_count, value_count;
 } cache_snapshot_mesh;
+
+/* Leaves of m, listed and whole. */
+static inline uint64_t cache_snapshot_leaf_count(const cache_snapshot_mesh *m)
+{
+    return (uint64_t)m->triangle_count + m->whole_count;
+}
 
 /* Corner k (0..2) of triangle t of m. */
 static inline const cache_snapshot_vertex *cache_snapshot_corner_vertex(const cache_snapshot_mesh *m, uint32_t t,
@@ -77,6 +96,9 @@ static inline const cache_snapshot_vertex *cache_snapshot_corner_vertex(const ca
 typedef struct cache_snapshot {
     uint64_t generation;         /* 1, 2, ... per commit */
     cache_snapshot_mesh direct, indirect, specular; /* specular: empty without glossy materials */
+    const uint32_t *corner_ids;  /* with whole roots: 3 per scene triangle, the vertex-table id of each
+                                    corner (MESH_VTABLE_NONE: none), the same for the worker's life */
+    uint64_t corner_ids_serial;  /* names corner_ids' contents among every worker's (0: none) */
     const cache_snapshot_mesh *lights; /* publish_debug: light_mesh_count visibility meshes, value[0] = V_ℓ
                                           (visible fraction), value[1] = value[2] = 0; else NULL */
     uint32_t light_mesh_count;   /* publish_debug: the scene's lights (a light nothing can see: an

@@ -561,6 +561,7 @@ void cache_worker_destroy(cache_worker *w)
     cache_publish_store_free(w->back);
     free(w->pixels);
     free(w->new_pixels);
+    free(w->corner_ids);
     free(w);
 }
 

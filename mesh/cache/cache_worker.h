@@ -74,6 +74,10 @@ typedef struct cache_worker_desc {
                                     again at each convergence, down to this floor; only then is it
                                     finished. An edit or a new view starts again at the cache's JND.
                                     0 = stop at the JND (the paper's behaviour) */
+    int whole_roots;             /* non-zero: the direct and indirect meshes' whole roots come as
+                                    cache_snapshot_mesh.whole and .values (a client that draws them from
+                                    the scene: rend_frame), not as triangles; not with publish_debug.
+                                    0 = every leaf a triangle */
     int publish_debug;           /* non-zero: snapshots also carry the light meshes and per-corner
                                     cache_snapshot_corner data (debug overlays); 0 = off, no extra cost
                                     (on Water about 10% of the refinement); cache_worker_set_publish_debug

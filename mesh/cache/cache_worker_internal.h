@@ -29,8 +29,12 @@ typedef struct mesh_store {
     cache_snapshot_corner *corners;   /* publish_debug only */
     cache_lobe *lobes;                /* the specular mesh only: parallel to verts */
     size_t verts_cap, index_cap, tris_cap, corners_cap, lobes_cap;
+    uint32_t *whole;                  /* whole roots (cache_worker_desc.whole_roots): the bit mask ... */
+    float *values;                    /* ... and the values by vertex-table id */
+    size_t whole_cap, values_cap;     /* words, floats */
     mesh_qmesh_version filled;        /* the mesh and its version the arrays hold ({0, 0}: none) */
     int filled_debug;                 /* with the debug corners */
+    int filled_whole;                 /* with whole roots apart */
 } mesh_store;
 
 /* One mesh's fill (cache_worker_publish.c, fill_mesh): a piece of its leaf
@@ -123,6 +127,13 @@ struct cache_worker {
     char calibration_note[512];       /* AUTO: the snapshots' sampler choice (what was decided, and why) */
     char calibrated_choice[512];      /* AUTO: the calibration's own choice, while on trial */
     double estimate_at;
+    /* Whole roots (desc.whole_roots): each scene corner's vertex-table id, what
+     * cache_snapshot.corner_ids points to. Made by the worker before the first
+     * snapshot that has whole roots is committed (the commit's lock orders it
+     * before the display's reads), never written after; freed by destroy, so it
+     * outlives retire with the snapshots. */
+    uint32_t *corner_ids;
+    uint64_t corner_ids_serial;
 };
 
 /* ---- cache_worker_publish.c: snapshots, on the worker thread ----------------------- */

@@ -9,6 +9,7 @@
  * (cache_worker.c, worker_main) or draw (src/render/).
  */
 #define _POSIX_C_SOURCE 200809L
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -97,16 +98,17 @@ static void fit_array(void **p, size_t *cap, size_t used, size_t elem)
  * triangle's corners are mostly near each other in the array too), a piece of
  * PUBLISH_PIECE triangles at a time. Without debug it does exactly what the
  * renderer needs: positions, values, scene triangles. */
-static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, const cache *c, const mesh_qmesh *m,
-                           fill_scratch *ps, lm_error *err)
+static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, int whole, const cache *c,
+                           const mesh_qmesh *m, fill_scratch *ps, lm_error *err)
 {
+    whole = whole && !debug && m && mesh_qmesh_channels(m) == 3;
     /* This slot already holds the mesh as it is (a slot is filled every third
      * publication, and one mesh often rests meanwhile: the indirect one while the
      * first image's light is recomputed, the direct one while values are gathered
      * again): *sm still describes its arrays. */
     const mesh_qmesh_version now = mesh_qmesh_get_version(m);
     if (m && ms->filled.serial == now.serial && ms->filled.changes == now.changes && ms->filled_debug == debug &&
-        sm->vertices == ms->verts)
+        ms->filled_whole == whole && sm->vertices == ms->verts)
         return LM_OK;
     ms->filled = (mesh_qmesh_version){0, 0};
     *sm = (cache_snapshot_mesh){0};
@@ -119,12 +121,25 @@ static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, c
         ps->local = l;
         ps->local_cap = ids;
     }
+    /* Whole roots apart: their bits, and every value by id (one copy, in id
+     * order, instead of a vertex and an index per corner). */
+    const size_t words = ((size_t)mesh_vtable_scene(cache_vtable(c))->tri_count + 31) / 32;
+    uint32_t whole_count = 0, value_count = 0;
+    const float *values = whole ? mesh_qmesh_values(m, &value_count) : NULL;
+    if (whole) {
+        if (!LM_GROW_RAW(ms->whole, ms->whole_cap, words ? words : 1) ||
+            !LM_GROW_RAW(ms->values, ms->values_cap, 3 * (size_t)(value_count ? value_count : 1)))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+        memset(ms->whole, 0, words * sizeof *ms->whole);
+        if (value_count) memcpy(ms->values, values, 3 * (size_t)value_count * sizeof *ms->values);
+    }
     size_t count = 0;
     uint32_t nv = 0, next = 0;
     lm_result r = LM_OK;
     while (r == LM_OK && next != UINT32_MAX) {
         size_t got = 0;
-        r = mesh_qmesh_leaf_triangles_from(m, &next, PUBLISH_PIECE, &ps->buf, &ps->buf_cap, &got, err);
+        r = mesh_qmesh_split_leaf_triangles_from(m, &next, PUBLISH_PIECE, whole ? ms->whole : NULL, &whole_count,
+                                                 &ps->buf, &ps->buf_cap, &got, err);
         if (r == LM_OK && count + got > UINT32_MAX)
             r = lm_fail(err, LM_ERR_NO_MEMORY, "publishing the cache: more than 2^32 triangles in a mesh");
         if (r == LM_OK && got) r = append_piece(ms, ps, debug, c, m, count, got, &nv, err);
@@ -144,9 +159,12 @@ static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, c
     *sm = (cache_snapshot_mesh){.vertices = ms->verts, .index = ms->index, .tri = ms->tris,
                                 .corners = debug && count ? ms->corners : NULL,
                                 .lobes = lobes ? ms->lobes : NULL,
-                                .triangle_count = (uint32_t)count, .vertex_count = nv};
+                                .triangle_count = (uint32_t)count, .vertex_count = nv,
+                                .whole = whole_count ? ms->whole : NULL, .values = whole_count ? ms->values : NULL,
+                                .whole_count = whole_count, .value_count = whole_count ? value_count : 0};
     ms->filled = now;
     ms->filled_debug = debug;
+    ms->filled_whole = whole;
     return LM_OK;
 }
 
@@ -157,7 +175,7 @@ static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, c
 typedef struct fill_job {
     mesh_store *ms;           /* written by the helper only */
     cache_snapshot_mesh *sm;  /* written by the helper only */
-    int debug;
+    int debug, whole;
     const cache *c;           /* read by both threads */
     const mesh_qmesh *m;
     fill_scratch *ps;         /* the helper's (publish_scratch.fill[1]) */
@@ -168,7 +186,7 @@ typedef struct fill_job {
 static void *fill_main(void *arg)
 {
     fill_job *job = arg;
-    job->r = fill_mesh(job->ms, job->sm, job->debug, job->c, job->m, job->ps, &job->err);
+    job->r = fill_mesh(job->ms, job->sm, job->debug, job->whole, job->c, job->m, job->ps, &job->err);
     return NULL;
 }
 
@@ -197,11 +215,29 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
     }
     for (uint32_t l = 0; l < light_count; ++l) {
         lm_result r =
-            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, c, cache_light_mesh(c, l), &ps->fill[0], err);
+            fill_mesh(&st->light_mesh[l], &st->light_snap[l], 1, 0, c, cache_light_mesh(c, l), &ps->fill[0], err);
         if (r != LM_OK) return r;
     }
     st->snap.lights = st->light_snap;
     st->snap.light_mesh_count = light_count;
+    return LM_OK;
+}
+
+/* Each scene corner's vertex-table id, once for the worker's life: a root's
+ * corners are these (mesh_qmesh_add_roots), and the cache holds a reference on
+ * each, so they never change. */
+static lm_result make_corner_ids(cache_worker *w, const cache *c, lm_error *err)
+{
+    static _Atomic uint64_t next_serial;
+    if (w->corner_ids) return LM_OK;
+    const uint32_t n = w->s->tri_count;
+    uint32_t *ids = malloc(3 * (size_t)(n ? n : 1) * sizeof *ids);
+    if (!ids) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
+    const mesh_vtable *vt = cache_vtable(c);
+    for (uint32_t t = 0; t < n; ++t)
+        for (int k = 0; k < 3; ++k) ids[3 * (size_t)t + (size_t)k] = mesh_vtable_corner_id(vt, t, k);
+    w->corner_ids = ids;
+    w->corner_ids_serial = atomic_fetch_add(&next_serial, 1) + 1;
     return LM_OK;
 }
 
@@ -212,15 +248,21 @@ lm_result cache_publish_snapshot(cache_worker *w, cache *c, const cache_estimate
     snapshot_store *st = w->back;
     st->snap.first_rounds_seconds = w->first_rounds_seconds;
     st->snap.first_publish_seconds = w->first_publish_seconds;
-    /* The direct mesh on a helper thread, the others on this one. */
-    fill_job job = {.ms = &st->mesh[0], .sm = &st->snap.direct, .debug = debug, .c = c, .m = cache_direct_mesh(c),
-                    .ps = &ps->fill[1], .r = LM_OK};
+    const int whole = w->desc.whole_roots && !debug;
+    lm_result r = whole ? make_corner_ids(w, c, err) : LM_OK;
+    if (r != LM_OK) return r;
+    st->snap.corner_ids = whole ? w->corner_ids : NULL;
+    st->snap.corner_ids_serial = whole ? w->corner_ids_serial : 0;
+    /* The direct mesh on a helper thread, the others on this one. The specular
+     * mesh's leaves are all triangles: its highlights need each vertex's lobe. */
+    fill_job job = {.ms = &st->mesh[0], .sm = &st->snap.direct, .debug = debug, .whole = whole, .c = c,
+                    .m = cache_direct_mesh(c), .ps = &ps->fill[1], .r = LM_OK};
     pthread_t helper;
     const int helped = pthread_create(&helper, NULL, fill_main, &job) == 0;
     if (!helped) fill_main(&job);
-    lm_result r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, c, cache_indirect_mesh(c), &ps->fill[0], err);
+    r = fill_mesh(&st->mesh[1], &st->snap.indirect, debug, whole, c, cache_indirect_mesh(c), &ps->fill[0], err);
     if (r == LM_OK && cache_specular_mesh(c))
-        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, c, cache_specular_mesh(c), &ps->fill[0], err);
+        r = fill_mesh(&st->mesh[2], &st->snap.specular, debug, 0, c, cache_specular_mesh(c), &ps->fill[0], err);
     if (!cache_specular_mesh(c)) st->snap.specular = (cache_snapshot_mesh){0};
     if (helped) pthread_join(helper, NULL);
     if (r == LM_OK && job.r != LM_OK) {
@@ -286,6 +328,8 @@ void cache_publish_store_free(snapshot_store *st)
         free(ms->tris);
         free(ms->corners);
         free(ms->lobes);
+        free(ms->whole);
+        free(ms->values);
     }
     free(st->light_mesh);
     free(st->light_snap);

@@ -238,9 +238,9 @@ cJSON *app_stats_json(const app_stats_desc *d)
         }
         cJSON *tris = cJSON_AddObjectToObject(fr, "leaf_triangles");
         if (tris) {
-            cJSON_AddNumberToObject(tris, "direct", snap->direct.triangle_count);
-            cJSON_AddNumberToObject(tris, "indirect", snap->indirect.triangle_count);
-            cJSON_AddNumberToObject(tris, "specular", snap->specular.triangle_count);
+            cJSON_AddNumberToObject(tris, "direct", (double)cache_snapshot_leaf_count(&snap->direct));
+            cJSON_AddNumberToObject(tris, "indirect", (double)cache_snapshot_leaf_count(&snap->indirect));
+            cJSON_AddNumberToObject(tris, "specular", (double)cache_snapshot_leaf_count(&snap->specular));
         }
     }
 

@@ -148,10 +148,14 @@ static void keep_final(conv_ctx *c, const cache_snapshot *snap, double published
     c->final = *snap;
     memcpy(c->final_lights, snap->stats.lights, c->light_count * sizeof *c->final_lights);
     c->final.stats.lights = c->final_lights;
-    /* The leaf arrays belong to the worker's buffers: only their counts are kept. */
-    c->final.direct = (cache_snapshot_mesh){.triangle_count = snap->direct.triangle_count};
-    c->final.indirect = (cache_snapshot_mesh){.triangle_count = snap->indirect.triangle_count};
-    c->final.specular = (cache_snapshot_mesh){.triangle_count = snap->specular.triangle_count};
+    /* The leaf arrays belong to the worker's buffers: only their counts are kept
+     * (listed and whole: cache_snapshot_leaf_count). */
+    c->final.direct = (cache_snapshot_mesh){.triangle_count = snap->direct.triangle_count,
+                                                .whole_count = snap->direct.whole_count};
+    c->final.indirect = (cache_snapshot_mesh){.triangle_count = snap->indirect.triangle_count,
+                                                .whole_count = snap->indirect.whole_count};
+    c->final.specular = (cache_snapshot_mesh){.triangle_count = snap->specular.triangle_count,
+                                                .whole_count = snap->specular.whole_count};
     c->final.lights = NULL;
     c->final.light_mesh_count = 0;
     c->have_final = 1;

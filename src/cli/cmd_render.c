@@ -346,13 +346,15 @@ int cmd_render(const app_command *cmd, int argc, char **argv)
         uint64_t light = 0;
         for (uint32_t l = 0; l < st->light_count; ++l) light += st->lights[l].samples;
         snprintf(summary, sizeof summary,
-                 "%dx%d, %.2f s, %s%s after %llu leaves tested; samples: %llu light, %llu indirect; %u direct, "
-                 "%u indirect, %u specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND it "
+                 "%dx%d, %.2f s, %s%s after %llu leaves tested; samples: %llu light, %llu indirect; %llu direct, "
+                 "%llu indirect, %llu specular triangles; estimated mean dE %.2f, %.1f%% of the pixels above the JND it "
                  "refines to (dE %.3g), %.1f%% untested%s",
                  w, h, elapsed, snap->converged ? "converged" : "stopped", converged_at_text,
                  (unsigned long long)snap->tested,
-                 (unsigned long long)light, (unsigned long long)st->indirect.samples, snap->direct.triangle_count,
-                 snap->indirect.triangle_count, snap->specular.triangle_count, snap->estimate.mean,
+                 (unsigned long long)light, (unsigned long long)st->indirect.samples,
+                 (unsigned long long)cache_snapshot_leaf_count(&snap->direct),
+                 (unsigned long long)cache_snapshot_leaf_count(&snap->indirect),
+                 (unsigned long long)cache_snapshot_leaf_count(&snap->specular), snap->estimate.mean,
                  100.0 * snap->estimate.above_jnd, (double)snap->jnd, 100.0 * snap->estimate.untested,
                  snap->finished && !snap->converged && !snap->failed ? " (nothing left it can improve)" : "");
         if (corrected) {

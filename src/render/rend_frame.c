@@ -41,16 +41,16 @@ static uint64_t tri_hash(const corner_data v[3])
     return h;
 }
 
-static int rect_empty(const rect *r) { return r->x0 >= r->x1 || r->y0 >= r->y1; }
+int rend_rect_empty(const rect *r) { return r->x0 >= r->x1 || r->y0 >= r->y1; }
 
-/* Grows r by the pixels triangle t of m can touch in the w×h sample image seen
- * through vp, with a margin of 2 pixels; a corner behind the camera makes it
- * the whole image. */
-static void rect_add_tri(rect *r, const float vp[16], const cache_snapshot_mesh *m, uint32_t t, int w, int h)
+/* Grows r by the pixels the triangle of corners p[0..2] can touch in the w×h
+ * sample image seen through vp, with a margin of 2 pixels; a corner behind the
+ * camera makes it the whole image. */
+void rend_rect_add_corners(rect *r, const float vp[16], const float *const corner[3], int w, int h)
 {
     float x0 = 0, y0 = 0, x1 = 0, y1 = 0;
     for (int c = 0; c < 3; ++c) {
-        const float *p = cache_snapshot_corner_vertex(m, t, c)->position;
+        const float *p = corner[c];
         float clip[4];
         for (int k = 0; k < 4; ++k) clip[k] = vp[k] * p[0] + vp[4 + k] * p[1] + vp[8 + k] * p[2] + vp[12 + k];
         if (!(clip[3] > 0.0f)) {
@@ -66,7 +66,7 @@ static void rect_add_tri(rect *r, const float vp[16], const cache_snapshot_mesh 
     if (!(x1 >= -2.0f && y1 >= -2.0f && x0 <= (float)w + 2.0f && y0 <= (float)h + 2.0f)) return; /* off screen or NaN */
     int ix0 = x0 < 2.0f ? 0 : (int)x0 - 2, iy0 = y0 < 2.0f ? 0 : (int)y0 - 2;
     int ix1 = x1 > (float)(w - 3) ? w : (int)x1 + 3, iy1 = y1 > (float)(h - 3) ? h : (int)y1 + 3;
-    if (rect_empty(r)) {
+    if (rend_rect_empty(r)) {
         *r = (rect){ix0, iy0, ix1, iy1};
         return;
     }
@@ -74,6 +74,29 @@ static void rect_add_tri(rect *r, const float vp[16], const cache_snapshot_mesh 
     if (iy0 < r->y0) r->y0 = iy0;
     if (ix1 > r->x1) r->x1 = ix1;
     if (iy1 > r->y1) r->y1 = iy1;
+}
+
+/* rect_add_corners for triangle t of m. */
+static void rect_add_tri(rect *r, const float vp[16], const cache_snapshot_mesh *m, uint32_t t, int w, int h)
+{
+    const float *const p[3] = {cache_snapshot_corner_vertex(m, t, 0)->position,
+                               cache_snapshot_corner_vertex(m, t, 1)->position,
+                               cache_snapshot_corner_vertex(m, t, 2)->position};
+    rend_rect_add_corners(r, vp, p, w, h);
+}
+
+/* a grown by b. */
+void rend_rect_union(rect *a, const rect *b)
+{
+    if (rend_rect_empty(b)) return;
+    if (rend_rect_empty(a)) {
+        *a = *b;
+        return;
+    }
+    if (b->x0 < a->x0) a->x0 = b->x0;
+    if (b->y0 < a->y0) a->y0 = b->y0;
+    if (b->x1 > a->x1) a->x1 = b->x1;
+    if (b->y1 > a->y1) a->y1 = b->y1;
 }
 
 /* The region of the sample image where the old triangles (the term's copy) and
@@ -303,23 +326,33 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
                                       f->hl_radiance + 3 * (size_t)l);
         relit = 1;
     }
+    /* Whole roots' corner ids: new ones (another worker) change every whole root. */
+    const int new_corners = rend_whole_upload_corners(f, snap);
     for (int t = 0; t < TERMS; ++t) {
         term_state *ts = &f->term[t];
         const cache_snapshot_mesh *m = meshes[t];
         uint32_t n = m ? m->triangle_count : 0;
         int reusable = same_camera && ts->drawn;
-        /* Unchanged: the same snapshot array as last time (generations are
-         * per worker: rend_frame.h), else the same bytes. */
-        int same = f->snap_valid && generation == f->snap_generation && (m ? m->vertices : NULL) == ts->src &&
-                   n == ts->copy.triangle_count;
+        /* Unchanged: the same snapshot arrays as last time (generations are
+         * per worker: rend_frame.h), else the same bytes; the listed leaves
+         * and the whole roots apart. */
+        const int same_slot = f->snap_valid && generation == f->snap_generation && !new_corners;
+        int same = same_slot && (m ? m->vertices : NULL) == ts->src && n == ts->copy.triangle_count;
         if (!same && n == ts->copy.triangle_count && !f->desc.one_snapshot && n) {
             lm_result r = copy_from_buffers(f, ts, err);
             if (r != LM_OK) return r;
             same = same_mesh(&ts->copy, m);
         }
         same |= n == 0 && ts->copy.triangle_count == 0 && !f->desc.one_snapshot;
-        if (same) {
+        int same_whole = same_slot && (m ? m->whole : NULL) == ts->whole_src &&
+                         (m && m->whole ? m->whole_count : 0) == ts->whole_count;
+        if (!same_whole && !new_corners && !f->desc.one_snapshot) {
+            lm_result r = rend_whole_same(f, ts, m, &same_whole, err);
+            if (r != LM_OK) return r;
+        }
+        if (same && same_whole) {
             ts->src = m ? m->vertices : NULL;
+            ts->whole_src = m ? m->whole : NULL;
             dirty[t] = reusable && !(relit && ts->lobes) ? (rect){0, 0, 0, 0} : full;
             continue;
         }
@@ -327,11 +360,22 @@ static lm_result update_snapshot(rend_frame *f, const cache_snapshot *snap, cons
         lm_result r = LM_OK;
         int hashed = 0;
         /* New radiance changes every highlight, not only the changed triangles'. */
-        if (reusable && n && !f->desc.one_snapshot && !m->lobes == !ts->lobes && !(relit && m->lobes)) {
-            r = copy_from_buffers(f, ts, err);
-            if (r == LM_OK) r = changed_rect(f, ts, m, vp, &dirty[t], &hashed, err);
+        if (reusable && !f->desc.one_snapshot && (!m || !m->lobes == !ts->lobes) && !(relit && m && m->lobes) &&
+            !new_corners) {
+            rect listed = {0, 0, 0, 0}, whole = {0, 0, 0, 0};
+            if (!same && n) r = copy_from_buffers(f, ts, err);
+            if (r == LM_OK && !same && n) r = changed_rect(f, ts, m, vp, &listed, &hashed, err);
+            if (r == LM_OK && !same && !n) listed = ts->copy.triangle_count ? full : listed; /* all gone */
+            if (r == LM_OK && !same_whole)
+                r = rend_whole_changed_rect(f, ts, m, snap ? snap->corner_ids : NULL, vp, &whole, err);
+            if (r == LM_OK) {
+                dirty[t] = listed;
+                rend_rect_union(&dirty[t], &whole);
+            }
         }
-        if (r == LM_OK) upload_mesh(f, ts, m);
+        if (r == LM_OK && !same_whole) rend_whole_upload(f, ts, m);
+        if (r == LM_OK && same) ts->src = m ? m->vertices : NULL;
+        if (r == LM_OK && !same) upload_mesh(f, ts, m);
         if (r == LM_OK && hashed) r = copy_room(ts, n, 0, 0, err); /* room for n hashes */
         if (r == LM_OK && hashed) { /* the new triangles' hashes serve the next comparison */
             memcpy(ts->hash, f->new_hash, (size_t)n * sizeof *ts->hash);
@@ -381,6 +425,9 @@ static lm_result read_output(rend_frame *f, float *rgb, int add, lm_error *err)
     return LM_OK;
 }
 
+/* Whether a term has anything to draw: listed leaves or whole roots. */
+static int term_drawn(const term_state *ts) { return ts->copy.triangle_count || ts->whole_count; }
+
 /* The terms are resolved straight into the output (rend_frame_desc.one_snapshot). */
 static int summed(const rend_frame *f) { return f->desc.one_snapshot && f->desc.supersample > 1; }
 
@@ -393,13 +440,13 @@ static void composite(rend_frame *f, unsigned comp_terms)
     gl->BindFramebuffer(GL_DRAW_FRAMEBUFFER, f->out_fbo);
     gl->UseProgram(f->prog_composite);
     gl->Uniform1ui(f->loc_comp_terms, comp_terms);
-    GLuint inputs[1 + TERMS] = {f->mat_tex, f->term[0].tex, f->term[1].tex, f->term[2].tex};
-    gl->BindTextures(0, 1 + TERMS, inputs);
+    GLuint inputs[2 + TERMS] = {f->mat_tex, f->term[0].tex, f->term[1].tex, f->term[2].tex, f->scene_tex};
+    gl->BindTextures(0, 2 + TERMS, inputs);
     gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
     gl->BindVertexArray(f->empty_vao);
     gl->DrawArrays(GL_TRIANGLES, 0, 3);
     gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
-    gl->BindTextures(0, 1 + TERMS, NULL);
+    gl->BindTextures(0, 2 + TERMS, NULL);
 }
 
 static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapshot *snap, float *rgb, int add,
@@ -496,10 +543,10 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
     const int sum = summed(f);
     unsigned comp_terms = REND_FRAME_COMPONENT_EMISSION & f->components;
     for (int t = 0; t < TERMS; ++t)
-        if (f->term[t].copy.triangle_count) comp_terms |= (1u << t) & f->components;
+        if (term_drawn(&f->term[t])) comp_terms |= (1u << t) & f->components;
     if (sum && r == LM_OK) {
         int redraw = !f->comp_valid || !tt->material_reused || comp_terms != f->comp_terms;
-        for (int t = 0; t < TERMS; ++t) redraw |= (comp_terms >> t & 1u) && !rect_empty(&dirty[t]);
+        for (int t = 0; t < TERMS; ++t) redraw |= (comp_terms >> t & 1u) && !rend_rect_empty(&dirty[t]);
         for (int t = 0; t < TERMS; ++t)
             dirty[t] = redraw && (comp_terms >> t & 1u) ? (rect){0, 0, f->sw, f->sh} : (rect){0, 0, 0, 0};
         if (redraw) {
@@ -511,13 +558,13 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
     }
     for (int t = 0; r == LM_OK && t < TERMS; ++t) {
         term_state *ts = &f->term[t];
-        if (!ts->copy.triangle_count || (sum && !(comp_terms >> t & 1u))) {
+        if (!term_drawn(ts) || (sum && !(comp_terms >> t & 1u))) {
             ts->drawn = 0;
             continue;
         }
         terms |= 1u << t;
         present += 1.0;
-        if (rect_empty(&dirty[t])) continue;
+        if (rend_rect_empty(&dirty[t])) continue;
         rect d = dirty[t]; /* in samples, widened to whole pixels (f->sw = s·width) */
         d.x0 -= d.x0 % ss;
         d.y0 -= d.y0 % ss;
@@ -558,9 +605,11 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
                 gl->UniformMatrix4fv(f->loc_val_vp, 1, GL_FALSE, vp);
             }
             gl->BindVertexArray(ts->vao);
-            gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * ts->copy.triangle_count), GL_UNSIGNED_INT, NULL);
+            if (ts->copy.triangle_count)
+                gl->DrawElements(GL_TRIANGLES, (GLsizei)(3 * ts->copy.triangle_count), GL_UNSIGNED_INT, NULL);
             if (per_pixel)
                 for (GLuint b = 0; b < 3; ++b) gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 1 + b, 0);
+            if (ts->whole_count) rend_whole_draw(f, ts, vp, y0); /* over the leaves, where the triangle is whole */
             if (!f->val_fbo) {
                 if (part) gl->Disable(GL_SCISSOR_TEST);
                 continue;
@@ -579,13 +628,13 @@ static lm_result draw(rend_frame *f, const scene_camera *cam, const cache_snapsh
             gl->UseProgram(f->prog_resolve);
             gl->Uniform1ui(f->loc_res_term, (GLuint)t);
             gl->Uniform1i(f->loc_res_band, y0);
-            GLuint inputs[2] = {f->mat_tex, f->val_tex};
-            gl->BindTextures(0, 2, inputs);
+            GLuint inputs[3] = {f->mat_tex, f->val_tex, f->scene_tex};
+            gl->BindTextures(0, 3, inputs);
             gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, f->material_ssbo);
             gl->BindVertexArray(f->empty_vao);
             gl->DrawArrays(GL_TRIANGLES, 0, 3);
             gl->BindBufferBase(GL_SHADER_STORAGE_BUFFER, 0, 0);
-            gl->BindTextures(0, 2, NULL);
+            gl->BindTextures(0, 3, NULL);
             gl->Disable(GL_SCISSOR_TEST);
             if (sum) gl->Disable(GL_BLEND);
         }

@@ -51,7 +51,25 @@ typedef struct term_state {
     int lobes;                     /* the mesh drawn came with lobes: drawn by prog_highlight */
     int highlights_owed;           /* tex drawn without them (rend_frame_defer_highlights): redrawn next */
     int drawn;                     /* tex holds the copy drawn (and resolved) with val_vp */
+    /* Whole roots (cache_snapshot_mesh.whole): drawn by rend_whole.frag from the
+     * scene, the mask and the values by vertex id in buffers read as textures;
+     * their CPU copies (made as copy_v's, when first compared). */
+    GLuint whole_buf, values_buf, whole_tex, values_tex;
+    size_t whole_buf_cap, values_buf_cap; /* bytes */
+    uint32_t whole_count, value_count;     /* what the buffers hold (0 whole: none) */
+    const uint32_t *whole_src;     /* the snapshot array they came from */
+    uint32_t *copy_whole;          /* words: (scene triangles + 31) / 32 */
+    float *copy_values;            /* 3 per id */
+    size_t copy_whole_cap, copy_values_cap; /* elements */
+    int whole_owed;                /* the copies not made yet (read back when first compared) */
 } term_state;
+
+/* Rectangles (rend_frame.c). */
+int rend_rect_empty(const rect *r);
+/* Grows r by the pixels the triangle of these corners (scene units) can touch
+ * in the w×h sample image seen through vp, with a margin of 2 pixels. */
+void rend_rect_add_corners(rect *r, const float vp[16], const float *const corner[3], int w, int h);
+void rend_rect_union(rect *a, const rect *b); /* a grown by b */
 
 struct rend_frame {
     rend_frame_desc desc;            /* supersample resolved */
@@ -59,6 +77,15 @@ struct rend_frame {
     int sw, sh;                      /* sample images: s·width × s·height */
     GLuint prog_material, prog_value, prog_resolve, prog_composite;
     GLint loc_mat_vp, loc_val_vp, loc_res_term, loc_res_band, loc_comp_terms;
+    /* Whole roots (rend_whole.frag): the program, the scene's corners read as a
+     * buffer texture (scene_vbo's), and each scene corner's vertex-table id
+     * (cache_snapshot.corner_ids, uploaded when its serial changes). */
+    GLuint prog_whole;
+    GLint loc_whole_vp, loc_whole_band, loc_whole_samples;
+    GLuint scene_tex, corner_buf, corner_tex;
+    uint64_t corner_serial;
+    uint8_t *id_changed;             /* scratch of whole_changed_rect: per vertex id */
+    size_t id_changed_cap;
     /* Highlights per pixel (rend_value.frag, HIGHLIGHT): the program, and the
      * lights' outlines (cache_build_outlines of the scene) and radiance. */
     GLuint prog_highlight;
@@ -66,7 +93,8 @@ struct rend_frame {
     GLuint hl_ssbo[3];               /* lights, loops, points */
     uint32_t hl_light_count;
     float *hl_radiance;              /* hl_light_count × RGB in the lights' buffer */
-    GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle */
+    GLuint scene_vbo, scene_vao;     /* 3 material_vertex per scene triangle (the material pass draws them
+                                        in order: its codes are triangles, rend_material.vert) */
     GLuint material_ssbo;            /* material_entry per scene material (dynamic: rend_frame_set_emission) */
     unsigned components;             /* REND_FRAME_COMPONENT_* drawn by the composite */
     float jitter[2];                 /* rend_frame_set_jitter: output pixels, right and down */
@@ -107,5 +135,24 @@ struct rend_frame {
     uint64_t snap_generation;        /* snapshot the copies came from, when snap_valid */
     rend_frame_times times;
 };
+
+/* ---- rend_frame_whole.c: whole roots (cache_snapshot_mesh.whole), drawn from the scene ---- */
+
+/* The snapshot's corner ids into corner_buf, when they are not those there
+ * (returns 1: the whole roots drawn before had other ids). */
+int rend_whole_upload_corners(rend_frame *f, const cache_snapshot *snap);
+/* Whether m's whole roots are what ts's buffers hold (their bytes; the copies read
+ * back when first compared). */
+lm_result rend_whole_same(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m, int *same, lm_error *err);
+/* The region of the sample image where m's whole roots differ from ts's: the
+ * bounding rectangle of every triangle whole in one and not the other, or whole
+ * in both with a corner's value changed. */
+lm_result rend_whole_changed_rect(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m,
+                                  const uint32_t *corner_ids, const float vp[16], rect *out, lm_error *err);
+/* m's whole roots into ts's buffers (none: emptied); their copies owed. */
+void rend_whole_upload(rend_frame *f, term_state *ts, const cache_snapshot_mesh *m);
+/* The whole roots' pass of ts into the bound framebuffer (its band from sample
+ * row y0): no depth test; the caller's viewport and scissor. */
+void rend_whole_draw(rend_frame *f, term_state *ts, const float vp[16], int y0);
 
 #endif

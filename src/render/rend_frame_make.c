@@ -15,6 +15,7 @@ static const char *const material_names[] = {"rend_material.vert", "rend_materia
 static const char *const value_names[] = {"rend_value.vert", "rend_value.frag", NULL};
 static const char *const resolve_names[] = {"rend_composite.vert", "rend_resolve.frag", NULL};
 static const char *const composite_names[] = {"rend_composite.vert", "rend_composite.frag", NULL};
+static const char *const whole_names[] = {"rend_composite.vert", "rend_whole.frag", NULL};
 
 static void free_images(rend_frame *f);
 
@@ -24,11 +25,14 @@ void rend_frame_destroy(rend_frame *f)
     const GladGLContext *gl = f->gl;
     if (gl) {
         free_images(f);
-        GLuint progs[5] = {f->prog_material, f->prog_value, f->prog_resolve, f->prog_composite, f->prog_highlight};
-        for (int i = 0; i < 5; ++i)
+        GLuint progs[6] = {f->prog_material, f->prog_value,     f->prog_resolve,
+                           f->prog_composite, f->prog_highlight, f->prog_whole};
+        for (int i = 0; i < 6; ++i)
             if (progs[i]) gl->DeleteProgram(progs[i]);
-        GLuint bufs[2] = {f->scene_vbo, f->material_ssbo}, vaos[2] = {f->scene_vao, f->empty_vao};
-        gl->DeleteBuffers(2, bufs);
+        GLuint bufs[3] = {f->scene_vbo, f->material_ssbo, f->corner_buf}, vaos[2] = {f->scene_vao, f->empty_vao};
+        gl->DeleteBuffers(3, bufs);
+        GLuint texs[2] = {f->scene_tex, f->corner_tex};
+        gl->DeleteTextures(2, texs);
         gl->DeleteBuffers(3, f->hl_ssbo);
         gl->DeleteVertexArrays(2, vaos);
         for (int t = 0; t < TERMS; ++t) {
@@ -37,6 +41,9 @@ void rend_frame_destroy(rend_frame *f)
             gl->DeleteBuffers(1, &ts->ibo);
             gl->DeleteBuffers(1, &ts->lobe_vbo);
             gl->DeleteVertexArrays(1, &ts->vao);
+            GLuint wb[2] = {ts->whole_buf, ts->values_buf}, wt[2] = {ts->whole_tex, ts->values_tex};
+            gl->DeleteBuffers(2, wb);
+            gl->DeleteTextures(2, wt);
         }
     }
     free(f->hl_radiance);
@@ -45,7 +52,10 @@ void rend_frame_destroy(rend_frame *f)
         free(f->term[t].copy_v);
         free(f->term[t].copy_i);
         free(f->term[t].hash);
+        free(f->term[t].copy_whole);
+        free(f->term[t].copy_values);
     }
+    free(f->id_changed);
     free(f->new_hash);
     free(f->hash_key);
     free(f->hash_tri);
@@ -144,6 +154,14 @@ static lm_result upload_scene(rend_frame *f, const scene *s, lm_error *err)
 {
     const GladGLContext *gl = f->gl;
     size_t nv = 3 * (size_t)s->tri_count, nm = s->material_count;
+    /* The material pass's codes are 2·(triangle + 1) | 1 in 32 bits, and the
+     * corners are texels of a buffer texture. */
+    GLint texels = 0;
+    gl->GetIntegerv(GL_MAX_TEXTURE_BUFFER_SIZE, &texels);
+    if (s->tri_count >= (1u << 31) - 1u || nv > (size_t)texels)
+        return lm_fail(err, LM_ERR_INVALID_ARG,
+                       "renderer: %u triangles are more than this GL draws (%d corners in a buffer texture)",
+                       s->tri_count, (int)texels);
     material_vertex *verts = malloc((nv ? nv : 1) * sizeof *verts);
     material_entry *mats = calloc(nm ? nm : 1, sizeof *mats);
     if (!verts || !mats) {
@@ -172,6 +190,11 @@ static lm_result upload_scene(rend_frame *f, const scene *s, lm_error *err)
     free(verts);
     free(mats);
     gl->VertexArrayVertexBuffer(f->scene_vao, 0, f->scene_vbo, 0, sizeof(material_vertex));
+    /* The same corners as texels (position bits, code) for the composite's
+     * materials and the whole roots' pass. */
+    gl->DeleteTextures(1, &f->scene_tex);
+    gl->CreateTextures(GL_TEXTURE_BUFFER, 1, &f->scene_tex);
+    gl->TextureBuffer(f->scene_tex, GL_RGBA32UI, f->scene_vbo);
     f->desc.scene = s;
     return upload_lights(f, s, err);
 }
@@ -183,9 +206,6 @@ static void make_scene_vao(rend_frame *f)
     gl->EnableVertexArrayAttrib(f->scene_vao, 0);
     gl->VertexArrayAttribFormat(f->scene_vao, 0, 3, GL_FLOAT, GL_FALSE, (GLuint)offsetof(material_vertex, position));
     gl->VertexArrayAttribBinding(f->scene_vao, 0, 0);
-    gl->EnableVertexArrayAttrib(f->scene_vao, 1);
-    gl->VertexArrayAttribIFormat(f->scene_vao, 1, 1, GL_UNSIGNED_INT, (GLuint)offsetof(material_vertex, code));
-    gl->VertexArrayAttribBinding(f->scene_vao, 1, 0);
 }
 
 /* What a renderer made ahead of its scene does instead (rend_frame_create with
@@ -218,7 +238,12 @@ static lm_result prime(rend_frame *f, lm_error *err)
     const cache_lobe lobe = {.normal = {0.0f, 0.0f, 1.0f}, .exponent = 10.0f, .visible = 1.0f};
     const cache_lobe lobes[3] = {lobe, lobe, lobe};
     spec.lobes = lobes;
-    const cache_snapshot snap = {.generation = 1, .direct = one, .indirect = one, .specular = spec};
+    /* The indirect term as a whole root: its pass is compiled too. */
+    const uint32_t mask = 1u, corners[3] = {0, 1, 2};
+    const float values[9] = {1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f, 1.0f};
+    const cache_snapshot_mesh whole = {.whole = &mask, .values = values, .whole_count = 1, .value_count = 3};
+    const cache_snapshot snap = {.generation = 1, .direct = one, .indirect = whole, .specular = spec,
+                                 .corner_ids = corners, .corner_ids_serial = UINT64_MAX};
     lm_result r = upload_scene(f, &stand_in, err);
     if (r == LM_OK) r = rend_frame_draw(f, &cam, &snap, NULL, err);
     f->desc.scene = NULL;
@@ -342,6 +367,7 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     if (r == LM_OK) r = glprog_build(gl, "renderer", value_names, "", &f->prog_value, err);
     if (r == LM_OK && ss > 1) r = glprog_build(gl, "renderer", resolve_names, defines, &f->prog_resolve, err);
     if (r == LM_OK) r = glprog_build(gl, "renderer", composite_names, defines, &f->prog_composite, err);
+    if (r == LM_OK) r = glprog_build(gl, "renderer", whole_names, "", &f->prog_whole, err);
     /* Materials with a Phong exponent below CACHE_HIGHLIGHT_MIN_EXPONENT keep the
      * specular mesh's interpolated value: a lobe that broad varies little across a
      * leaf, and its integral would cost a pass over the light's outline in every
@@ -365,6 +391,9 @@ lm_result rend_frame_create(const GladGLContext *gl, const rend_frame_desc *desc
     if (ss > 1) f->loc_res_term = gl->GetUniformLocation(f->prog_resolve, "u_term");
     if (ss > 1) f->loc_res_band = gl->GetUniformLocation(f->prog_resolve, "u_band_y0");
     f->loc_comp_terms = gl->GetUniformLocation(f->prog_composite, "u_terms");
+    f->loc_whole_vp = gl->GetUniformLocation(f->prog_whole, "u_viewproj");
+    f->loc_whole_band = gl->GetUniformLocation(f->prog_whole, "u_band_y0");
+    f->loc_whole_samples = gl->GetUniformLocation(f->prog_whole, "u_samples");
     gl->CreateVertexArrays(1, &f->empty_vao);
     for (int t = 0; t < TERMS; ++t) gl->CreateVertexArrays(1, &f->term[t].vao);
     r = make_images(f, err);
@@ -402,7 +431,11 @@ lm_result rend_frame_set_scene(rend_frame *f, const scene *s, lm_error *err)
         ts->copy = (cache_snapshot_mesh){0};
         ts->src = NULL;
         ts->hash_valid = 0;
+        ts->whole_count = ts->value_count = 0;
+        ts->whole_src = NULL;
+        ts->whole_owed = 0;
     }
+    f->corner_serial = 0; /* the stand-in's corners, or another scene's */
     if (r == LM_OK && f->gl->GetError() != GL_NO_ERROR)
         r = lm_fail(err, LM_ERR_RUNTIME, "renderer: a GL error occurred uploading %u triangles (out of memory?)",
                     s->tri_count);

@@ -265,6 +265,7 @@ static lm_result make_worker(rend_session *rs, const uint32_t *pixels, uint32_t 
                                                     .pixels_later = pixels == NULL, .max_tested = d->max_tested,
                                                     .first_budget = first_budget,
                                                     .publish_debug = d->publish_debug, .cache = cd,
+                                                    .whole_roots = 1, /* rend_frame draws them from the scene */
                                                     .jnd_floor = d->jnd_floor > 0 ? d->jnd_floor : 0},
                                &rs->wk, err);
 }
