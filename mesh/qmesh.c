@@ -63,6 +63,9 @@ struct mesh_qmesh {
     uint32_t nodes_live, leaves, used, sampled_count;
     uint32_t hist[MESH_QMESH_DEPTHS];
     uint64_t splits, merges;
+    uint32_t *owed;         /* ids whose vertex-table reference is owed (mesh_qmesh_add_roots_apart) */
+    uint32_t owed_count;
+    size_t owed_cap;
     uint64_t serial;        /* unique among the meshes made in this process */
     uint64_t changes;       /* splits, merges and values written (mesh_qmesh_version) */
 };
@@ -289,6 +292,69 @@ lm_result mesh_qmesh_add_roots(mesh_qmesh *m, const uint32_t *tris, uint32_t n, 
     return LM_OK;
 }
 
+/* A root on t for mesh_qmesh_add_roots_apart (the pool has room): its corners
+ * the scene corners' vertices, the references of those new to the mesh owed.
+ * Checked before anything changes, so a failure leaves the mesh as it was. */
+static lm_result add_root_apart(mesh_qmesh *m, uint32_t t, lm_error *err)
+{
+    if (m->nodes_live >= m->node_cap)
+        return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: a root past the node cap of %u", m->node_cap);
+    uint32_t v[3], top = 0;
+    for (int c = 0; c < 3; ++c) {
+        v[c] = mesh_vtable_corner_id(m->vt, t, c);
+        if (v[c] == MESH_VTABLE_NONE)
+            return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: corner %d of triangle %u has no vertex to share", c, t);
+        if (v[c] + 1 > top) top = v[c] + 1;
+    }
+    lm_result r = ensure_vcap(m, top, err);
+    if (r != LM_OK) return r;
+    if (!LM_GROW(m->owed, m->owed_cap, (size_t)m->owed_count + 3))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory adding roots");
+    mesh_qnode *n = &m->nodes[m->node_hw];
+    *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1, .a1 = 0, .depth = 0,
+                      .orient = 0, .flags = MESH_QNODE_LIVE, .v = {v[0], v[1], v[2]}};
+    for (int c = 0; c < 3; ++c) {
+        if (m->use[v[c]] == 0) m->owed[m->owed_count++] = v[c];
+        use_add(m, v[c], 1);
+    }
+    m->root_of_tri[t] = m->node_hw;
+    m->root_count++, m->node_hw++, m->nodes_live++, m->leaves++, m->hist[0]++;
+    m->changes++;
+    return LM_OK;
+}
+
+lm_result mesh_qmesh_add_roots_apart(mesh_qmesh *m, const uint32_t *tris, uint32_t n, lm_error *err)
+{
+    if (!m || (n && !tris)) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: add_roots needs a mesh and triangles");
+    if (n && (size_t)m->node_hw + n > m->node_alloc) {
+        size_t na = (size_t)m->node_hw + n;
+        if (na > UINT32_MAX - 4 || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
+            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
+        m->node_alloc = (uint32_t)na;
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        const uint32_t t = tris[i];
+        if (t >= m->s->tri_count)
+            return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: a root on triangle %u of %u", t, m->s->tri_count);
+        if (m->root_of_tri[t] != MESH_QMESH_NONE) continue;
+        lm_result r = add_root_apart(m, t, err);
+        if (r != LM_OK) return r;
+    }
+    return LM_OK;
+}
+
+lm_result mesh_qmesh_take_references(mesh_qmesh *m, lm_error *err)
+{
+    if (!m) return LM_OK;
+    lm_result r = LM_OK;
+    for (uint32_t i = 0; i < m->owed_count; ++i) {
+        lm_result ri = mesh_vtable_retain(m->vt, m->owed[i], err);
+        if (r == LM_OK) r = ri;
+    }
+    m->owed_count = 0;
+    return r;
+}
+
 lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_error *err)
 {
     if (out) *out = NULL;
@@ -381,6 +447,8 @@ fail:
 void mesh_qmesh_destroy(mesh_qmesh *m)
 {
     if (!m) return;
+    mesh_qmesh_take_references(m, NULL); /* each use below then holds one */
+    free(m->owed);
     for (uint32_t id = 0; id < m->vcap; ++id)
         if (m->use[id] > 0) mesh_vtable_release(m->vt, id, NULL);
     free(m->nodes);

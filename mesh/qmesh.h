@@ -128,6 +128,17 @@ lm_result mesh_qmesh_create(const mesh_qmesh_desc *desc, mesh_qmesh **out, lm_er
  * added so far stay. */
 lm_result mesh_qmesh_add_roots(mesh_qmesh *m, const uint32_t *tris, uint32_t n, const struct mesh_qmesh *like,
                                lm_error *err);
+/* mesh_qmesh_add_roots on a thread of its own while another thread works on
+ * another mesh of the same vertex table (the cache's first roots: the indirect
+ * mesh's beside the light and direct meshes', docs/cache.md): the table is only
+ * read. Every corner must have its vertex already (mesh_vtable_corner_id; else
+ * LM_ERR_INVALID_ARG, the mesh unchanged by that root), and the references
+ * the vertices new to this mesh owe the table are taken by
+ * mesh_qmesh_take_references, on the table's thread, once the other thread is
+ * done and before anything else uses the mesh (mesh_qmesh_destroy takes them
+ * too). The mesh is then what mesh_qmesh_add_roots(m, tris, n, NULL) makes. */
+lm_result mesh_qmesh_add_roots_apart(mesh_qmesh *m, const uint32_t *tris, uint32_t n, lm_error *err);
+lm_result mesh_qmesh_take_references(mesh_qmesh *m, lm_error *err);
 /* Releases the mesh's vertex references. NULL is a no-op. Worker thread only. */
 void mesh_qmesh_destroy(mesh_qmesh *m);
 

@@ -791,6 +791,36 @@ static void test_add_roots(scene *s, mesh_vtable *vt)
         }
     }
     CHECK(same);
+    /* Apart (the vertex table only read): the same mesh, its references taken after. */
+    mesh_qmesh *apart = NULL;
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .channels = 3, .no_roots = 1}, &apart, &err) == LM_OK);
+    const uint32_t id0 = mesh_qmesh_node(full, mesh_qmesh_root(full, 0))->v[0];
+    const uint32_t refs_before = mesh_vtable_vertex(vt, id0)->refs;
+    CHECK(apart && mesh_qmesh_add_roots_apart(apart, all, s->tri_count, &err) == LM_OK);
+    const uint32_t refs_apart = mesh_vtable_vertex(vt, id0)->refs;
+    CHECK(mesh_qmesh_take_references(apart, &err) == LM_OK);
+    int same_apart = apart && mesh_qmesh_node_limit(apart) == mesh_qmesh_node_limit(full) &&
+                     mesh_qmesh_get_version(apart).changes == mesh_qmesh_get_version(lazy).changes - v0.changes;
+    for (uint32_t t = 0; t < s->tri_count && apart; ++t) {
+        const uint32_t rf = mesh_qmesh_root(full, t), ra = mesh_qmesh_root(apart, t);
+        same_apart &= rf == ra && memcmp(mesh_qmesh_node(full, rf), mesh_qmesh_node(apart, ra), sizeof(mesh_qnode)) == 0;
+        for (int k = 0; k < 3; ++k) {
+            const uint32_t id = mesh_qmesh_node(full, rf)->v[k];
+            same_apart &= mesh_qmesh_vertex_use(apart, id) == mesh_qmesh_vertex_use(full, id);
+        }
+    }
+    CHECK_MSG(same_apart && refs_apart == refs_before && mesh_vtable_vertex(vt, id0)->refs == refs_before + 1,
+              "roots added apart: same mesh %d, references %u, %u while owed, %u after", same_apart, refs_before,
+              refs_apart, mesh_vtable_vertex(vt, id0)->refs);
+    CHECK(mesh_qmesh_add_roots_apart(apart, &(uint32_t){s->tri_count}, 1, &err) == LM_ERR_INVALID_ARG);
+    CHECK(mesh_qmesh_add_roots_apart(NULL, all, 1, &err) == LM_ERR_INVALID_ARG);
+    mesh_qmesh_destroy(apart);
+    apart = NULL; /* destroyed while its references are owed: it takes them first (the end's live count) */
+    CHECK(mesh_qmesh_create(&(mesh_qmesh_desc){.vtable = vt, .channels = 3, .no_roots = 1}, &apart, &err) == LM_OK);
+    CHECK(apart && mesh_qmesh_add_roots_apart(apart, all, s->tri_count, &err) == LM_OK);
+    mesh_qmesh_destroy(apart);
+    CHECK_MSG(mesh_vtable_vertex(vt, id0)->refs == refs_before, "references %u after a mesh that owed them, want %u",
+              mesh_vtable_vertex(vt, id0)->refs, refs_before);
     /* Added again: nothing changes. */
     CHECK(mesh_qmesh_add_roots(lazy, all, s->tri_count, full, &err) == LM_OK);
     mesh_qmesh_get_stats(lazy, &sl);
