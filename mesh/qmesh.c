@@ -824,6 +824,8 @@ const float *mesh_qmesh_values(const mesh_qmesh *m, uint32_t *count)
     return m ? m->values : NULL;
 }
 
+uint32_t mesh_qmesh_unsplit_roots(const mesh_qmesh *m) { return m ? m->hist[0] : 0; }
+
 lm_result mesh_qmesh_split_leaf_triangles_from(const mesh_qmesh *m, uint32_t *next_node, size_t max_tris,
                                                uint32_t *whole, uint32_t *whole_count, mesh_qmesh_tri **buf,
                                                size_t *cap, size_t *count, lm_error *err)

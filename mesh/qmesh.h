@@ -212,6 +212,9 @@ lm_result mesh_qmesh_split_leaf_triangles_from(const mesh_qmesh *m, uint32_t *ne
  * mesh_qmesh_get_value writes; 0 where the mesh uses no such vertex). Valid
  * until the mesh changes. */
 const float *mesh_qmesh_values(const mesh_qmesh *m, uint32_t *count);
+/* Roots that are leaves (stats.leaves_at_depth[0], O(1)): the whole roots and
+ * those with a vertex on an edge, an upper bound of the first. */
+uint32_t mesh_qmesh_unsplit_roots(const mesh_qmesh *m);
 
 /* Walks every vertex (for bytes_vtable_share): statistics, not for hot paths. */
 void mesh_qmesh_get_stats(const mesh_qmesh *m, mesh_qmesh_stats *out);

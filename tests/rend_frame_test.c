@@ -259,7 +259,10 @@ static void refine_and_compare(const GladGLContext *gl, const scene *s, const ui
         printf("  whole roots: %d of %d snapshots had some; drawn as listed triangles instead, %d differ by more "
                "than 1e-4 of the brightest\n",
                with_whole, draws, listed_apart);
-        CHECK(with_whole > 0 && listed_apart == 0);
+        CHECK(listed_apart == 0);
+        /* Published apart only where it pays (cache_worker_publish.c, whole_pays):
+         * a scene of a few roots lists them. */
+        CHECK_MSG(with_whole > 0 || s->tri_count < 64, "%u triangles, no snapshot with whole roots", s->tri_count);
     }
     /* Added as read (rend_frame_draw_adding, render's accumulated draws): the
      * picture plus itself, exactly twice it. */

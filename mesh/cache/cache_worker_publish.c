@@ -98,10 +98,24 @@ static void fit_array(void **p, size_t *cap, size_t used, size_t elem)
  * triangle's corners are mostly near each other in the array too), a piece of
  * PUBLISH_PIECE triangles at a time. Without debug it does exactly what the
  * renderer needs: positions, values, scene triangles. */
+/* Whether m's whole roots are better published apart (cache_worker_desc.whole_roots):
+ * a whole root listed costs its index, its scene triangle and about half of a
+ * vertex shared with its neighbours (12 + 4 + 12 bytes), apart a twelfth of
+ * the values by id, which are one array over every id: apart when the roots
+ * that are leaves would cost more listed (a big scene's first images). Late in
+ * a refinement few roots are whole, and the values by id would cost more than
+ * listing them (Water after 20 s: a few MB a slot). */
+static int whole_pays(const mesh_qmesh *m)
+{
+    uint32_t ids = 0;
+    mesh_qmesh_values(m, &ids);
+    return 28.0 * mesh_qmesh_unsplit_roots(m) >= 12.0 * ids && mesh_qmesh_unsplit_roots(m) > 0;
+}
+
 static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, int whole, const cache *c,
                            const mesh_qmesh *m, fill_scratch *ps, lm_error *err)
 {
-    whole = whole && !debug && m && mesh_qmesh_channels(m) == 3;
+    whole = whole && !debug && m && mesh_qmesh_channels(m) == 3 && whole_pays(m);
     /* This slot already holds the mesh as it is (a slot is filled every third
      * publication, and one mesh often rests meanwhile: the indirect one while the
      * first image's light is recomputed, the direct one while values are gathered
@@ -126,6 +140,11 @@ static lm_result fill_mesh(mesh_store *ms, cache_snapshot_mesh *sm, int debug, i
     const size_t words = ((size_t)mesh_vtable_scene(cache_vtable(c))->tri_count + 31) / 32;
     uint32_t whole_count = 0, value_count = 0;
     const float *values = whole ? mesh_qmesh_values(m, &value_count) : NULL;
+    if (!whole && ms->values) { /* listed from now on (whole_pays): the arrays go */
+        free(ms->whole);
+        free(ms->values);
+        ms->whole = NULL, ms->values = NULL, ms->whole_cap = ms->values_cap = 0;
+    }
     if (whole) {
         if (!LM_GROW_RAW(ms->whole, ms->whole_cap, words ? words : 1) ||
             !LM_GROW_RAW(ms->values, ms->values_cap, 3 * (size_t)(value_count ? value_count : 1)))
