@@ -1552,6 +1552,41 @@ static void cornell_exact_Ei(const scene *s, const rt_scene *rt, samp_sampler *d
     free(G);
 }
 
+/* cache_desc.corner_ids: made with the first roots (beside them, on a helper
+ * thread), each scene corner's vertex-table id, handed over once. */
+static void test_corner_ids(void)
+{
+    scene *s = NULL;
+    lm_error err;
+    CHECK(scene_load(&(scene_load_desc){.path = NULL, .require_light = 1}, &s, &err) == LM_OK);
+    samp_sampler *sp = NULL;
+    cache *c = NULL, *plain = NULL;
+    if (s) CHECK(samp_create(&(samp_desc){.scene = s, .backend = SAMP_BACKEND_EMBREE}, &sp, &err) == LM_OK);
+    if (sp) CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp, .corner_ids = 1}, &c, &err) == LM_OK);
+    if (sp) CHECK(cache_create(&(cache_desc){.scene = s, .sampler = sp}, &plain, &err) == LM_OK);
+    if (!c || !plain) goto done;
+    CHECK(cache_take_corner_ids(c) == NULL); /* not before the first roots */
+    CHECK(cache_init(c, &err) == LM_OK && cache_init(plain, &err) == LM_OK);
+    uint32_t *ids = cache_take_corner_ids(c);
+    int same = ids != NULL, roots = 0;
+    for (uint32_t t = 0; same && t < s->tri_count; ++t) {
+        const mesh_qnode *n = mesh_qmesh_node(cache_direct_mesh(c), mesh_qmesh_root(cache_direct_mesh(c), t));
+        for (int k = 0; k < 3; ++k) {
+            same &= ids[3 * (size_t)t + (size_t)k] == mesh_vtable_corner_id(cache_vtable(c), t, k);
+            if (n) same &= ids[3 * (size_t)t + (size_t)k] == n->v[k], roots += k == 0;
+        }
+    }
+    printf("corner ids: made with the first roots, %s the roots' corners (%d roots), taken once: %s\n",
+           same ? "equal to" : "NOT equal to", roots, cache_take_corner_ids(c) == NULL ? "yes" : "no");
+    CHECK(same && roots > 0 && cache_take_corner_ids(c) == NULL && cache_take_corner_ids(plain) == NULL);
+    free(ids);
+done:
+    cache_destroy(c);
+    cache_destroy(plain);
+    samp_destroy(sp);
+    scene_destroy(s);
+}
+
 static void test_cornell_box(void)
 {
     scene *s = NULL;
@@ -1797,6 +1832,7 @@ int main(void)
     test_room_bounces(0.05f, 1, 1);
     test_room_bounces(0.8f, 3, CACHE_BOUNCES_MAX);
     test_emitter_side();
+    test_corner_ids();
     test_cornell_box();
     return test_finish("cache_test");
 }

@@ -140,6 +140,9 @@ typedef struct cache_desc {
                                  scene's first camera (a front end rendering another camera
                                  sets it, or its highlights are refined for the wrong eye) */
     float eye[3];             /* scene units; finite */
+    int corner_ids;           /* non-zero: the cache makes each scene corner's vertex-table id with its
+                                 first roots, for cache_take_corner_ids (a worker publishing whole
+                                 roots: cache_worker_desc.whole_roots); 0 = not made */
 } cache_desc;
 
 typedef struct cache cache;
@@ -509,6 +512,12 @@ const mesh_qmesh *cache_indirect_mesh(const cache *c);
 const mesh_qmesh *cache_specular_mesh(const cache *c); /* NULL: no glossy material */
 const mesh_qmesh *cache_light_mesh(const cache *c, uint32_t light);
 const mesh_vtable *cache_vtable(const cache *c);
+/* With cache_desc.corner_ids, once the cache has its first roots (cache_init,
+ * cache_init_seen): 3 per scene triangle, each corner's vertex-table id
+ * (mesh_vtable_corner_id; MESH_VTABLE_NONE where none), handed over to the
+ * caller, who frees it (NULL: not made, or taken already). The ids stay those
+ * of the corners while the cache lives: it holds a reference on each. */
+uint32_t *cache_take_corner_ids(cache *c);
 
 #ifdef __cplusplus
 }

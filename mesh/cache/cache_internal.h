@@ -436,6 +436,8 @@ struct cache {
     cache_light_state vis;
     cache_outlines outl;
     cache_source_state src;
+    uint32_t *corner_ids;      /* desc.corner_ids: made with the first roots (first_roots' helper),
+                                  until cache_take_corner_ids hands them over */
     cache_sched sched;
     cache_bounce_state bnc;
     cache_borrow_state brw;

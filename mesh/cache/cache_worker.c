@@ -59,6 +59,7 @@ static lm_result start_cache(cache_worker *w, samp_sampler **sp, cache **c, uint
         cache_desc cd = w->desc.cache;
         cd.scene = w->s;
         cd.sampler = first;
+        cd.corner_ids = w->desc.whole_roots; /* made beside the first roots (make_corner_ids takes them) */
         if (later_bounces) cd.bounces = 1;
         /* The first image from a fixed budget of gathers; every value is gathered
          * right after it (cache_regather_indirect or cache_set_bounces, below). */

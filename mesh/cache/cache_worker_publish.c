@@ -245,12 +245,18 @@ static lm_result fill_light_meshes(snapshot_store *st, const cache *c, uint32_t 
 /* Each scene corner's vertex-table id, once for the worker's life: a root's
  * corners are these (mesh_qmesh_add_roots), and the cache holds a reference on
  * each, so they never change. */
-static lm_result make_corner_ids(cache_worker *w, const cache *c, lm_error *err)
+static lm_result make_corner_ids(cache_worker *w, cache *c, lm_error *err)
 {
     static _Atomic uint64_t next_serial;
     if (w->corner_ids) return LM_OK;
     const uint32_t n = w->s->tri_count;
-    uint32_t *ids = malloc(3 * (size_t)(n ? n : 1) * sizeof *ids);
+    uint32_t *ids = cache_take_corner_ids(c); /* made beside the first roots (cache_desc.corner_ids) */
+    if (ids) {
+        w->corner_ids = ids;
+        w->corner_ids_serial = atomic_fetch_add(&next_serial, 1) + 1;
+        return LM_OK;
+    }
+    ids = malloc(3 * (size_t)(n ? n : 1) * sizeof *ids);
     if (!ids) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
     const mesh_vtable *vt = cache_vtable(c);
     for (uint32_t t = 0; t < n; ++t)
