@@ -133,9 +133,11 @@ static cache_snapshot_mesh list_whole(const scene *s, const cache_snapshot *snap
     keep->index = malloc(3 * n * sizeof *keep->index);
     keep->tri = malloc(n * sizeof *keep->tri);
     if (!keep->v || !keep->index || !keep->tri) return out;
-    memcpy(keep->v, m->vertices, m->vertex_count * sizeof *keep->v);
-    memcpy(keep->index, m->index, 3 * (size_t)m->triangle_count * sizeof *keep->index);
-    memcpy(keep->tri, m->tri, m->triangle_count * sizeof *keep->tri);
+    if (m->triangle_count) { /* none listed: every root whole, and the arrays NULL */
+        memcpy(keep->v, m->vertices, m->vertex_count * sizeof *keep->v);
+        memcpy(keep->index, m->index, 3 * (size_t)m->triangle_count * sizeof *keep->index);
+        memcpy(keep->tri, m->tri, m->triangle_count * sizeof *keep->tri);
+    }
     size_t at = m->triangle_count, vat = m->vertex_count;
     for (uint32_t t = 0; t < s->tri_count; ++t) {
         if (!(m->whole[t / 32] >> (t % 32) & 1u)) continue;
