@@ -216,6 +216,34 @@ static lm_result clone_roots(mesh_qmesh *m, const mesh_qmesh *like, lm_error *er
 /* A root on scene triangle t (which has none), as node node_hw: its corners'
  * ids from like where it has a root on t (the same corners in the same order: a
  * root is (a0 1, orient 0)), else looked up. */
+/* Node node_hw written as a root on t (corners left to the caller), not yet
+ * counted: count_root does that once its corners are held. */
+static mesh_qnode *new_root(mesh_qmesh *m, uint32_t t)
+{
+    mesh_qnode *n = &m->nodes[m->node_hw];
+    *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1,
+                      .a1 = 0, .depth = 0, .orient = 0, .flags = MESH_QNODE_LIVE};
+    return n;
+}
+
+static void count_root(mesh_qmesh *m, uint32_t t)
+{
+    m->root_of_tri[t] = m->node_hw;
+    m->root_count++, m->node_hw++, m->nodes_live++, m->leaves++, m->hist[0]++;
+}
+
+/* Room in the pool for n more roots at once: a first set of a million roots
+ * grows it once, to its size, as mesh_qmesh_create does. */
+static lm_result reserve_roots(mesh_qmesh *m, uint32_t n, lm_error *err)
+{
+    if (!n || (size_t)m->node_hw + n <= m->node_alloc) return LM_OK;
+    size_t na = (size_t)m->node_hw + n;
+    if (na > UINT32_MAX - 4 || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
+        return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
+    m->node_alloc = (uint32_t)na;
+    return LM_OK;
+}
+
 static lm_result add_root(mesh_qmesh *m, uint32_t t, const mesh_qmesh *like_mesh, lm_error *err)
 {
     if (m->nodes_live >= m->node_cap)
@@ -226,10 +254,7 @@ static lm_result add_root(mesh_qmesh *m, uint32_t t, const mesh_qmesh *like_mesh
             return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
         m->node_alloc = (uint32_t)na;
     }
-    const uint32_t id = m->node_hw;
-    mesh_qnode *n = &m->nodes[id];
-    *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1,
-                      .a1 = 0, .depth = 0, .orient = 0, .flags = MESH_QNODE_LIVE};
+    mesh_qnode *n = new_root(m, t);
     const uint32_t like = like_mesh ? like_mesh->root_of_tri[t] : MESH_QMESH_NONE;
     for (int c = 0; c < 3; ++c) {
         int fresh;
@@ -250,8 +275,7 @@ static lm_result add_root(mesh_qmesh *m, uint32_t t, const mesh_qmesh *like_mesh
         }
         use_add(m, n->v[c], 1);
     }
-    m->root_of_tri[t] = id;
-    m->root_count++, m->node_hw++, m->nodes_live++, m->leaves++, m->hist[0]++;
+    count_root(m, t);
     return LM_OK;
 }
 
@@ -260,14 +284,8 @@ lm_result mesh_qmesh_add_roots(mesh_qmesh *m, const uint32_t *tris, uint32_t n, 
 {
     if (!m || (n && !tris)) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: add_roots needs a mesh and triangles");
     const mesh_qmesh *like_mesh = like && like->vt == m->vt ? like : NULL;
-    /* Room for all of them at once: a first set of a million roots grows the
-     * pool once, to its size, as mesh_qmesh_create does. */
-    if (n && (size_t)m->node_hw + n > m->node_alloc) {
-        size_t na = (size_t)m->node_hw + n;
-        if (na > UINT32_MAX - 4 || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
-            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
-        m->node_alloc = (uint32_t)na;
-    }
+    lm_result rr = reserve_roots(m, n, err);
+    if (rr != LM_OK) return rr;
     /* The first roots of a mesh, exactly like's (never split): copied whole, as
      * mesh_qmesh_create does (clone_roots; the indirect mesh like the direct one). */
     if (like_mesh && m->node_hw == 0 && n && n == like_mesh->root_count && like_mesh->node_hw == n &&
@@ -310,15 +328,13 @@ static lm_result add_root_apart(mesh_qmesh *m, uint32_t t, lm_error *err)
     if (r != LM_OK) return r;
     if (!LM_GROW(m->owed, m->owed_cap, (size_t)m->owed_count + 3))
         return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory adding roots");
-    mesh_qnode *n = &m->nodes[m->node_hw];
-    *n = (mesh_qnode){.parent = MESH_QMESH_NONE, .child = MESH_QMESH_NONE, .tri = t, .a0 = 1, .a1 = 0, .depth = 0,
-                      .orient = 0, .flags = MESH_QNODE_LIVE, .v = {v[0], v[1], v[2]}};
+    mesh_qnode *n = new_root(m, t);
     for (int c = 0; c < 3; ++c) {
+        n->v[c] = v[c];
         if (m->use[v[c]] == 0) m->owed[m->owed_count++] = v[c];
         use_add(m, v[c], 1);
     }
-    m->root_of_tri[t] = m->node_hw;
-    m->root_count++, m->node_hw++, m->nodes_live++, m->leaves++, m->hist[0]++;
+    count_root(m, t);
     m->changes++;
     return LM_OK;
 }
@@ -326,12 +342,8 @@ static lm_result add_root_apart(mesh_qmesh *m, uint32_t t, lm_error *err)
 lm_result mesh_qmesh_add_roots_apart(mesh_qmesh *m, const uint32_t *tris, uint32_t n, lm_error *err)
 {
     if (!m || (n && !tris)) return lm_fail(err, LM_ERR_INVALID_ARG, "cache mesh: add_roots needs a mesh and triangles");
-    if (n && (size_t)m->node_hw + n > m->node_alloc) {
-        size_t na = (size_t)m->node_hw + n;
-        if (na > UINT32_MAX - 4 || !lm_realloc_array_raw(&m->nodes, m->node_alloc, na, sizeof *m->nodes))
-            return lm_fail(err, LM_ERR_NO_MEMORY, "cache mesh: out of memory for %zu nodes", na);
-        m->node_alloc = (uint32_t)na;
-    }
+    lm_result rr = reserve_roots(m, n, err);
+    if (rr != LM_OK) return rr;
     for (uint32_t i = 0; i < n; ++i) {
         const uint32_t t = tris[i];
         if (t >= m->s->tri_count)

@@ -207,12 +207,8 @@ static void *apart_main(void *arg)
     if (j->r == LM_OK && j->m) j->r = mesh_qmesh_add_roots_apart(j->m, list, n, &j->err);
     free(list);
     if (j->r == LM_OK && j->corner_ids) { /* the table only read, as the roots above */
-        const uint32_t nt = j->c->s->tri_count;
-        uint32_t *ids = malloc(3 * (size_t)(nt ? nt : 1) * sizeof *ids);
-        if (!ids) j->r = lm_fail(&j->err, LM_ERR_NO_MEMORY, "out of memory for the scene corners' vertex ids");
-        for (uint32_t t = 0; ids && t < nt; ++t)
-            for (int k = 0; k < 3; ++k) ids[3 * (size_t)t + (size_t)k] = mesh_vtable_corner_id(j->c->vt, t, k);
-        *j->corner_ids = ids;
+        *j->corner_ids = cache_make_corner_ids(j->c);
+        if (!*j->corner_ids) j->r = lm_fail(&j->err, LM_ERR_NO_MEMORY, "out of memory for the scene corners' vertex ids");
     }
     return NULL;
 }
@@ -679,6 +675,15 @@ void cache_get_light_radiance(const cache *c, uint32_t light, float out[3])
     if (light < c->light_count) memcpy(out, c->light_le + 3 * (size_t)light, 3 * sizeof *out);
     else memset(out, 0, 3 * sizeof *out);
 }
+uint32_t *cache_make_corner_ids(const cache *c)
+{
+    const uint32_t nt = c->s->tri_count;
+    uint32_t *ids = malloc(3 * (size_t)(nt ? nt : 1) * sizeof *ids);
+    for (uint32_t t = 0; ids && t < nt; ++t)
+        for (int k = 0; k < 3; ++k) ids[3 * (size_t)t + (size_t)k] = mesh_vtable_corner_id(c->vt, t, k);
+    return ids;
+}
+
 uint32_t *cache_take_corner_ids(cache *c)
 {
     uint32_t *ids = c ? c->corner_ids : NULL;

@@ -518,6 +518,9 @@ const mesh_vtable *cache_vtable(const cache *c);
  * caller, who frees it (NULL: not made, or taken already). The ids stay those
  * of the corners while the cache lives: it holds a reference on each. */
 uint32_t *cache_take_corner_ids(cache *c);
+/* The same ids made now, into a new array the caller frees (NULL: out of
+ * memory); reads the vertex table only. */
+uint32_t *cache_make_corner_ids(const cache *c);
 
 #ifdef __cplusplus
 }

@@ -249,18 +249,9 @@ static lm_result make_corner_ids(cache_worker *w, cache *c, lm_error *err)
 {
     static _Atomic uint64_t next_serial;
     if (w->corner_ids) return LM_OK;
-    const uint32_t n = w->s->tri_count;
     uint32_t *ids = cache_take_corner_ids(c); /* made beside the first roots (cache_desc.corner_ids) */
-    if (ids) {
-        w->corner_ids = ids;
-        w->corner_ids_serial = atomic_fetch_add(&next_serial, 1) + 1;
-        return LM_OK;
-    }
-    ids = malloc(3 * (size_t)(n ? n : 1) * sizeof *ids);
+    if (!ids) ids = cache_make_corner_ids(c);
     if (!ids) return lm_fail(err, LM_ERR_NO_MEMORY, "out of memory publishing the cache");
-    const mesh_vtable *vt = cache_vtable(c);
-    for (uint32_t t = 0; t < n; ++t)
-        for (int k = 0; k < 3; ++k) ids[3 * (size_t)t + (size_t)k] = mesh_vtable_corner_id(vt, t, k);
     w->corner_ids = ids;
     w->corner_ids_serial = atomic_fetch_add(&next_serial, 1) + 1;
     return LM_OK;

@@ -178,7 +178,7 @@ static lm_result changed_rect(rend_frame *f, term_state *ts, const cache_snapsho
 /* Makes *buf hold at least bytes (with half as much again to grow into);
  * immutable storage cannot grow, so a new buffer replaces it. Returns whether
  * it is a new buffer (to be bound to the VAO again). */
-static int ensure_buffer(const GladGLContext *gl, GLuint *buf, size_t *cap, size_t bytes)
+int rend_ensure_buffer(const GladGLContext *gl, GLuint *buf, size_t *cap, size_t bytes)
 {
     if (bytes <= *cap) return 0;
     if (*buf) gl->DeleteBuffers(1, buf);
@@ -268,7 +268,7 @@ static void upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh
         /* Binding 1: normal and exponent, the lights' part and their visible
          * fraction (rend_value.vert, HIGHLIGHT). */
         size_t lbytes = (size_t)nv * sizeof *m->lobes;
-        if (ensure_buffer(gl, &ts->lobe_vbo, &ts->lobe_vbo_cap, lbytes)) {
+        if (rend_ensure_buffer(gl, &ts->lobe_vbo, &ts->lobe_vbo_cap, lbytes)) {
             gl->VertexArrayVertexBuffer(ts->vao, 1, ts->lobe_vbo, 0, sizeof(cache_lobe));
             for (GLuint a = 2; a < 4; ++a) {
                 gl->EnableVertexArrayAttrib(ts->vao, a);
@@ -280,7 +280,7 @@ static void upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh
         gl->NamedBufferSubData(ts->lobe_vbo, 0, (GLsizeiptr)lbytes, m->lobes);
     }
     size_t vbytes = (size_t)nv * sizeof *m->vertices, ibytes = 3 * (size_t)n * sizeof *m->index;
-    if (ensure_buffer(gl, &ts->vbo, &ts->vbo_cap, vbytes)) {
+    if (rend_ensure_buffer(gl, &ts->vbo, &ts->vbo_cap, vbytes)) {
         gl->VertexArrayVertexBuffer(ts->vao, 0, ts->vbo, 0, sizeof(cache_snapshot_vertex));
         for (GLuint a = 0; a < 2; ++a) {
             gl->EnableVertexArrayAttrib(ts->vao, a);
@@ -289,7 +289,7 @@ static void upload_mesh(rend_frame *f, term_state *ts, const cache_snapshot_mesh
             gl->VertexArrayAttribBinding(ts->vao, a, 0);
         }
     }
-    if (ensure_buffer(gl, &ts->ibo, &ts->ibo_cap, ibytes)) gl->VertexArrayElementBuffer(ts->vao, ts->ibo);
+    if (rend_ensure_buffer(gl, &ts->ibo, &ts->ibo_cap, ibytes)) gl->VertexArrayElementBuffer(ts->vao, ts->ibo);
     gl->NamedBufferSubData(ts->vbo, 0, (GLsizeiptr)vbytes, m->vertices);
     gl->NamedBufferSubData(ts->ibo, 0, (GLsizeiptr)ibytes, m->index);
     ts->copy = (cache_snapshot_mesh){.triangle_count = n, .vertex_count = nv}; /* the counts: what is drawn */

@@ -70,6 +70,9 @@ int rend_rect_empty(const rect *r);
  * in the w×h sample image seen through vp, with a margin of 2 pixels. */
 void rend_rect_add_corners(rect *r, const float vp[16], const float *const corner[3], int w, int h);
 void rend_rect_union(rect *a, const rect *b); /* a grown by b */
+/* Makes *buf hold at least bytes (with half as much again to grow into): a new
+ * immutable buffer when it must grow. Returns whether it is new (rend_frame.c). */
+int rend_ensure_buffer(const GladGLContext *gl, GLuint *buf, size_t *cap, size_t bytes);
 
 struct rend_frame {
     rend_frame_desc desc;            /* supersample resolved */

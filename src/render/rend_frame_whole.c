@@ -14,17 +14,13 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* Makes *buf hold at least bytes, with its texture view tex of format fmt (both
- * made again when it grows: immutable storage). */
+/* rend_ensure_buffer, with the buffer's texture view tex of format fmt made
+ * again when the buffer is new. */
 static void ensure_texture_buffer(const GladGLContext *gl, GLuint *buf, GLuint *tex, size_t *cap, size_t bytes,
                                   GLenum fmt)
 {
-    if (bytes <= *cap && *buf) return;
-    gl->DeleteBuffers(1, buf);
+    if (!rend_ensure_buffer(gl, buf, cap, bytes ? bytes : 16)) return;
     gl->DeleteTextures(1, tex);
-    gl->CreateBuffers(1, buf);
-    *cap = bytes + bytes / 2;
-    gl->NamedBufferStorage(*buf, (GLsizeiptr)(*cap ? *cap : 16), NULL, GL_DYNAMIC_STORAGE_BIT);
     gl->CreateTextures(GL_TEXTURE_BUFFER, 1, tex);
     gl->TextureBuffer(*tex, fmt, *buf);
 }
